@@ -1,0 +1,154 @@
+//! Rust mirrors of the structs and constants shared with GLSL. Both sides come from
+//! `layout_spec.rs`; the test below fails when a mirror drifts from the std430 layout.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec4};
+
+/// The shared layout specification (also read by build.rs).
+pub mod spec {
+    include!("layout_spec.rs");
+}
+
+include!(concat!(env!("OUT_DIR"), "/constants.rs"));
+
+/// One point on the GPU (24 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPoint {
+    pub x: f32,
+    pub y: f32,
+    pub z: f32,
+    pub normal_oct: u32,
+    pub radius_kind: u32,
+    pub color: u32,
+}
+
+/// One light, resolved to view space on the CPU.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    pub position: Vec4,
+    pub color_kind: Vec4,
+}
+
+/// Per-frame uniforms.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub view: Mat4,
+    pub proj: Mat4,
+    pub view_proj: Mat4,
+    pub viewport: Vec4,
+    pub params: Vec4,
+    pub base_color: Vec4,
+    pub flags: u32,
+    pub light_count: u32,
+    pub point_count: u32,
+    pub pad0: u32,
+}
+
+/// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameBlock {
+    pub u: FrameUniforms,
+    pub lights: [GpuLight; MAX_LIGHTS as usize],
+}
+
+/// Size and alignment of a GLSL type under std430 (only the types the spec allows).
+pub fn std430_size_align(ty: &str) -> Option<(usize, usize)> {
+    Some(match ty {
+        "float" | "uint" | "int" => (4, 4),
+        "vec2" | "uvec2" => (8, 8),
+        "vec4" | "uvec4" => (16, 16),
+        "mat4" => (64, 16),
+        _ => return None,
+    })
+}
+
+/// std430 offsets of every field of `s`, and the struct size.
+pub fn std430_layout(s: &spec::StructSpec) -> Option<(Vec<usize>, usize)> {
+    let mut offset: usize = 0;
+    let mut max_align = 4;
+    let mut offsets = Vec::new();
+    for f in s.fields {
+        let (size, align) = std430_size_align(f.ty)?;
+        offset = offset.div_ceil(align) * align;
+        offsets.push(offset);
+        offset += size;
+        max_align = max_align.max(align);
+    }
+    Some((offsets, offset.div_ceil(max_align) * max_align))
+}
+
+/// Field names, offsets and size of a Rust mirror.
+macro_rules! mirror {
+    ($t:ty { $($field:ident),* $(,)? }) => {
+        (
+            stringify!($t),
+            vec![$((stringify!($field), std::mem::offset_of!($t, $field))),*],
+            std::mem::size_of::<$t>(),
+        )
+    };
+}
+
+/// Every Rust mirror: (struct name, [(field, offset)], size).
+pub fn mirrors() -> Vec<(&'static str, Vec<(&'static str, usize)>, usize)> {
+    vec![
+        mirror!(GpuPoint {
+            x,
+            y,
+            z,
+            normal_oct,
+            radius_kind,
+            color
+        }),
+        mirror!(GpuLight {
+            position,
+            color_kind
+        }),
+        mirror!(FrameUniforms {
+            view,
+            proj,
+            view_proj,
+            viewport,
+            params,
+            base_color,
+            flags,
+            light_count,
+            point_count,
+            pad0
+        }),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rust_mirrors_match_the_std430_layout_of_the_spec() {
+        let mirrors = mirrors();
+        assert_eq!(mirrors.len(), spec::STRUCTS.len(), "a spec struct has no mirror");
+        for (name, fields, size) in mirrors {
+            let s = spec::STRUCTS
+                .iter()
+                .find(|s| s.name == name)
+                .unwrap_or_else(|| panic!("{name} is not in layout_spec.rs"));
+            let (offsets, spec_size) = std430_layout(s).expect("spec uses std430-safe types");
+            let spec_names: Vec<_> = s.fields.iter().map(|f| f.name).collect();
+            let rust_names: Vec<_> = fields.iter().map(|(n, _)| *n).collect();
+            assert_eq!(rust_names, spec_names, "{name}: field names/order drifted");
+            let rust_offsets: Vec<_> = fields.iter().map(|(_, o)| *o).collect();
+            assert_eq!(rust_offsets, offsets, "{name}: offsets drifted");
+            assert_eq!(size, spec_size, "{name}: size drifted");
+        }
+    }
+
+    #[test]
+    fn frame_block_places_lights_after_the_uniforms() {
+        assert_eq!(std::mem::offset_of!(FrameBlock, lights), 256);
+        assert_eq!(std::mem::size_of::<GpuPoint>(), 24);
+        assert_eq!(TARGET_NORMAL, 2);
+    }
+}

@@ -1,0 +1,283 @@
+//! Buffers and images backed by gpu-allocator, per-mip image views, staged upload and readback.
+
+use std::sync::Arc;
+
+use anyhow::{anyhow, Result};
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::Context;
+
+/// A buffer and its memory. Freed on drop.
+pub struct Buffer {
+    ctx: Arc<Context>,
+    pub raw: vk::Buffer,
+    pub size: u64,
+    allocation: Option<Allocation>,
+}
+
+impl Buffer {
+    /// Creates a buffer of `size` bytes (at least 4) in `location`.
+    pub fn new(
+        ctx: &Arc<Context>,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Self> {
+        let size = size.max(4);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid create info; the buffer is bound to memory before use and destroyed in Drop.
+        unsafe {
+            let raw = ctx.device.create_buffer(&info, None)?;
+            let requirements = ctx.device.get_buffer_memory_requirements(raw);
+            let allocation = ctx.with_allocator(|a| {
+                a.allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+                .map_err(|e| anyhow!("allocating {size} bytes for buffer '{name}': {e}"))
+            });
+            let allocation = match allocation {
+                Ok(a) => a,
+                Err(e) => {
+                    ctx.device.destroy_buffer(raw, None);
+                    return Err(e);
+                }
+            };
+            ctx.device
+                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())?;
+            Ok(Self {
+                ctx: ctx.clone(),
+                raw,
+                size,
+                allocation: Some(allocation),
+            })
+        }
+    }
+
+    /// Host-visible bytes of a CpuToGpu/GpuToCpu buffer.
+    pub fn mapped(&self) -> Result<&[u8]> {
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .ok_or_else(|| anyhow!("buffer is not host visible"))
+    }
+
+    /// Writes `data` at the start of a host-visible buffer.
+    pub fn write(&mut self, data: &[u8]) -> Result<()> {
+        let slice = self
+            .allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .ok_or_else(|| anyhow!("buffer is not host visible"))?;
+        if data.len() > slice.len() {
+            return Err(anyhow!(
+                "write of {} bytes into a {} byte buffer",
+                data.len(),
+                slice.len()
+            ));
+        }
+        slice[..data.len()].copy_from_slice(data);
+        Ok(())
+    }
+
+    /// A device-local buffer filled with `data` through a staging buffer.
+    pub fn with_data(
+        ctx: &Arc<Context>,
+        name: &str,
+        data: &[u8],
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Self> {
+        let buffer = Self::new(
+            ctx,
+            name,
+            data.len() as u64,
+            usage | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )?;
+        if data.is_empty() {
+            return Ok(buffer);
+        }
+        let mut staging = Self::new(
+            ctx,
+            "staging",
+            data.len() as u64,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        )?;
+        staging.write(data)?;
+        ctx.one_shot(|cmd| {
+            let region = [vk::BufferCopy::default().size(data.len() as u64)];
+            // SAFETY: both buffers are live and large enough; the submission is waited on
+            // before the staging buffer drops, and queue submission orders it before later use.
+            unsafe {
+                ctx.device
+                    .cmd_copy_buffer(cmd, staging.raw, buffer.raw, &region)
+            };
+        })?;
+        Ok(buffer)
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: the owner guarantees the GPU no longer uses the buffer (frames are waited on).
+        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
+        }
+    }
+}
+
+/// What an image is created for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ImageDesc {
+    pub format: vk::Format,
+    pub width: u32,
+    pub height: u32,
+    pub mip_levels: u32,
+    pub usage: vk::ImageUsageFlags,
+}
+
+impl ImageDesc {
+    /// Full mip chain length for a width x height image.
+    pub fn full_mip_count(width: u32, height: u32) -> u32 {
+        32 - width.max(height).max(1).leading_zeros()
+    }
+
+    /// Extent of `level`.
+    pub fn level_extent(&self, level: u32) -> (u32, u32) {
+        ((self.width >> level).max(1), (self.height >> level).max(1))
+    }
+
+    pub fn aspect(&self) -> vk::ImageAspectFlags {
+        aspect_of(self.format)
+    }
+}
+
+/// The aspect a format's views and barriers use.
+pub fn aspect_of(format: vk::Format) -> vk::ImageAspectFlags {
+    match format {
+        vk::Format::D32_SFLOAT | vk::Format::D16_UNORM | vk::Format::X8_D24_UNORM_PACK32 => {
+            vk::ImageAspectFlags::DEPTH
+        }
+        vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT => {
+            vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+        }
+        _ => vk::ImageAspectFlags::COLOR,
+    }
+}
+
+/// A 2D image with a view of the whole mip chain and one view per mip level.
+pub struct Image {
+    ctx: Arc<Context>,
+    pub raw: vk::Image,
+    pub desc: ImageDesc,
+    pub view: vk::ImageView,
+    pub mip_views: Vec<vk::ImageView>,
+    allocation: Option<Allocation>,
+}
+
+impl Image {
+    pub fn new(ctx: &Arc<Context>, name: &str, desc: ImageDesc) -> Result<Self> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(desc.format)
+            .extent(vk::Extent3D {
+                width: desc.width,
+                height: desc.height,
+                depth: 1,
+            })
+            .mip_levels(desc.mip_levels)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(desc.usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid create info; views/memory are destroyed in Drop.
+        unsafe {
+            let raw = ctx.device.create_image(&info, None)?;
+            let requirements = ctx.device.get_image_memory_requirements(raw);
+            let allocation = ctx.with_allocator(|a| {
+                a.allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location: MemoryLocation::GpuOnly,
+                    linear: false,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+                .map_err(|e| anyhow!("allocating image '{name}': {e}"))
+            });
+            let allocation = match allocation {
+                Ok(a) => a,
+                Err(e) => {
+                    ctx.device.destroy_image(raw, None);
+                    return Err(e);
+                }
+            };
+            ctx.device
+                .bind_image_memory(raw, allocation.memory(), allocation.offset())?;
+            let make_view = |base: u32, count: u32| {
+                let view = vk::ImageViewCreateInfo::default()
+                    .image(raw)
+                    .view_type(vk::ImageViewType::TYPE_2D)
+                    .format(desc.format)
+                    .subresource_range(vk::ImageSubresourceRange {
+                        aspect_mask: desc.aspect(),
+                        base_mip_level: base,
+                        level_count: count,
+                        base_array_layer: 0,
+                        layer_count: 1,
+                    });
+                ctx.device.create_image_view(&view, None)
+            };
+            let view = make_view(0, desc.mip_levels)?;
+            let mip_views = (0..desc.mip_levels)
+                .map(|l| make_view(l, 1))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(Self {
+                ctx: ctx.clone(),
+                raw,
+                desc,
+                view,
+                mip_views,
+                allocation: Some(allocation),
+            })
+        }
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        // SAFETY: the GPU no longer uses the image (owners wait for their frames).
+        unsafe {
+            for v in self.mip_views.drain(..) {
+                self.ctx.device.destroy_image_view(v, None);
+            }
+            self.ctx.device.destroy_image_view(self.view, None);
+            self.ctx.device.destroy_image(self.raw, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
+        }
+    }
+}
+
+/// Bytes per texel of the formats the renderer reads back.
+pub fn texel_size(format: vk::Format) -> Result<u32> {
+    Ok(match format {
+        vk::Format::R8G8B8A8_UNORM | vk::Format::R8G8B8A8_SRGB | vk::Format::B8G8R8A8_UNORM => 4,
+        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::D32_SFLOAT => 4,
+        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,
+        vk::Format::R32G32B32A32_SFLOAT => 16,
+        other => return Err(anyhow!("no texel size known for {other:?}")),
+    })
+}

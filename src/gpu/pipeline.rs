@@ -1,0 +1,304 @@
+//! Shader modules (embedded SPIR-V), push-descriptor layouts, graphics pipelines with dynamic
+//! rendering, compute pipelines and mesh-shader pipelines.
+
+use std::sync::Arc;
+
+use anyhow::{anyhow, Context as _, Result};
+use ash::vk;
+
+use super::Context;
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// SPIR-V of the shader at `path` (relative to `glsl/`, e.g. `splat/points.vert`).
+pub fn spirv(path: &str) -> Result<Vec<u32>> {
+    let bytes = embedded::SHADERS
+        .iter()
+        .find(|(p, _)| *p == path)
+        .map(|(_, b)| *b)
+        .ok_or_else(|| anyhow!("no embedded shader named {path}"))?;
+    ash::util::read_spv(&mut std::io::Cursor::new(bytes)).with_context(|| format!("bad SPIR-V in {path}"))
+}
+
+/// Names of every embedded shader.
+pub fn shader_names() -> impl Iterator<Item = &'static str> {
+    embedded::SHADERS.iter().map(|(p, _)| *p)
+}
+
+/// One binding of the push-descriptor set 0.
+#[derive(Clone, Copy, Debug)]
+pub struct Binding {
+    pub binding: u32,
+    pub ty: vk::DescriptorType,
+    pub stages: vk::ShaderStageFlags,
+}
+
+impl Binding {
+    pub fn new(binding: u32, ty: vk::DescriptorType, stages: vk::ShaderStageFlags) -> Self {
+        Self {
+            binding,
+            ty,
+            stages,
+        }
+    }
+}
+
+/// Size of the push-constant block every pipeline may use (all stages).
+pub const PUSH_CONSTANT_BYTES: u32 = 128;
+
+/// A pipeline with its layout; destroyed on drop.
+pub struct Pipeline {
+    ctx: Arc<Context>,
+    pub raw: vk::Pipeline,
+    pub layout: vk::PipelineLayout,
+    pub set_layout: vk::DescriptorSetLayout,
+    pub bind_point: vk::PipelineBindPoint,
+    pub stages: vk::ShaderStageFlags,
+}
+
+impl Drop for Pipeline {
+    fn drop(&mut self) {
+        // SAFETY: pipelines are dropped after the frames using them completed.
+        unsafe {
+            self.ctx.device.destroy_pipeline(self.raw, None);
+            self.ctx.device.destroy_pipeline_layout(self.layout, None);
+            self.ctx
+                .device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
+fn layouts(
+    ctx: &Context,
+    bindings: &[Binding],
+    stages: vk::ShaderStageFlags,
+) -> Result<(vk::DescriptorSetLayout, vk::PipelineLayout)> {
+    let vk_bindings: Vec<_> = bindings
+        .iter()
+        .map(|b| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(b.binding)
+                .descriptor_type(b.ty)
+                .descriptor_count(1)
+                .stage_flags(b.stages)
+        })
+        .collect();
+    // SAFETY: valid create infos; objects are owned by the returned Pipeline.
+    unsafe {
+        let set_layout = ctx.device.create_descriptor_set_layout(
+            &vk::DescriptorSetLayoutCreateInfo::default()
+                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                .bindings(&vk_bindings),
+            None,
+        )?;
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(stages)
+            .size(PUSH_CONSTANT_BYTES)];
+        let set_layouts = [set_layout];
+        let layout = ctx.device.create_pipeline_layout(
+            &vk::PipelineLayoutCreateInfo::default()
+                .set_layouts(&set_layouts)
+                .push_constant_ranges(&ranges),
+            None,
+        )?;
+        Ok((set_layout, layout))
+    }
+}
+
+struct Modules<'a> {
+    ctx: &'a Context,
+    modules: Vec<vk::ShaderModule>,
+}
+
+impl<'a> Modules<'a> {
+    fn load(ctx: &'a Context, paths: &[&str]) -> Result<Self> {
+        let mut modules = Modules {
+            ctx,
+            modules: Vec::new(),
+        };
+        for p in paths {
+            let code = spirv(p)?;
+            // SAFETY: code is valid SPIR-V produced by build.rs.
+            let m = unsafe {
+                ctx.device
+                    .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)?
+            };
+            modules.modules.push(m);
+        }
+        Ok(modules)
+    }
+}
+
+impl Drop for Modules<'_> {
+    fn drop(&mut self) {
+        for m in self.modules.drain(..) {
+            // SAFETY: modules may be destroyed once the pipeline is created.
+            unsafe { self.ctx.device.destroy_shader_module(m, None) };
+        }
+    }
+}
+
+fn stage_of(path: &str) -> Result<vk::ShaderStageFlags> {
+    let ext = path.rsplit('.').next().unwrap_or("");
+    Ok(match ext {
+        "vert" => vk::ShaderStageFlags::VERTEX,
+        "frag" => vk::ShaderStageFlags::FRAGMENT,
+        "geom" => vk::ShaderStageFlags::GEOMETRY,
+        "comp" => vk::ShaderStageFlags::COMPUTE,
+        "task" => vk::ShaderStageFlags::TASK_EXT,
+        "mesh" => vk::ShaderStageFlags::MESH_EXT,
+        _ => return Err(anyhow!("unknown shader stage for {path}")),
+    })
+}
+
+/// How a graphics pipeline blends into one color attachment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blend {
+    /// Overwrite.
+    Replace,
+    /// dst += src (accumulation passes).
+    Additive,
+}
+
+/// Everything that defines a graphics pipeline.
+#[derive(Clone, Debug)]
+pub struct GraphicsDesc<'a> {
+    /// Shader paths; vertex or mesh (+ optional task/geometry) and fragment.
+    pub shaders: &'a [&'a str],
+    pub bindings: &'a [Binding],
+    pub color_formats: &'a [vk::Format],
+    pub blends: &'a [Blend],
+    pub depth_format: Option<vk::Format>,
+    pub depth_test: bool,
+    pub depth_write: bool,
+    /// Reversed-Z: nearer is greater.
+    pub depth_compare: vk::CompareOp,
+    pub topology: vk::PrimitiveTopology,
+    pub cull: vk::CullModeFlags,
+}
+
+impl Pipeline {
+    /// A graphics pipeline for dynamic rendering with viewport/scissor dynamic.
+    pub fn graphics(ctx: &Arc<Context>, desc: &GraphicsDesc<'_>) -> Result<Self> {
+        let mut stages = vk::ShaderStageFlags::empty();
+        for p in desc.shaders {
+            stages |= stage_of(p)?;
+        }
+        let (set_layout, layout) = layouts(ctx, desc.bindings, stages)?;
+        let modules = Modules::load(ctx, desc.shaders)?;
+        let stage_infos = desc
+            .shaders
+            .iter()
+            .zip(&modules.modules)
+            .map(|(p, m)| {
+                Ok(vk::PipelineShaderStageCreateInfo::default()
+                    .stage(stage_of(p)?)
+                    .module(*m)
+                    .name(c"main"))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(desc.topology);
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(desc.cull)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(desc.depth_test)
+            .depth_write_enable(desc.depth_write)
+            .depth_compare_op(desc.depth_compare);
+        let attachments: Vec<_> = desc
+            .color_formats
+            .iter()
+            .enumerate()
+            .map(|(i, _)| {
+                let base = vk::PipelineColorBlendAttachmentState::default()
+                    .color_write_mask(vk::ColorComponentFlags::RGBA);
+                match desc.blends.get(i).copied().unwrap_or(Blend::Replace) {
+                    Blend::Replace => base,
+                    Blend::Additive => base
+                        .blend_enable(true)
+                        .src_color_blend_factor(vk::BlendFactor::ONE)
+                        .dst_color_blend_factor(vk::BlendFactor::ONE)
+                        .color_blend_op(vk::BlendOp::ADD)
+                        .src_alpha_blend_factor(vk::BlendFactor::ONE)
+                        .dst_alpha_blend_factor(vk::BlendFactor::ONE)
+                        .alpha_blend_op(vk::BlendOp::ADD),
+                }
+            })
+            .collect();
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(desc.color_formats)
+            .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
+        let is_mesh = stages.contains(vk::ShaderStageFlags::MESH_EXT);
+        let mut info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stage_infos)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(layout)
+            .push_next(&mut rendering);
+        if !is_mesh {
+            info = info
+                .vertex_input_state(&vertex_input)
+                .input_assembly_state(&assembly);
+        }
+        // SAFETY: every referenced state lives until this call returns.
+        let raw = unsafe {
+            ctx.device
+                .create_graphics_pipelines(vk::PipelineCache::null(), &[info], None)
+                .map_err(|(_, e)| anyhow!("creating pipeline {:?}: {e}", desc.shaders))?[0]
+        };
+        Ok(Self {
+            ctx: ctx.clone(),
+            raw,
+            layout,
+            set_layout,
+            bind_point: vk::PipelineBindPoint::GRAPHICS,
+            stages,
+        })
+    }
+
+    /// A compute pipeline from one `.comp` shader.
+    pub fn compute(ctx: &Arc<Context>, shader: &str, bindings: &[Binding]) -> Result<Self> {
+        let stages = vk::ShaderStageFlags::COMPUTE;
+        let (set_layout, layout) = layouts(ctx, bindings, stages)?;
+        let modules = Modules::load(ctx, &[shader])?;
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(stages)
+            .module(modules.modules[0])
+            .name(c"main");
+        let info = vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout);
+        // SAFETY: valid create info.
+        let raw = unsafe {
+            ctx.device
+                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
+                .map_err(|(_, e)| anyhow!("creating compute pipeline {shader}: {e}"))?[0]
+        };
+        Ok(Self {
+            ctx: ctx.clone(),
+            raw,
+            layout,
+            set_layout,
+            bind_point: vk::PipelineBindPoint::COMPUTE,
+            stages,
+        })
+    }
+}

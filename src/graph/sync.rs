@@ -1,0 +1,250 @@
+//! Barrier derivation: from the accesses passes declare to synchronization2 barriers and image
+//! layout transitions. Pure CPU logic, unit-tested without a device.
+
+use ash::vk;
+
+/// How a pass uses a resource.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Color attachment (written; read too when loaded).
+    ColorAttachment,
+    /// Depth attachment, tested and written.
+    DepthAttachment,
+    /// Sampled image read in `stages`.
+    Sampled(Stages),
+    /// Storage image/buffer read.
+    StorageRead(Stages),
+    /// Storage image/buffer written (not read).
+    StorageWrite(Stages),
+    /// Storage image/buffer read and written (atomics, in-place updates).
+    StorageReadWrite(Stages),
+    /// Uniform/storage buffer read by shaders as per-frame constants.
+    UniformRead(Stages),
+    /// Index buffer of an indexed draw.
+    IndexRead,
+    /// Indirect draw/dispatch arguments.
+    IndirectRead,
+    TransferSrc,
+    TransferDst,
+    /// Host reads after the frame's fence (readback buffers).
+    HostRead,
+    /// Handed to the presentation engine.
+    Present,
+}
+
+/// Shader stages a shader access happens in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stages {
+    Vertex,
+    Fragment,
+    Compute,
+    /// Vertex, task, mesh, geometry and fragment (a whole graphics pipeline).
+    Graphics,
+}
+
+impl Stages {
+    fn flags(self) -> vk::PipelineStageFlags2 {
+        match self {
+            Stages::Vertex => vk::PipelineStageFlags2::VERTEX_SHADER,
+            Stages::Fragment => vk::PipelineStageFlags2::FRAGMENT_SHADER,
+            Stages::Compute => vk::PipelineStageFlags2::COMPUTE_SHADER,
+            Stages::Graphics => {
+                vk::PipelineStageFlags2::VERTEX_SHADER
+                    | vk::PipelineStageFlags2::GEOMETRY_SHADER
+                    | vk::PipelineStageFlags2::TASK_SHADER_EXT
+                    | vk::PipelineStageFlags2::MESH_SHADER_EXT
+                    | vk::PipelineStageFlags2::FRAGMENT_SHADER
+            }
+        }
+    }
+}
+
+/// Stage, access and layout of an access.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AccessInfo {
+    pub stages: vk::PipelineStageFlags2,
+    pub access: vk::AccessFlags2,
+    /// Image layout (ignored for buffers).
+    pub layout: vk::ImageLayout,
+    pub writes: bool,
+}
+
+impl Access {
+    /// Stage/access/layout of this access (`depth` selects depth-aspect layouts).
+    pub fn info(self) -> AccessInfo {
+        use vk::AccessFlags2 as A;
+        use vk::ImageLayout as L;
+        use vk::PipelineStageFlags2 as S;
+        let (stages, access, layout, writes) = match self {
+            Access::ColorAttachment => (
+                S::COLOR_ATTACHMENT_OUTPUT,
+                A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE,
+                L::COLOR_ATTACHMENT_OPTIMAL,
+                true,
+            ),
+            Access::DepthAttachment => (
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                L::DEPTH_ATTACHMENT_OPTIMAL,
+                true,
+            ),
+            Access::Sampled(s) => (s.flags(), A::SHADER_SAMPLED_READ, L::SHADER_READ_ONLY_OPTIMAL, false),
+            Access::StorageRead(s) => (s.flags(), A::SHADER_STORAGE_READ, L::GENERAL, false),
+            Access::StorageWrite(s) => (s.flags(), A::SHADER_STORAGE_WRITE, L::GENERAL, true),
+            Access::StorageReadWrite(s) => (
+                s.flags(),
+                A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE,
+                L::GENERAL,
+                true,
+            ),
+            Access::UniformRead(s) => (s.flags(), A::SHADER_STORAGE_READ | A::UNIFORM_READ, L::UNDEFINED, false),
+            Access::IndexRead => (S::INDEX_INPUT, A::INDEX_READ, L::UNDEFINED, false),
+            Access::IndirectRead => (S::DRAW_INDIRECT, A::INDIRECT_COMMAND_READ, L::UNDEFINED, false),
+            Access::TransferSrc => (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, false),
+            Access::TransferDst => (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, true),
+            Access::HostRead => (S::HOST, A::HOST_READ, L::GENERAL, false),
+            Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, false),
+        };
+        AccessInfo {
+            stages,
+            access,
+            layout,
+            writes,
+        }
+    }
+}
+
+/// What happened to one subresource (an image mip level or a whole buffer) so far.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SubState {
+    pub layout: vk::ImageLayout,
+    /// Stages and accesses of the last write (empty if none yet).
+    pub write_stages: vk::PipelineStageFlags2,
+    pub write_access: vk::AccessFlags2,
+    /// Stages that read since the last write (for write-after-read hazards).
+    pub read_stages: vk::PipelineStageFlags2,
+    /// Stages/accesses the last write has already been made visible to.
+    pub visible_stages: vk::PipelineStageFlags2,
+    pub visible_access: vk::AccessFlags2,
+}
+
+impl SubState {
+    /// Nothing known: contents undefined.
+    pub const UNDEFINED: SubState = SubState {
+        layout: vk::ImageLayout::UNDEFINED,
+        write_stages: vk::PipelineStageFlags2::NONE,
+        write_access: vk::AccessFlags2::NONE,
+        read_stages: vk::PipelineStageFlags2::NONE,
+        visible_stages: vk::PipelineStageFlags2::NONE,
+        visible_access: vk::AccessFlags2::NONE,
+    };
+}
+
+/// One derived barrier for a subresource.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Transition {
+    pub src_stages: vk::PipelineStageFlags2,
+    pub src_access: vk::AccessFlags2,
+    pub dst_stages: vk::PipelineStageFlags2,
+    pub dst_access: vk::AccessFlags2,
+    pub old_layout: vk::ImageLayout,
+    pub new_layout: vk::ImageLayout,
+}
+
+/// Applies `access` to a subresource in `state`; returns the barrier needed before it, if any.
+/// `is_image` decides whether layouts matter.
+pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Transition> {
+    let info = access.info();
+    let new_layout = if is_image { info.layout } else { vk::ImageLayout::UNDEFINED };
+    let layout_change = is_image && state.layout != new_layout;
+    let mut barrier = None;
+    if info.writes || layout_change {
+        // Write-after-write / write-after-read / layout transition: wait for everything before.
+        let src_stages = state.write_stages | state.read_stages;
+        if layout_change || !src_stages.is_empty() {
+            barrier = Some(Transition {
+                src_stages,
+                src_access: state.write_access,
+                dst_stages: info.stages,
+                dst_access: info.access,
+                old_layout: state.layout,
+                new_layout: if is_image { new_layout } else { vk::ImageLayout::UNDEFINED },
+            });
+        }
+        if info.writes {
+            state.write_stages = info.stages;
+            state.write_access = info.access;
+            state.read_stages = vk::PipelineStageFlags2::NONE;
+            state.visible_stages = vk::PipelineStageFlags2::NONE;
+            state.visible_access = vk::AccessFlags2::NONE;
+        } else {
+            // A transition to a read layout makes the earlier write visible to this read.
+            state.read_stages = info.stages;
+            state.visible_stages = info.stages;
+            state.visible_access = info.access;
+        }
+        state.layout = new_layout;
+        return barrier;
+    }
+    // Read after write in the same layout: make the write visible unless already done.
+    let missing_stages = info.stages & !state.visible_stages;
+    let missing_access = info.access & !state.visible_access;
+    if !state.write_stages.is_empty() && (!missing_stages.is_empty() || !missing_access.is_empty()) {
+        barrier = Some(Transition {
+            src_stages: state.write_stages,
+            src_access: state.write_access,
+            dst_stages: info.stages,
+            dst_access: info.access,
+            old_layout: state.layout,
+            new_layout: state.layout,
+        });
+        state.visible_stages |= info.stages;
+        state.visible_access |= info.access;
+    }
+    state.read_stages |= info.stages;
+    barrier
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vk::PipelineStageFlags2 as S;
+
+    #[test]
+    fn first_color_write_transitions_from_undefined_without_waiting() {
+        let mut s = SubState::UNDEFINED;
+        let t = apply(&mut s, Access::ColorAttachment, true).expect("layout transition");
+        assert_eq!(t.old_layout, vk::ImageLayout::UNDEFINED);
+        assert_eq!(t.new_layout, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+        assert_eq!(t.src_stages, S::NONE);
+    }
+
+    #[test]
+    fn sampling_after_color_write_waits_for_attachment_output() {
+        let mut s = SubState::UNDEFINED;
+        apply(&mut s, Access::ColorAttachment, true);
+        let t = apply(&mut s, Access::Sampled(Stages::Fragment), true).expect("barrier");
+        assert_eq!(t.src_stages, S::COLOR_ATTACHMENT_OUTPUT);
+        assert_eq!(t.dst_stages, S::FRAGMENT_SHADER);
+        assert_eq!(t.new_layout, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL);
+        // A second read by the same stage needs nothing more.
+        assert_eq!(apply(&mut s, Access::Sampled(Stages::Fragment), true), None);
+        // A later write must wait for the readers (write-after-read).
+        let w = apply(&mut s, Access::StorageWrite(Stages::Compute), true).expect("WAR");
+        assert_eq!(w.src_stages, S::FRAGMENT_SHADER);
+        assert_eq!(w.src_access, vk::AccessFlags2::COLOR_ATTACHMENT_READ | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE);
+    }
+
+    #[test]
+    fn buffer_read_after_read_needs_no_barrier_and_ignores_layouts() {
+        let mut s = SubState::UNDEFINED;
+        assert_eq!(apply(&mut s, Access::StorageRead(Stages::Vertex), false), None);
+        assert_eq!(apply(&mut s, Access::StorageRead(Stages::Compute), false), None);
+        let t = apply(&mut s, Access::StorageWrite(Stages::Compute), false).expect("WAR");
+        assert_eq!(t.src_stages, S::VERTEX_SHADER | S::COMPUTE_SHADER);
+        assert_eq!(t.old_layout, vk::ImageLayout::UNDEFINED);
+        let r = apply(&mut s, Access::IndirectRead, false).expect("RAW");
+        assert_eq!(r.src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);
+        assert_eq!(r.dst_access, vk::AccessFlags2::INDIRECT_COMMAND_READ);
+    }
+}

@@ -1,0 +1,65 @@
+//! The in-memory point cloud every loader produces and every method consumes.
+
+use glam::{DVec3, Vec3};
+
+/// A named per-point scalar attribute (LAS intensity, classification, PLY confidence, ...).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scalar {
+    pub name: String,
+    pub values: Vec<f32>,
+}
+
+/// What a loader had to do to the file's records, reported by `surfel info`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadStats {
+    /// Records in the file (header count for PLY/PCD/LAS).
+    pub records: usize,
+    /// Records dropped because a coordinate was NaN or infinite.
+    pub dropped_non_finite: usize,
+}
+
+/// A point cloud in a local frame: `positions` are relative to `origin` (f64, in file units),
+/// so large LiDAR coordinates keep their precision after the conversion to f32.
+#[derive(Clone, Debug, Default)]
+pub struct Cloud {
+    pub positions: Vec<Vec3>,
+    /// Unit normals, one per point, when the file has them or preprocessing computed them.
+    pub normals: Option<Vec<Vec3>>,
+    /// sRGB colors with alpha, one per point.
+    pub colors: Option<Vec<[u8; 4]>>,
+    /// World-space splat radii, one per point.
+    pub radii: Option<Vec<f32>>,
+    pub scalars: Vec<Scalar>,
+    /// Triangles indexing `positions` (mesh inputs); the evaluation's ground truth.
+    pub faces: Option<Vec<[u32; 3]>>,
+    /// Offset that was subtracted from the file's coordinates.
+    pub origin: DVec3,
+    pub stats: LoadStats,
+}
+
+impl Cloud {
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Axis-aligned bounds of the positions, `None` for an empty cloud.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.positions.first()?;
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+        )
+    }
+
+    /// Centre and radius of the sphere around the bounding box (the default camera frames it).
+    pub fn bounding_sphere(&self) -> Option<(Vec3, f32)> {
+        let (lo, hi) = self.bounds()?;
+        let centre = (lo + hi) * 0.5;
+        Some((centre, ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE)))
+    }
+}
