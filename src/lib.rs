@@ -2,3 +2,7 @@
 
 pub mod gpu;
 pub mod graph;
+pub mod eval;
+pub mod scene;
+pub mod methods;
+pub mod render;

@@ -71,21 +71,28 @@ impl Buffer {
             .ok_or_else(|| anyhow!("buffer is not host visible"))
     }
 
-    /// Writes `data` at the start of a host-visible buffer.
-    pub fn write(&mut self, data: &[u8]) -> Result<()> {
-        let slice = self
+    /// Writes `data` at the start of a host-visible buffer. The caller guarantees the GPU is
+    /// not using the buffer (its last frame's fence was waited on).
+    pub fn write(&self, data: &[u8]) -> Result<()> {
+        let allocation = self
             .allocation
-            .as_mut()
-            .and_then(|a| a.mapped_slice_mut())
+            .as_ref()
+            .ok_or_else(|| anyhow!("buffer has no memory"))?;
+        let ptr = allocation
+            .mapped_ptr()
             .ok_or_else(|| anyhow!("buffer is not host visible"))?;
-        if data.len() > slice.len() {
+        if data.len() as u64 > allocation.size() {
             return Err(anyhow!(
                 "write of {} bytes into a {} byte buffer",
                 data.len(),
-                slice.len()
+                allocation.size()
             ));
         }
-        slice[..data.len()].copy_from_slice(data);
+        // SAFETY: the mapping covers `allocation.size()` bytes, checked above; no GPU access
+        // overlaps (see the method's contract) and no Rust reference aliases the mapping.
+        unsafe {
+            std::ptr::copy_nonoverlapping(data.as_ptr(), ptr.as_ptr().cast::<u8>(), data.len())
+        };
         Ok(())
     }
 
@@ -106,7 +113,7 @@ impl Buffer {
         if data.is_empty() {
             return Ok(buffer);
         }
-        let mut staging = Self::new(
+        let staging = Self::new(
             ctx,
             "staging",
             data.len() as u64,

@@ -518,6 +518,43 @@ impl PassContext<'_> {
         unsafe { self.ctx.device.cmd_dispatch(self.cmd, x, y, z) };
     }
 
+    /// Scales mip 0 of `src` onto mip 0 of `dst` (both declared TransferSrc/TransferDst).
+    pub fn blit(&self, src: ImageId, dst: ImageId) {
+        let corner = |d: ImageDesc| {
+            [
+                vk::Offset3D::default(),
+                vk::Offset3D {
+                    x: d.width as i32,
+                    y: d.height as i32,
+                    z: 1,
+                },
+            ]
+        };
+        let layers = vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        };
+        let region = vk::ImageBlit::default()
+            .src_subresource(layers)
+            .src_offsets(corner(self.desc(src)))
+            .dst_subresource(layers)
+            .dst_offsets(corner(self.desc(dst)));
+        // SAFETY: layouts match the declared transfer accesses.
+        unsafe {
+            self.ctx.device.cmd_blit_image(
+                self.cmd,
+                self.image(src),
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                self.image(dst),
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[region],
+                vk::Filter::NEAREST,
+            )
+        };
+    }
+
     /// Copies mip 0 of `image` (tightly packed) into `buffer` at offset 0.
     pub fn copy_image_to_buffer(&self, image: ImageId, buffer: BufferId) {
         let desc = self.desc(image);

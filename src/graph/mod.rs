@@ -22,7 +22,7 @@ use ash::vk;
 
 use crate::gpu::{Buffer, Image, ImageDesc};
 
-pub use exec::{CompiledGraph, PassContext};
+pub use exec::{CompiledGraph, Descriptor, PassContext};
 pub use sync::{Access, Stages};
 
 /// Handle to an image of the graph.

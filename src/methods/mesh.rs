@@ -1,0 +1,137 @@
+//! `mesh`: the ground truth. Renders the input triangles at `samples` x `samples` the output
+//! resolution (linear color, linear depth, normal) and resolves them in a compute pass.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use ash::vk;
+
+use super::{BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use crate::gpu::layout::{
+    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0, BINDING_POINTS,
+    RESOLVE_GROUP,
+};
+use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{Access, Descriptor, Load, Stages};
+
+pub const INFO: MethodInfo = MethodInfo {
+    name: "mesh",
+    summary: "ground truth: the input triangle mesh, supersampled s x s and resolved",
+    params: &[ParamSpec {
+        name: "samples",
+        default: 4.0,
+        min: 1.0,
+        max: 8.0,
+        doc: "supersampling factor per axis",
+    }],
+    needs_faces: true,
+    build,
+};
+
+/// Linear HDR color of the supersampled pass.
+const HI_COLOR_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+
+fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    let Some(indices) = b.indices else {
+        bail!("method 'mesh' needs triangle faces; this input has none");
+    };
+    let samples = b.config.get("samples").round().max(1.0) as u32;
+    let (w, h) = (b.width * samples, b.height * samples);
+    if w > b.ctx.caps.max_image_dimension_2d || h > b.ctx.caps.max_image_dimension_2d {
+        bail!("{w}x{h} supersampled target exceeds the device limit");
+    }
+    let gfx = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+    let raster = Arc::new(Pipeline::graphics(
+        b.ctx,
+        &GraphicsDesc {
+            shaders: &["eval/mesh.vert", "eval/mesh.frag"],
+            bindings: &[
+                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, gfx),
+                Binding::new(BINDING_POINTS, vk::DescriptorType::STORAGE_BUFFER, vk::ShaderStageFlags::VERTEX),
+            ],
+            color_formats: &[HI_COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+            blends: &[Blend::Replace; 3],
+            depth_format: Some(ZBUFFER_FORMAT),
+            depth_test: true,
+            depth_write: true,
+            depth_compare: vk::CompareOp::GREATER,
+            topology: vk::PrimitiveTopology::TRIANGLE_LIST,
+            cull: vk::CullModeFlags::NONE,
+        },
+    )?);
+    let comp = vk::ShaderStageFlags::COMPUTE;
+    let storage = vk::DescriptorType::STORAGE_IMAGE;
+    let resolve = Arc::new(Pipeline::compute(
+        b.ctx,
+        "eval/resolve.comp",
+        &[
+            Binding::new(BINDING_INPUT0, storage, comp),
+            Binding::new(BINDING_INPUT1, storage, comp),
+            Binding::new(BINDING_INPUT2, storage, comp),
+            Binding::new(BINDING_OUTPUT0, storage, comp),
+            Binding::new(BINDING_OUTPUT0 + 1, storage, comp),
+            Binding::new(BINDING_OUTPUT0 + 2, storage, comp),
+        ],
+    )?);
+    let target = |format, usage| ImageDesc {
+        format,
+        width: w,
+        height: h,
+        mip_levels: 1,
+        usage,
+    };
+    let color_usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
+    let hi_color = b.graph.image("mesh.hi_color", target(HI_COLOR_FORMAT, color_usage));
+    let hi_depth = b.graph.image("mesh.hi_depth", target(DEPTH_FORMAT, color_usage));
+    let hi_normal = b.graph.image("mesh.hi_normal", target(NORMAL_FORMAT, color_usage));
+    let zbuffer = b.graph.image(
+        "mesh.zbuffer",
+        target(ZBUFFER_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT),
+    );
+    let (frame, points, t) = (b.frame, b.points, b.targets);
+    let index_count = b.scene.index_count;
+    b.graph
+        .pass("mesh.raster")
+        .buffer(frame, Access::UniformRead(Stages::Graphics))
+        .buffer(points, Access::StorageRead(Stages::Vertex))
+        .buffer(indices, Access::IndexRead)
+        .color(hi_color, Load::Clear([0.0; 4]))
+        .color(hi_depth, Load::Clear([0.0; 4]))
+        .color(hi_normal, Load::Clear([0.0; 4]))
+        .depth(zbuffer, Load::Clear([0.0; 4]))
+        .record(move |ctx| {
+            ctx.bind(
+                &raster,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_POINTS, points),
+                ],
+            );
+            ctx.draw_indexed(indices, index_count);
+        });
+    let (ow, oh) = (b.width, b.height);
+    b.graph
+        .pass("mesh.resolve")
+        .image(hi_color, Access::StorageRead(Stages::Compute))
+        .image(hi_depth, Access::StorageRead(Stages::Compute))
+        .image(hi_normal, Access::StorageRead(Stages::Compute))
+        .image(t.color, Access::StorageWrite(Stages::Compute))
+        .image(t.depth, Access::StorageWrite(Stages::Compute))
+        .image(t.normal, Access::StorageWrite(Stages::Compute))
+        .record(move |ctx| {
+            ctx.bind(
+                &resolve,
+                &[
+                    Descriptor::StorageImage(BINDING_INPUT0, hi_color, 0),
+                    Descriptor::StorageImage(BINDING_INPUT1, hi_depth, 0),
+                    Descriptor::StorageImage(BINDING_INPUT2, hi_normal, 0),
+                    Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
+                    Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
+                    Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
+                ],
+            );
+            ctx.push(&resolve, &samples.to_le_bytes());
+            ctx.dispatch(ow.div_ceil(RESOLVE_GROUP), oh.div_ceil(RESOLVE_GROUP), 1);
+        });
+    Ok(())
+}

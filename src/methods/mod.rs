@@ -1,0 +1,168 @@
+//! Rendering methods. Each method registers itself in `METHODS` and builds its passes on the
+//! render graph, writing the standard frame targets (color, linear depth, normal). Adding a
+//! method to the viewer, the headless renderer and the benchmark sweeps needs only an entry here.
+
+mod mesh;
+mod points;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use ash::vk;
+
+use crate::gpu::{Buffer, Context};
+use crate::graph::{BufferId, GraphBuilder, ImageId};
+
+/// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
+pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+/// Linear view depth, 0 where empty.
+pub const DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+/// View-space normal (w = 1 where covered).
+pub const NORMAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// Hardware depth buffer (reversed-Z, cleared to 0).
+pub const ZBUFFER_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// A tunable parameter of a method.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub default: f32,
+    pub min: f32,
+    pub max: f32,
+    pub doc: &'static str,
+}
+
+/// A registered method.
+pub struct MethodInfo {
+    pub name: &'static str,
+    pub summary: &'static str,
+    pub params: &'static [ParamSpec],
+    /// Renders triangle faces (ground truth) rather than points.
+    pub needs_faces: bool,
+    pub build: fn(&mut BuildContext<'_>) -> Result<()>,
+}
+
+/// Every method, in the order the viewer cycles through them.
+pub static METHODS: &[MethodInfo] = &[points::INFO, mesh::INFO];
+
+/// Looks a method up by name.
+pub fn find(name: &str) -> Result<&'static MethodInfo> {
+    METHODS.iter().find(|m| m.name == name).ok_or_else(|| {
+        let names: Vec<_> = METHODS.iter().map(|m| m.name).collect();
+        anyhow::anyhow!("unknown method '{name}' (available: {})", names.join(", "))
+    })
+}
+
+/// A method and its parameter values, e.g. `points:size=3`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodConfig {
+    pub method: &'static MethodInfo,
+    pub params: BTreeMap<String, f32>,
+}
+
+impl std::fmt::Debug for MethodInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name)
+    }
+}
+
+impl PartialEq for MethodInfo {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl MethodConfig {
+    /// Parses `name` or `name:key=value,key=value`; unknown keys and out-of-range values are
+    /// errors naming the key.
+    pub fn parse(s: &str) -> Result<Self> {
+        let (name, rest) = s.split_once(':').unwrap_or((s, ""));
+        let method = find(name.trim())?;
+        let mut params = BTreeMap::new();
+        for kv in rest.split(',').filter(|t| !t.trim().is_empty()) {
+            let Some((k, v)) = kv.split_once('=') else {
+                bail!("method parameter '{kv}' must be key=value");
+            };
+            let (k, v) = (k.trim(), v.trim());
+            let Some(spec) = method.params.iter().find(|p| p.name == k) else {
+                let known: Vec<_> = method.params.iter().map(|p| p.name).collect();
+                bail!(
+                    "method '{}' has no parameter '{k}' (parameters: {})",
+                    method.name,
+                    known.join(", ")
+                );
+            };
+            let value: f32 = v
+                .parse()
+                .ok()
+                .filter(|x: &f32| x.is_finite())
+                .ok_or_else(|| anyhow::anyhow!("parameter '{k}': expected a number, got '{v}'"))?;
+            if value < spec.min || value > spec.max {
+                bail!(
+                    "parameter '{k}' = {value} is outside {}..={}",
+                    spec.min,
+                    spec.max
+                );
+            }
+            params.insert(k.to_string(), value);
+        }
+        Ok(Self { method, params })
+    }
+
+    /// Value of parameter `name` (its default when not set).
+    pub fn get(&self, name: &str) -> f32 {
+        self.params.get(name).copied().unwrap_or_else(|| {
+            self.method
+                .params
+                .iter()
+                .find(|p| p.name == name)
+                .map_or(0.0, |p| p.default)
+        })
+    }
+
+    /// Canonical `name:key=value,...` with every parameter (defaults included).
+    pub fn label(&self) -> String {
+        let params: Vec<_> = self
+            .method
+            .params
+            .iter()
+            .map(|p| format!("{}={}", p.name, self.get(p.name)))
+            .collect();
+        if params.is_empty() {
+            self.method.name.to_string()
+        } else {
+            format!("{}:{}", self.method.name, params.join(","))
+        }
+    }
+}
+
+/// The scene on the GPU.
+pub struct GpuScene {
+    pub points: Arc<Buffer>,
+    pub indices: Option<Arc<Buffer>>,
+    pub point_count: u32,
+    pub index_count: u32,
+}
+
+/// The standard outputs every method writes.
+#[derive(Clone, Copy, Debug)]
+pub struct Targets {
+    pub color: ImageId,
+    pub depth: ImageId,
+    pub normal: ImageId,
+}
+
+/// What a method's `build` gets.
+pub struct BuildContext<'a> {
+    pub ctx: &'a Arc<Context>,
+    pub graph: &'a mut GraphBuilder,
+    pub config: &'a MethodConfig,
+    pub scene: &'a GpuScene,
+    pub frame: BufferId,
+    pub points: BufferId,
+    pub indices: Option<BufferId>,
+    pub targets: Targets,
+    pub width: u32,
+    pub height: u32,
+}

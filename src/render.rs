@@ -1,0 +1,381 @@
+//! The frame loop shared by the headless renderer, the benchmark and the viewer: uploads a
+//! scene, builds one method's graph once, updates per-frame uniforms, submits, reads back.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Context as _, Result};
+use ash::vk;
+use bytemuck::Zeroable;
+use glam::{Vec3, Vec4};
+use gpu_allocator::MemoryLocation;
+
+use crate::eval::Frame;
+use crate::gpu::layout::{FrameBlock, FLAG_HAS_NORMALS, FLAG_USE_COLOR};
+use crate::gpu::{Buffer, Context, ImageDesc, ScopeStats};
+use crate::graph::{Access, CompiledGraph, GraphBuilder, ImageId};
+use crate::methods::{
+    BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
+};
+use crate::scene::{lights, pack, Camera, Cloud, Light};
+
+/// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
+pub const MAX_EDGE: u32 = 8192;
+
+/// Scene facts the frame loop needs after upload.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneInfo {
+    pub centre: Vec3,
+    pub radius: f32,
+    pub points: u32,
+    pub has_colors: bool,
+    pub has_normals: bool,
+}
+
+/// Uploads `cloud` (points and, when present, triangle indices).
+pub fn upload(ctx: &Arc<Context>, cloud: &Cloud) -> Result<(GpuScene, SceneInfo)> {
+    let (centre, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
+    let packed = pack::pack(cloud);
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let points = Arc::new(Buffer::with_data(ctx, "points", bytemuck::cast_slice(&packed), storage)?);
+    let (indices, index_count) = match &cloud.faces {
+        Some(f) if !f.is_empty() => (
+            Some(Arc::new(Buffer::with_data(
+                ctx,
+                "indices",
+                bytemuck::cast_slice(f),
+                vk::BufferUsageFlags::INDEX_BUFFER | storage,
+            )?)),
+            (f.len() * 3) as u32,
+        ),
+        _ => (None, 0),
+    };
+    let point_count = u32::try_from(cloud.len()).context("more than 4G points")?;
+    Ok((
+        GpuScene {
+            points,
+            indices,
+            point_count,
+            index_count,
+        },
+        SceneInfo {
+            centre,
+            radius,
+            points: point_count,
+            has_colors: cloud.colors.is_some(),
+            has_normals: cloud.normals.is_some(),
+        },
+    ))
+}
+
+/// Per-frame settings.
+#[derive(Clone, Debug)]
+pub struct View {
+    pub camera: Camera,
+    pub lights: Vec<Light>,
+    /// Use the points' colors (when the input has them) instead of the base color.
+    pub use_color: bool,
+    /// Seconds, for orbiting lights.
+    pub time: f32,
+}
+
+/// Optional extra passes of a renderer.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Extras {
+    /// Add on-demand readback passes (color, depth, normal to host buffers).
+    pub readback: bool,
+    /// Add a blit to an external (swapchain) image of this format and size, and a present pass.
+    pub present: Option<ImageDesc>,
+}
+
+struct Readback {
+    color: Arc<Buffer>,
+    depth: Arc<Buffer>,
+    normal: Arc<Buffer>,
+}
+
+/// One method's compiled graph and what it needs every frame.
+pub struct Renderer {
+    ctx: Arc<Context>,
+    graph: CompiledGraph,
+    frame: Arc<Buffer>,
+    readback: Option<Readback>,
+    /// The swapchain image slot when presenting.
+    pub present_target: Option<ImageId>,
+    cmd: vk::CommandBuffer,
+    pub width: u32,
+    pub height: u32,
+    pub info: SceneInfo,
+    pub config: MethodConfig,
+    schedule: String,
+}
+
+impl Renderer {
+    /// Builds and compiles the graph of `config` for a `width` x `height` frame.
+    pub fn new(
+        ctx: &Arc<Context>,
+        scene: &GpuScene,
+        info: SceneInfo,
+        config: &MethodConfig,
+        width: u32,
+        height: u32,
+        extras: Extras,
+    ) -> Result<Self> {
+        if width == 0 || height == 0 || width > MAX_EDGE || height > MAX_EDGE {
+            bail!("image size {width}x{height} must be within 1..={MAX_EDGE} per edge");
+        }
+        if config.method.needs_faces && scene.indices.is_none() {
+            bail!(
+                "method '{}' needs an input with triangle faces",
+                config.method.name
+            );
+        }
+        let frame = Arc::new(Buffer::new(
+            ctx,
+            "frame",
+            std::mem::size_of::<FrameBlock>() as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?);
+        let mut g = GraphBuilder::new();
+        let output = |format| ImageDesc {
+            format,
+            width,
+            height,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::COLOR_ATTACHMENT
+                | vk::ImageUsageFlags::STORAGE
+                | vk::ImageUsageFlags::TRANSFER_SRC,
+        };
+        let targets = Targets {
+            color: g.image("color", output(COLOR_FORMAT)),
+            depth: g.image("depth", output(DEPTH_FORMAT)),
+            normal: g.image("normal", output(NORMAL_FORMAT)),
+        };
+        let frame_id = g.import_buffer("frame", frame.clone());
+        let points_id = g.import_buffer("points", scene.points.clone());
+        let indices_id = scene
+            .indices
+            .as_ref()
+            .map(|b| g.import_buffer("indices", b.clone()));
+        (config.method.build)(&mut BuildContext {
+            ctx,
+            graph: &mut g,
+            config,
+            scene,
+            frame: frame_id,
+            points: points_id,
+            indices: indices_id,
+            targets,
+            width,
+            height,
+        })?;
+        let present_target = extras.present.map(|desc| add_present(&mut g, targets.color, desc));
+        let readback = if extras.readback {
+            Some(add_readback(ctx, &mut g, targets, width, height)?)
+        } else {
+            None
+        };
+        let schedule = g.schedule()?;
+        let graph = g.compile(ctx)?;
+        Ok(Self {
+            ctx: ctx.clone(),
+            graph,
+            frame,
+            readback,
+            present_target,
+            cmd: ctx.allocate_command_buffer()?,
+            width,
+            height,
+            info,
+            config: config.clone(),
+            schedule,
+        })
+    }
+
+    /// The graph's schedule (passes, accesses, derived barriers).
+    pub fn schedule(&self) -> &str {
+        &self.schedule
+    }
+
+    /// Writes the frame uniforms for `view`.
+    pub fn update(&mut self, view: &View) -> Result<()> {
+        let mut block = FrameBlock::zeroed();
+        let v = view.camera.view();
+        let p = view
+            .camera
+            .projection(self.width as f32 / self.height as f32);
+        let lights = lights::resolve(&view.lights, v, self.info.centre, self.info.radius, view.time);
+        block.u.view = v;
+        block.u.proj = p;
+        block.u.view_proj = p * v;
+        block.u.viewport = Vec4::new(
+            self.width as f32,
+            self.height as f32,
+            1.0 / self.width as f32,
+            1.0 / self.height as f32,
+        );
+        block.u.params = Vec4::new(self.config.get("size").max(1.0), view.camera.near, 0.08, 32.0);
+        block.u.base_color = Vec4::new(0.8, 0.8, 0.8, 1.0);
+        block.u.flags = if view.use_color && self.info.has_colors { FLAG_USE_COLOR } else { 0 }
+            | if self.info.has_normals { FLAG_HAS_NORMALS } else { 0 };
+        block.u.light_count = lights.len() as u32;
+        block.u.point_count = self.info.points;
+        block.lights[..lights.len()].copy_from_slice(&lights);
+        self.frame.write(bytemuck::bytes_of(&block))
+    }
+
+    /// Records the frame into the renderer's command buffer (begin..end).
+    pub fn record(&mut self, readback: bool) -> Result<vk::CommandBuffer> {
+        let d = &self.ctx.device;
+        // SAFETY: the previous submission of this command buffer has completed (the caller
+        // waited on its fence), so it may be reset and re-recorded.
+        unsafe {
+            d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())?;
+            d.begin_command_buffer(
+                self.cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )?;
+        }
+        self.graph.record(self.cmd, readback && self.readback.is_some());
+        // SAFETY: recording was begun above.
+        unsafe { d.end_command_buffer(self.cmd)? };
+        Ok(self.cmd)
+    }
+
+    /// Renders one frame and waits for it; returns the read-back frame when asked (and built
+    /// with `Extras::readback`).
+    pub fn render(&mut self, view: &View, readback: bool) -> Result<Option<Frame>> {
+        self.update(view)?;
+        let cmd = self.record(readback)?;
+        self.ctx.submit_and_wait(cmd)?;
+        self.graph.profiler().collect()?;
+        if readback {
+            self.read_frame().map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// Collects the timestamps of a frame submitted outside `render` (the viewer).
+    pub fn collect_timings(&mut self) -> Result<()> {
+        self.graph.profiler().collect()
+    }
+
+    /// Binds this frame's swapchain image.
+    pub fn bind_present_image(&mut self, image: vk::Image, view: vk::ImageView) {
+        if let Some(id) = self.present_target {
+            self.graph.bind_external(id, image, view);
+        }
+    }
+
+    /// Forgets timing samples (after warm-up).
+    pub fn clear_timings(&mut self) {
+        self.graph.profiler().clear();
+    }
+
+    /// Per-pass GPU time statistics and the whole frame's.
+    pub fn timings(&mut self) -> (Vec<ScopeStats>, ScopeStats) {
+        let p = self.graph.profiler();
+        (p.scopes(), p.frame())
+    }
+
+    /// The last frame's per-pass milliseconds (for the viewer's title).
+    pub fn last_timings(&mut self) -> Vec<(String, f64)> {
+        self.graph.profiler().last()
+    }
+
+    fn read_frame(&self) -> Result<Frame> {
+        let rb = self
+            .readback
+            .as_ref()
+            .context("renderer was built without readback")?;
+        let n = self.width as usize * self.height as usize;
+        let color: Vec<[u8; 4]> = bytemuck::cast_slice(&rb.color.mapped()?[..n * 4]).to_vec();
+        let depth: Vec<f32> = bytemuck::cast_slice::<u8, f32>(&rb.depth.mapped()?[..n * 4])
+            .iter()
+            .map(|&d| if d > 0.0 && d.is_finite() { d } else { f32::INFINITY })
+            .collect();
+        let normal: Vec<[f32; 3]> = bytemuck::cast_slice::<u8, [u16; 4]>(&rb.normal.mapped()?[..n * 8])
+            .iter()
+            .map(|h| [0, 1, 2].map(|i| half::f16::from_bits(h[i]).to_f32()))
+            .collect();
+        Ok(Frame {
+            width: self.width,
+            height: self.height,
+            color,
+            depth,
+            normal: Some(normal),
+        })
+    }
+}
+
+impl Drop for Renderer {
+    fn drop(&mut self) {
+        // SAFETY: wait for any in-flight use of the command buffer and the graph's resources.
+        unsafe {
+            let _ = self.ctx.device.device_wait_idle();
+        }
+        self.ctx.free_command_buffer(self.cmd);
+    }
+}
+
+fn add_readback(
+    ctx: &Arc<Context>,
+    g: &mut GraphBuilder,
+    t: Targets,
+    width: u32,
+    height: u32,
+) -> Result<Readback> {
+    let n = width as u64 * height as u64;
+    let host = |name: &str, bytes: u64| {
+        Buffer::new(
+            ctx,
+            name,
+            bytes,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )
+        .map(Arc::new)
+    };
+    let rb = Readback {
+        color: host("readback.color", n * 4)?,
+        depth: host("readback.depth", n * 4)?,
+        normal: host("readback.normal", n * 8)?,
+    };
+    let ids = [
+        (t.color, g.import_buffer("readback.color", rb.color.clone())),
+        (t.depth, g.import_buffer("readback.depth", rb.depth.clone())),
+        (t.normal, g.import_buffer("readback.normal", rb.normal.clone())),
+    ];
+    let mut copy = g.pass("readback").on_demand();
+    for (image, buffer) in ids {
+        copy = copy
+            .image(image, Access::TransferSrc)
+            .buffer(buffer, Access::TransferDst);
+    }
+    copy.record(move |ctx| {
+        for (image, buffer) in ids {
+            ctx.copy_image_to_buffer(image, buffer);
+        }
+    });
+    // Makes the copies visible to the host after the frame's fence; records no commands.
+    let mut host_pass = g.pass("readback.host").on_demand();
+    for (_, buffer) in ids {
+        host_pass = host_pass.buffer(buffer, Access::HostRead);
+    }
+    host_pass.record(|_| {});
+    Ok(rb)
+}
+
+fn add_present(g: &mut GraphBuilder, color: ImageId, desc: ImageDesc) -> ImageId {
+    let swapchain = g.external_image("swapchain", desc);
+    g.pass("present.blit")
+        .image(color, Access::TransferSrc)
+        .image(swapchain, Access::TransferDst)
+        .record(move |ctx| ctx.blit(color, swapchain));
+    g.pass("present.transition")
+        .image(swapchain, Access::Present)
+        .record(|_| {});
+    swapchain
+}

@@ -1,0 +1,126 @@
+//! Lights (002 §4): attached to the camera, static in the world, or orbiting the model.
+
+use glam::{Mat4, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+use crate::gpu::layout::{GpuLight, LIGHT_CAMERA, LIGHT_ORBIT, LIGHT_STATIC, MAX_LIGHTS};
+
+/// Where a light lives.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    /// Offset from the eye in view space (a headlight at `[0, 0, 0]`).
+    Camera,
+    /// Fixed world position.
+    Static,
+    /// Circles the model centre in the horizontal plane at `position[0]` scene radii and height
+    /// `position[1]` radii, `position[2]` degrees per second.
+    Orbit,
+}
+
+/// One light.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Light {
+    pub kind: LightKind,
+    #[serde(default)]
+    pub position: [f32; 3],
+    #[serde(default = "white")]
+    pub color: [f32; 3],
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+impl Light {
+    /// The default headlight.
+    pub fn headlight() -> Self {
+        Self {
+            kind: LightKind::Camera,
+            position: [0.0; 3],
+            color: white(),
+        }
+    }
+}
+
+/// `count` lights spread on a ring around the camera (for the light-count sweeps of 002 ch. 6);
+/// intensities divided so the total stays that of one light.
+pub fn ring(count: u32, radius: f32) -> Vec<Light> {
+    (0..count)
+        .map(|i| {
+            let a = i as f32 / count.max(1) as f32 * std::f32::consts::TAU;
+            Light {
+                kind: LightKind::Camera,
+                position: [a.cos() * radius, a.sin() * radius, 0.0],
+                color: [1.0 / count.max(1) as f32; 3],
+            }
+        })
+        .collect()
+}
+
+/// Resolves lights to view space for a frame at `time` seconds. At most `MAX_LIGHTS`.
+pub fn resolve(lights: &[Light], view: Mat4, centre: Vec3, radius: f32, time: f32) -> Vec<GpuLight> {
+    lights
+        .iter()
+        .take(MAX_LIGHTS as usize)
+        .map(|l| {
+            let p = Vec3::from(l.position);
+            let (view_pos, kind) = match l.kind {
+                LightKind::Camera => (p, LIGHT_CAMERA),
+                LightKind::Static => (view.transform_point3(p), LIGHT_STATIC),
+                LightKind::Orbit => {
+                    let angle = (p.z * time).to_radians();
+                    let world = centre
+                        + Vec3::new(angle.cos() * p.x * radius, p.y * radius, angle.sin() * p.x * radius);
+                    (view.transform_point3(world), LIGHT_ORBIT)
+                }
+            };
+            GpuLight {
+                position: view_pos.extend(1.0),
+                color_kind: Vec4::new(l.color[0], l.color[1], l.color[2], kind as f32),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_lights_stay_in_view_space_and_static_ones_move_with_the_view() {
+        let view = Mat4::from_translation(Vec3::new(0.0, 0.0, -5.0));
+        let lights = [
+            Light::headlight(),
+            Light {
+                kind: LightKind::Static,
+                position: [1.0, 0.0, 0.0],
+                color: [1.0; 3],
+            },
+        ];
+        let g = resolve(&lights, view, Vec3::ZERO, 1.0, 0.0);
+        assert_eq!(g[0].position.truncate(), Vec3::ZERO);
+        assert_eq!(g[1].position.truncate(), Vec3::new(1.0, 0.0, -5.0));
+        assert_eq!(g[1].color_kind.w, LIGHT_STATIC as f32);
+    }
+
+    #[test]
+    fn ring_keeps_total_intensity_and_resolve_caps_the_count() {
+        let r = ring(9, 1.0);
+        let total: f32 = r.iter().map(|l| l.color[0]).sum();
+        assert!((total - 1.0).abs() < 1e-5);
+        assert_eq!(resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).len(), MAX_LIGHTS as usize);
+    }
+
+    #[test]
+    fn orbit_light_circles_the_centre() {
+        let l = [Light {
+            kind: LightKind::Orbit,
+            position: [2.0, 0.0, 90.0],
+            color: [1.0; 3],
+        }];
+        let a = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0)[0].position;
+        let b = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 1.0)[0].position;
+        assert!((a.x - 2.0).abs() < 1e-5 && (b.z - 2.0).abs() < 1e-5);
+    }
+}

@@ -1,0 +1,115 @@
+//! Packing a `Cloud` into the compact GPU point layout (24 bytes per point), and mesh vertex
+//! normals for inputs with faces.
+
+use glam::{Vec2, Vec3};
+
+use super::cloud::Cloud;
+use crate::gpu::layout::GpuPoint;
+
+/// Octahedral encoding of a unit normal into two snorm16 values.
+pub fn oct_encode(n: Vec3) -> u32 {
+    let n = n.normalize_or(Vec3::Z);
+    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
+    let mut p = Vec2::new(n.x, n.y) / l1;
+    if n.z < 0.0 {
+        let sign = Vec2::new(p.x.signum(), p.y.signum());
+        p = (Vec2::ONE - Vec2::new(p.y.abs(), p.x.abs())) * sign;
+    }
+    let q = |v: f32| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32;
+    q(p.x) | (q(p.y) << 16)
+}
+
+/// Inverse of `oct_encode` (mirrors `oct_decode` in common.glsl).
+pub fn oct_decode(packed: u32) -> Vec3 {
+    let s = |v: u32| ((v & 0xffff) as u16 as i16) as f32 / 32767.0;
+    let e = Vec2::new(s(packed).max(-1.0), s(packed >> 16).max(-1.0));
+    let mut n = Vec3::new(e.x, e.y, 1.0 - e.x.abs() - e.y.abs());
+    if n.z < 0.0 {
+        let sign = Vec2::new(if n.x >= 0.0 { 1.0 } else { -1.0 }, if n.y >= 0.0 { 1.0 } else { -1.0 });
+        let xy = (Vec2::ONE - Vec2::new(n.y.abs(), n.x.abs())) * sign;
+        n.x = xy.x;
+        n.y = xy.y;
+    }
+    n.normalize_or(Vec3::Z)
+}
+
+/// Packs every point. Missing normals become +z, missing radii 0, missing colors white.
+pub fn pack(cloud: &Cloud) -> Vec<GpuPoint> {
+    (0..cloud.len())
+        .map(|i| {
+            let p = cloud.positions[i];
+            let normal = cloud.normals.as_ref().map_or(Vec3::Z, |n| n[i]);
+            let radius = cloud.radii.as_ref().map_or(0.0, |r| r[i]);
+            let color = cloud.colors.as_ref().map_or([255; 4], |c| c[i]);
+            GpuPoint {
+                x: p.x,
+                y: p.y,
+                z: p.z,
+                normal_oct: oct_encode(normal),
+                radius_kind: half::f16::from_f32(radius).to_bits() as u32,
+                color: u32::from_le_bytes(color),
+            }
+        })
+        .collect()
+}
+
+/// Area-weighted vertex normals of a triangle mesh (vertices used by no face get +z).
+pub fn vertex_normals(positions: &[Vec3], faces: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut acc = vec![Vec3::ZERO; positions.len()];
+    for f in faces {
+        let [a, b, c] = f.map(|i| i as usize);
+        if a >= positions.len() || b >= positions.len() || c >= positions.len() {
+            continue;
+        }
+        // The cross product's length is twice the area: area weighting for free.
+        let n = (positions[b] - positions[a]).cross(positions[c] - positions[a]);
+        acc[a] += n;
+        acc[b] += n;
+        acc[c] += n;
+    }
+    acc.into_iter().map(|n| n.normalize_or(Vec3::Z)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn octahedral_round_trip_is_accurate_in_every_octant() {
+        for &n in &[
+            Vec3::X,
+            -Vec3::X,
+            Vec3::Y,
+            -Vec3::Z,
+            Vec3::new(1.0, -2.0, -3.0).normalize(),
+            Vec3::new(-0.3, 0.4, -0.866).normalize(),
+            Vec3::new(0.577, 0.577, 0.577),
+        ] {
+            let d = oct_decode(oct_encode(n));
+            assert!(d.dot(n.normalize()) > 0.99999, "{n} -> {d}");
+        }
+        assert_eq!(oct_decode(oct_encode(Vec3::ZERO)), Vec3::Z);
+    }
+
+    #[test]
+    fn packs_radius_as_half_and_color_as_rgba8() {
+        let cloud = Cloud {
+            positions: vec![Vec3::new(1.0, 2.0, 3.0)],
+            radii: Some(vec![0.25]),
+            colors: Some(vec![[10, 20, 30, 255]]),
+            ..Default::default()
+        };
+        let p = pack(&cloud)[0];
+        assert_eq!((p.x, p.y, p.z), (1.0, 2.0, 3.0));
+        assert_eq!(half::f16::from_bits(p.radius_kind as u16).to_f32(), 0.25);
+        assert_eq!(p.color.to_le_bytes(), [10, 20, 30, 255]);
+    }
+
+    #[test]
+    fn vertex_normals_of_a_ccw_square_face_up() {
+        let pos = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y, Vec3::splat(9.0)];
+        let n = vertex_normals(&pos, &[[0, 1, 2], [0, 2, 3]]);
+        assert!(n[..4].iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+        assert_eq!(n[4], Vec3::Z);
+    }
+}

@@ -1,0 +1,84 @@
+//! Scene files (TOML or JSON): a camera pose and lights.
+//!
+//! ```toml
+//! [camera]
+//! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
+//! [[lights]]
+//! kind = "static"          # camera | static | orbit
+//! position = [1.0, 2.0, 3.0]
+//! color = [1.0, 0.9, 0.8]
+//! ```
+
+use std::path::Path;
+
+use anyhow::{bail, Context as _, Result};
+use serde::{Deserialize, Serialize};
+
+use super::camera::Pose;
+use super::lights::Light;
+
+/// The parsed file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub camera: Option<Pose>,
+    #[serde(default)]
+    pub lights: Vec<Light>,
+}
+
+impl SceneFile {
+    /// Reads `path` as TOML (`.toml`) or JSON (`.json`).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read scene file", path.display()))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses `text`; `path` names the format and appears in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self> {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        match ext {
+            "toml" => toml::from_str(text).with_context(|| format!("{}: invalid scene file", path.display())),
+            "json" => serde_json::from_str(text)
+                .with_context(|| format!("{}: invalid scene file", path.display())),
+            _ => bail!("{}: scene files must end in .toml or .json", path.display()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::lights::LightKind;
+
+    #[test]
+    fn parses_toml_and_json_scene_files() {
+        let t = SceneFile::parse(
+            "[camera]\norbit = [30.0, 15.0]\n[[lights]]\nkind = \"static\"\nposition = [1.0, 2.0, 3.0]\n",
+            Path::new("s.toml"),
+        )
+        .expect("valid toml");
+        assert_eq!(
+            t.camera,
+            Some(Pose::Orbit {
+                orbit: [30.0, 15.0],
+                distance: 1.0
+            })
+        );
+        assert_eq!(t.lights[0].kind, LightKind::Static);
+        assert_eq!(t.lights[0].color, [1.0; 3]);
+        let j = SceneFile::parse(
+            r#"{"camera": {"eye": [0, 0, 5], "target": [0, 0, 0]}, "lights": []}"#,
+            Path::new("s.json"),
+        )
+        .expect("valid json");
+        assert!(matches!(j.camera, Some(Pose::LookAt { .. })));
+    }
+
+    #[test]
+    fn rejects_unknown_keys_and_formats() {
+        let e = SceneFile::parse("[camra]\n", Path::new("bad.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("bad.toml"));
+        assert!(SceneFile::parse("{}", Path::new("s.yaml")).is_err());
+    }
+}

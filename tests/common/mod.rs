@@ -1,0 +1,61 @@
+//! Shared helpers for GPU tests: a validated lavapipe context and synthetic scenes.
+
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use surfel::gpu::{Context, ContextOptions};
+use surfel::scene::Cloud;
+
+/// A context with validation and synchronization validation on. Tests call `assert_clean`.
+pub fn context() -> Arc<Context> {
+    std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
+    Arc::new(
+        Context::new(&ContextOptions {
+            validation: true,
+            surface_extensions: Vec::new(),
+        })
+        .expect("Vulkan context with validation (run ../shared/ci/install-vulkan.sh)"),
+    )
+}
+
+/// Fails the test if the validation layers reported any error.
+pub fn assert_clean(ctx: &Context) {
+    assert_eq!(
+        ctx.validation_errors(),
+        0,
+        "validation errors: {:#?}",
+        ctx.first_validation_errors()
+    );
+}
+
+/// A square [-1, 1]^2 in the z = 0 plane as two triangles, normals +z, plus `n x n` extra
+/// grid points on it (when `n > 0`), so the same cloud serves the mesh and point methods.
+pub fn square(n: usize) -> Cloud {
+    let mut positions = vec![
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+    ];
+    for j in 0..n {
+        for i in 0..n {
+            let t = |k: usize| -1.0 + 2.0 * (k as f32 + 0.5) / n as f32;
+            positions.push(Vec3::new(t(i), t(j), 0.0));
+        }
+    }
+    let count = positions.len();
+    Cloud {
+        normals: Some(vec![Vec3::Z; count]),
+        radii: Some(vec![1.0 / n.max(1) as f32; count]),
+        faces: Some(vec![[0, 1, 2], [0, 2, 3]]),
+        positions,
+        ..Default::default()
+    }
+}
+
+/// Fraction of covered pixels.
+pub fn coverage(frame: &surfel::eval::Frame) -> f64 {
+    (0..frame.pixels()).filter(|&i| frame.covered(i)).count() as f64 / frame.pixels() as f64
+}

@@ -1,0 +1,79 @@
+//! Headless rendering on lavapipe with validation: coverage, depth and normals of known scenes.
+
+mod common;
+
+use surfel::methods::MethodConfig;
+use surfel::render::{upload, Extras, Renderer, View};
+use surfel::scene::{Camera, Light};
+
+fn render(cloud: &surfel::scene::Cloud, method: &str, size: u32) -> surfel::eval::Frame {
+    let ctx = common::context();
+    let (scene, info) = upload(&ctx, cloud).expect("upload");
+    let config = MethodConfig::parse(method).expect("method");
+    let mut r = Renderer::new(&ctx, &scene, info, &config, size, size, Extras { readback: true, present: None })
+        .expect("renderer");
+    let view = View {
+        camera: Camera::framing(info.centre, info.radius),
+        lights: vec![Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    // Two frames: the second uses the steady-state barriers.
+    r.render(&view, false).expect("frame 1");
+    let frame = r.render(&view, true).expect("frame 2").expect("readback");
+    drop(r);
+    common::assert_clean(&ctx);
+    frame
+}
+
+/// Expected fraction of the image covered by the square: its half extent 1 at the framing
+/// distance r / sin(fov / 2) with r = sqrt(2) spans 1 / (d tan(fov / 2)) of the NDC half range.
+fn square_fraction() -> (f64, f64) {
+    let fov = 45f64.to_radians();
+    let d = 2f64.sqrt() / (fov / 2.0).sin();
+    let ndc = 1.0 / (d * (fov / 2.0).tan());
+    (ndc * ndc, d)
+}
+
+#[test]
+fn mesh_ground_truth_covers_the_projected_square_at_the_right_depth() {
+    let frame = render(&common::square(0), "mesh", 64);
+    let (fraction, distance) = square_fraction();
+    let cov = common::coverage(&frame);
+    // One pixel row/column of tolerance around the square's 41.8 px edge.
+    assert!((cov - fraction).abs() < 2.0 * 42.0 / (64.0 * 64.0) + 0.005, "coverage {cov} vs {fraction}");
+    let centre = (32 * 64 + 32) as usize;
+    assert!((frame.depth[centre] as f64 - distance).abs() < 1e-3 * distance, "depth {}", frame.depth[centre]);
+    let n = frame.normal.as_ref().expect("normals")[centre];
+    assert!(n[2] > 0.999, "view-space normal {n:?}");
+    assert_eq!(frame.color[centre][3], 255);
+    assert_eq!(frame.color[0], [0, 0, 0, 0], "corner is background");
+    // Head-on headlight: the lit color is bright and grey.
+    let c = frame.color[centre];
+    assert!(c[0] > 200 && c[0] == c[1] && c[1] == c[2], "{c:?}");
+}
+
+#[test]
+fn dense_points_cover_the_square_like_the_mesh() {
+    let cloud = common::square(160);
+    let points = render(&cloud, "points", 64);
+    let mesh = render(&cloud, "mesh", 64);
+    let covered_by_mesh: Vec<usize> = (0..mesh.pixels()).filter(|&i| mesh.covered(i)).collect();
+    let holes = covered_by_mesh.iter().filter(|&&i| !points.covered(i)).count();
+    assert!(holes * 100 < covered_by_mesh.len(), "{holes} holes of {}", covered_by_mesh.len());
+    let outside = (0..points.pixels()).filter(|&i| points.covered(i) && !mesh.covered(i)).count();
+    assert!(outside < 2 * 42, "{outside} point pixels outside the square's silhouette");
+    let centre = 32 * 64 + 32;
+    assert!((points.depth[centre] - mesh.depth[centre]).abs() < 1e-3 * mesh.depth[centre]);
+}
+
+#[test]
+fn large_points_fill_a_sparse_grid() {
+    let sparse = common::square(12);
+    let one = common::coverage(&render(&sparse, "points:size=1", 64));
+    let big = common::coverage(&render(&sparse, "points:size=6", 64));
+    // 148 points at 1 px cover at most 148 pixels; 6 px points cover the square.
+    assert!(one <= 148.0 / 4096.0 + 1e-9, "{one}");
+    let (fraction, _) = square_fraction();
+    assert!(big > 0.9 * fraction, "{big} vs {fraction}");
+}
