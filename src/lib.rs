@@ -1,8 +1,10 @@
 //! surfel: a Vulkan-native point-cloud renderer.
 
+pub mod app;
+pub mod cli;
+pub mod eval;
 pub mod gpu;
 pub mod graph;
-pub mod eval;
-pub mod scene;
 pub mod methods;
 pub mod render;
+pub mod scene;

@@ -36,7 +36,12 @@ pub fn upload(ctx: &Arc<Context>, cloud: &Cloud) -> Result<(GpuScene, SceneInfo)
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
     let packed = pack::pack(cloud);
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let points = Arc::new(Buffer::with_data(ctx, "points", bytemuck::cast_slice(&packed), storage)?);
+    let points = Arc::new(Buffer::with_data(
+        ctx,
+        "points",
+        bytemuck::cast_slice(&packed),
+        storage,
+    )?);
     let (indices, index_count) = match &cloud.faces {
         Some(f) if !f.is_empty() => (
             Some(Arc::new(Buffer::with_data(
@@ -169,7 +174,9 @@ impl Renderer {
             width,
             height,
         })?;
-        let present_target = extras.present.map(|desc| add_present(&mut g, targets.color, desc));
+        let present_target = extras
+            .present
+            .map(|desc| add_present(&mut g, targets.color, desc));
         let readback = if extras.readback {
             Some(add_readback(ctx, &mut g, targets, width, height)?)
         } else {
@@ -204,7 +211,13 @@ impl Renderer {
         let p = view
             .camera
             .projection(self.width as f32 / self.height as f32);
-        let lights = lights::resolve(&view.lights, v, self.info.centre, self.info.radius, view.time);
+        let lights = lights::resolve(
+            &view.lights,
+            v,
+            self.info.centre,
+            self.info.radius,
+            view.time,
+        );
         block.u.view = v;
         block.u.proj = p;
         block.u.view_proj = p * v;
@@ -214,10 +227,22 @@ impl Renderer {
             1.0 / self.width as f32,
             1.0 / self.height as f32,
         );
-        block.u.params = Vec4::new(self.config.get("size").max(1.0), view.camera.near, 0.08, 32.0);
-        block.u.base_color = Vec4::new(0.8, 0.8, 0.8, 1.0);
-        block.u.flags = if view.use_color && self.info.has_colors { FLAG_USE_COLOR } else { 0 }
-            | if self.info.has_normals { FLAG_HAS_NORMALS } else { 0 };
+        block.u.params = Vec4::new(
+            self.config.get("size").max(1.0),
+            view.camera.near,
+            0.08,
+            32.0,
+        );
+        block.u.base_color = Vec4::new(0.7, 0.7, 0.7, 1.0);
+        block.u.flags = if view.use_color && self.info.has_colors {
+            FLAG_USE_COLOR
+        } else {
+            0
+        } | if self.info.has_normals {
+            FLAG_HAS_NORMALS
+        } else {
+            0
+        };
         block.u.light_count = lights.len() as u32;
         block.u.point_count = self.info.points;
         block.lights[..lights.len()].copy_from_slice(&lights);
@@ -237,7 +262,8 @@ impl Renderer {
                     .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
             )?;
         }
-        self.graph.record(self.cmd, readback && self.readback.is_some());
+        self.graph
+            .record(self.cmd, readback && self.readback.is_some());
         // SAFETY: recording was begun above.
         unsafe { d.end_command_buffer(self.cmd)? };
         Ok(self.cmd)
@@ -294,12 +320,19 @@ impl Renderer {
         let color: Vec<[u8; 4]> = bytemuck::cast_slice(&rb.color.mapped()?[..n * 4]).to_vec();
         let depth: Vec<f32> = bytemuck::cast_slice::<u8, f32>(&rb.depth.mapped()?[..n * 4])
             .iter()
-            .map(|&d| if d > 0.0 && d.is_finite() { d } else { f32::INFINITY })
+            .map(|&d| {
+                if d > 0.0 && d.is_finite() {
+                    d
+                } else {
+                    f32::INFINITY
+                }
+            })
             .collect();
-        let normal: Vec<[f32; 3]> = bytemuck::cast_slice::<u8, [u16; 4]>(&rb.normal.mapped()?[..n * 8])
-            .iter()
-            .map(|h| [0, 1, 2].map(|i| half::f16::from_bits(h[i]).to_f32()))
-            .collect();
+        let normal: Vec<[f32; 3]> =
+            bytemuck::cast_slice::<u8, [u16; 4]>(&rb.normal.mapped()?[..n * 8])
+                .iter()
+                .map(|h| [0, 1, 2].map(|i| half::f16::from_bits(h[i]).to_f32()))
+                .collect();
         Ok(Frame {
             width: self.width,
             height: self.height,
@@ -346,7 +379,10 @@ fn add_readback(
     let ids = [
         (t.color, g.import_buffer("readback.color", rb.color.clone())),
         (t.depth, g.import_buffer("readback.depth", rb.depth.clone())),
-        (t.normal, g.import_buffer("readback.normal", rb.normal.clone())),
+        (
+            t.normal,
+            g.import_buffer("readback.normal", rb.normal.clone()),
+        ),
     ];
     let mut copy = g.pass("readback").on_demand();
     for (image, buffer) in ids {

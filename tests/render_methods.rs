@@ -10,8 +10,19 @@ fn render(cloud: &surfel::scene::Cloud, method: &str, size: u32) -> surfel::eval
     let ctx = common::context();
     let (scene, info) = upload(&ctx, cloud).expect("upload");
     let config = MethodConfig::parse(method).expect("method");
-    let mut r = Renderer::new(&ctx, &scene, info, &config, size, size, Extras { readback: true, present: None })
-        .expect("renderer");
+    let mut r = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        size,
+        size,
+        Extras {
+            readback: true,
+            present: None,
+        },
+    )
+    .expect("renderer");
     let view = View {
         camera: Camera::framing(info.centre, info.radius),
         lights: vec![Light::headlight()],
@@ -41,9 +52,16 @@ fn mesh_ground_truth_covers_the_projected_square_at_the_right_depth() {
     let (fraction, distance) = square_fraction();
     let cov = common::coverage(&frame);
     // One pixel row/column of tolerance around the square's 41.8 px edge.
-    assert!((cov - fraction).abs() < 2.0 * 42.0 / (64.0 * 64.0) + 0.005, "coverage {cov} vs {fraction}");
+    assert!(
+        (cov - fraction).abs() < 2.0 * 42.0 / (64.0 * 64.0) + 0.005,
+        "coverage {cov} vs {fraction}"
+    );
     let centre = (32 * 64 + 32) as usize;
-    assert!((frame.depth[centre] as f64 - distance).abs() < 1e-3 * distance, "depth {}", frame.depth[centre]);
+    assert!(
+        (frame.depth[centre] as f64 - distance).abs() < 1e-3 * distance,
+        "depth {}",
+        frame.depth[centre]
+    );
     let n = frame.normal.as_ref().expect("normals")[centre];
     assert!(n[2] > 0.999, "view-space normal {n:?}");
     assert_eq!(frame.color[centre][3], 255);
@@ -59,10 +77,22 @@ fn dense_points_cover_the_square_like_the_mesh() {
     let points = render(&cloud, "points", 64);
     let mesh = render(&cloud, "mesh", 64);
     let covered_by_mesh: Vec<usize> = (0..mesh.pixels()).filter(|&i| mesh.covered(i)).collect();
-    let holes = covered_by_mesh.iter().filter(|&&i| !points.covered(i)).count();
-    assert!(holes * 100 < covered_by_mesh.len(), "{holes} holes of {}", covered_by_mesh.len());
-    let outside = (0..points.pixels()).filter(|&i| points.covered(i) && !mesh.covered(i)).count();
-    assert!(outside < 2 * 42, "{outside} point pixels outside the square's silhouette");
+    let holes = covered_by_mesh
+        .iter()
+        .filter(|&&i| !points.covered(i))
+        .count();
+    assert!(
+        holes * 100 < covered_by_mesh.len(),
+        "{holes} holes of {}",
+        covered_by_mesh.len()
+    );
+    let outside = (0..points.pixels())
+        .filter(|&i| points.covered(i) && !mesh.covered(i))
+        .count();
+    assert!(
+        outside < 2 * 42,
+        "{outside} point pixels outside the square's silhouette"
+    );
     let centre = 32 * 64 + 32;
     assert!((points.depth[centre] - mesh.depth[centre]).abs() < 1e-3 * mesh.depth[centre]);
 }

@@ -19,7 +19,10 @@ fn validation_layer_reports_a_deliberate_error() {
             ctx.device.destroy_buffer(b, None);
         }
     }
-    assert!(ctx.validation_errors() >= 1, "the validation layer did not report the misuse");
+    assert!(
+        ctx.validation_errors() >= 1,
+        "the validation layer did not report the misuse"
+    );
     assert!(ctx.first_validation_errors()[0].contains("size"));
 }
 

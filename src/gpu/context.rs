@@ -63,7 +63,11 @@ pub struct Capabilities {
 impl fmt::Display for Capabilities {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let yes = |b: bool| if b { "yes" } else { "no" };
-        writeln!(f, "device            {} ({})", self.device_name, self.device_type)?;
+        writeln!(
+            f,
+            "device            {} ({})",
+            self.device_name, self.device_type
+        )?;
         writeln!(f, "driver            {}", self.driver)?;
         writeln!(f, "vulkan            {}", self.api_version)?;
         writeln!(f, "geometry shader   {}", yes(self.geometry_shader))?;
@@ -200,7 +204,8 @@ impl Context {
         }
         let mut layers = Vec::new();
         let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-        let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        let mut features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
         if options.validation {
             layers.push(VALIDATION_LAYER.as_ptr());
             extensions.push(ext::validation_features::NAME.as_ptr());
@@ -403,13 +408,43 @@ impl Context {
 
     /// Submits `cmd` and blocks until the GPU has finished it.
     pub fn submit_and_wait(&self, cmd: vk::CommandBuffer) -> Result<()> {
+        self.submit_frame(cmd, None, None)
+    }
+
+    /// Submits `cmd` waiting on `wait` (at color-attachment output, as a swapchain acquire
+    /// needs) and signalling `signal`, then blocks until the GPU has finished it.
+    pub fn submit_frame(
+        &self,
+        cmd: vk::CommandBuffer,
+        wait: Option<vk::Semaphore>,
+        signal: Option<vk::Semaphore>,
+    ) -> Result<()> {
+        let waits: Vec<_> = wait
+            .iter()
+            .map(|s| {
+                vk::SemaphoreSubmitInfo::default()
+                    .semaphore(*s)
+                    .stage_mask(vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT)
+            })
+            .collect();
+        let signals: Vec<_> = signal
+            .iter()
+            .map(|s| {
+                vk::SemaphoreSubmitInfo::default()
+                    .semaphore(*s)
+                    .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+            })
+            .collect();
         // SAFETY: cmd is fully recorded; the fence is created, waited and destroyed here.
         unsafe {
             let fence = self
                 .device
                 .create_fence(&vk::FenceCreateInfo::default(), None)?;
             let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
-            let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+            let submit = [vk::SubmitInfo2::default()
+                .command_buffer_infos(&cmds)
+                .wait_semaphore_infos(&waits)
+                .signal_semaphore_infos(&signals)];
             let result = self
                 .device
                 .queue_submit2(self.queue, &submit, fence)
@@ -442,7 +477,9 @@ impl Context {
             .allocator
             .lock()
             .map_err(|_| anyhow!("allocator lock poisoned"))?;
-        let allocator = guard.as_mut().ok_or_else(|| anyhow!("allocator destroyed"))?;
+        let allocator = guard
+            .as_mut()
+            .ok_or_else(|| anyhow!("allocator destroyed"))?;
         f(allocator)
     }
 }

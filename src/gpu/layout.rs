@@ -92,8 +92,11 @@ macro_rules! mirror {
     };
 }
 
-/// Every Rust mirror: (struct name, [(field, offset)], size).
-pub fn mirrors() -> Vec<(&'static str, Vec<(&'static str, usize)>, usize)> {
+/// A Rust mirror's name, `(field, offset)` pairs and size.
+pub type Mirror = (&'static str, Vec<(&'static str, usize)>, usize);
+
+/// Every Rust mirror.
+pub fn mirrors() -> Vec<Mirror> {
     vec![
         mirror!(GpuPoint {
             x,
@@ -129,7 +132,11 @@ mod tests {
     #[test]
     fn rust_mirrors_match_the_std430_layout_of_the_spec() {
         let mirrors = mirrors();
-        assert_eq!(mirrors.len(), spec::STRUCTS.len(), "a spec struct has no mirror");
+        assert_eq!(
+            mirrors.len(),
+            spec::STRUCTS.len(),
+            "a spec struct has no mirror"
+        );
         for (name, fields, size) in mirrors {
             let s = spec::STRUCTS
                 .iter()

@@ -139,7 +139,9 @@ impl Drop for Buffer {
         // SAFETY: the owner guarantees the GPU no longer uses the buffer (frames are waited on).
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
         if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
+            let _ = self
+                .ctx
+                .with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
         }
     }
 }
@@ -273,7 +275,9 @@ impl Drop for Image {
             self.ctx.device.destroy_image(self.raw, None);
         }
         if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
+            let _ = self
+                .ctx
+                .with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
         }
     }
 }

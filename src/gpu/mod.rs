@@ -10,3 +10,4 @@ pub use context::{Capabilities, Context, ContextOptions};
 pub use memory::{Buffer, Image, ImageDesc};
 pub use pipeline::{Binding, Blend, GraphicsDesc, Pipeline};
 pub use profiler::{Profiler, ScopeStats};
+pub mod swapchain;

@@ -19,7 +19,8 @@ pub fn spirv(path: &str) -> Result<Vec<u32>> {
         .find(|(p, _)| *p == path)
         .map(|(_, b)| *b)
         .ok_or_else(|| anyhow!("no embedded shader named {path}"))?;
-    ash::util::read_spv(&mut std::io::Cursor::new(bytes)).with_context(|| format!("bad SPIR-V in {path}"))
+    ash::util::read_spv(&mut std::io::Cursor::new(bytes))
+        .with_context(|| format!("bad SPIR-V in {path}"))
 }
 
 /// Names of every embedded shader.
@@ -123,8 +124,10 @@ impl<'a> Modules<'a> {
             let code = spirv(p)?;
             // SAFETY: code is valid SPIR-V produced by build.rs.
             let m = unsafe {
-                ctx.device
-                    .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)?
+                ctx.device.create_shader_module(
+                    &vk::ShaderModuleCreateInfo::default().code(&code),
+                    None,
+                )?
             };
             modules.modules.push(m);
         }

@@ -126,7 +126,11 @@ pub(crate) fn derive(builder: &GraphBuilder) -> Result<Vec<(Vec<Barrier>, Vec<Ba
         buffers: vec![SubState::UNDEFINED; builder.buffers.len()],
     };
     let (first, mut end) = simulate(builder, initial);
-    let carries: Vec<Carry> = builder.images.iter().map(|r| image_carry(&r.source)).collect();
+    let carries: Vec<Carry> = builder
+        .images
+        .iter()
+        .map(|r| image_carry(&r.source))
+        .collect();
     let mut steady = Vec::new();
     // Iterate to the steady state (read-only resources accumulate reader stages once).
     for _ in 0..4 {
@@ -420,17 +424,20 @@ impl PassContext<'_> {
             match *desc {
                 Descriptor::Buffer(_, id) => {
                     let (raw, size) = self.graph.buffer_raw(id);
-                    buffer_infos.push([vk::DescriptorBufferInfo::default()
-                        .buffer(raw)
-                        .range(size)]);
+                    buffer_infos
+                        .push([vk::DescriptorBufferInfo::default().buffer(raw).range(size)]);
                 }
-                Descriptor::StorageImage(_, id, mip) => image_infos.push([vk::DescriptorImageInfo::default()
-                    .image_view(self.graph.view(id, mip))
-                    .image_layout(vk::ImageLayout::GENERAL)]),
-                Descriptor::Sampled(_, id, mip) => image_infos.push([vk::DescriptorImageInfo::default()
-                    .image_view(self.graph.view(id, mip))
-                    .sampler(self.graph.nearest)
-                    .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)]),
+                Descriptor::StorageImage(_, id, mip) => {
+                    image_infos.push([vk::DescriptorImageInfo::default()
+                        .image_view(self.graph.view(id, mip))
+                        .image_layout(vk::ImageLayout::GENERAL)])
+                }
+                Descriptor::Sampled(_, id, mip) => {
+                    image_infos.push([vk::DescriptorImageInfo::default()
+                        .image_view(self.graph.view(id, mip))
+                        .sampler(self.graph.nearest)
+                        .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)])
+                }
             }
         }
         let (mut bi, mut ii) = (0, 0);
@@ -479,13 +486,9 @@ impl PassContext<'_> {
     pub fn push(&self, pipeline: &Pipeline, bytes: &[u8]) {
         // SAFETY: recording; range within the layout's push-constant range.
         unsafe {
-            self.ctx.device.cmd_push_constants(
-                self.cmd,
-                pipeline.layout,
-                pipeline.stages,
-                0,
-                bytes,
-            )
+            self.ctx
+                .device
+                .cmd_push_constants(self.cmd, pipeline.layout, pipeline.stages, 0, bytes)
         };
     }
 

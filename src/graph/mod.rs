@@ -22,7 +22,7 @@ use ash::vk;
 
 use crate::gpu::{Buffer, Image, ImageDesc};
 
-pub use exec::{CompiledGraph, Descriptor, PassContext};
+pub use exec::{Barrier, BarrierTarget, CompiledGraph, Descriptor, PassContext};
 pub use sync::{Access, Stages};
 
 /// Handle to an image of the graph.
@@ -46,7 +46,7 @@ pub struct PingPong {
 impl PingPong {
     /// The image holding level `level`.
     pub fn holder(&self, level: u32) -> ImageId {
-        if level % 2 == 0 {
+        if level.is_multiple_of(2) {
             self.a
         } else {
             self.b
@@ -55,7 +55,7 @@ impl PingPong {
 
     /// The image not holding level `level`.
     pub fn other(&self, level: u32) -> ImageId {
-        if level % 2 == 0 {
+        if level.is_multiple_of(2) {
             self.b
         } else {
             self.a
@@ -107,7 +107,11 @@ pub(crate) struct BufferRes {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Subresource {
     /// Mip levels `base..base + count` of an image.
-    Image { id: ImageId, base: u32, count: u32 },
+    Image {
+        id: ImageId,
+        base: u32,
+        count: u32,
+    },
     Buffer(BufferId),
 }
 

@@ -88,7 +88,12 @@ impl Access {
                 L::DEPTH_ATTACHMENT_OPTIMAL,
                 true,
             ),
-            Access::Sampled(s) => (s.flags(), A::SHADER_SAMPLED_READ, L::SHADER_READ_ONLY_OPTIMAL, false),
+            Access::Sampled(s) => (
+                s.flags(),
+                A::SHADER_SAMPLED_READ,
+                L::SHADER_READ_ONLY_OPTIMAL,
+                false,
+            ),
             Access::StorageRead(s) => (s.flags(), A::SHADER_STORAGE_READ, L::GENERAL, false),
             Access::StorageWrite(s) => (s.flags(), A::SHADER_STORAGE_WRITE, L::GENERAL, true),
             Access::StorageReadWrite(s) => (
@@ -97,9 +102,19 @@ impl Access {
                 L::GENERAL,
                 true,
             ),
-            Access::UniformRead(s) => (s.flags(), A::SHADER_STORAGE_READ | A::UNIFORM_READ, L::UNDEFINED, false),
+            Access::UniformRead(s) => (
+                s.flags(),
+                A::SHADER_STORAGE_READ | A::UNIFORM_READ,
+                L::UNDEFINED,
+                false,
+            ),
             Access::IndexRead => (S::INDEX_INPUT, A::INDEX_READ, L::UNDEFINED, false),
-            Access::IndirectRead => (S::DRAW_INDIRECT, A::INDIRECT_COMMAND_READ, L::UNDEFINED, false),
+            Access::IndirectRead => (
+                S::DRAW_INDIRECT,
+                A::INDIRECT_COMMAND_READ,
+                L::UNDEFINED,
+                false,
+            ),
             Access::TransferSrc => (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, false),
             Access::TransferDst => (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, true),
             Access::HostRead => (S::HOST, A::HOST_READ, L::GENERAL, false),
@@ -155,20 +170,34 @@ pub struct Transition {
 /// `is_image` decides whether layouts matter.
 pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Transition> {
     let info = access.info();
-    let new_layout = if is_image { info.layout } else { vk::ImageLayout::UNDEFINED };
+    let new_layout = if is_image {
+        info.layout
+    } else {
+        vk::ImageLayout::UNDEFINED
+    };
     let layout_change = is_image && state.layout != new_layout;
     let mut barrier = None;
     if info.writes || layout_change {
-        // Write-after-write / write-after-read / layout transition: wait for everything before.
-        let src_stages = state.write_stages | state.read_stages;
+        // Write-after-read / layout transition: wait for the reads since the last write; they
+        // were themselves ordered after that write (and it was made available then), so the
+        // execution dependency chains. With no reads since, wait for the write itself (WAW).
+        let (src_stages, src_access) = if state.read_stages.is_empty() {
+            (state.write_stages, state.write_access)
+        } else {
+            (state.read_stages, vk::AccessFlags2::NONE)
+        };
         if layout_change || !src_stages.is_empty() {
             barrier = Some(Transition {
                 src_stages,
-                src_access: state.write_access,
+                src_access,
                 dst_stages: info.stages,
                 dst_access: info.access,
                 old_layout: state.layout,
-                new_layout: if is_image { new_layout } else { vk::ImageLayout::UNDEFINED },
+                new_layout: if is_image {
+                    new_layout
+                } else {
+                    vk::ImageLayout::UNDEFINED
+                },
             });
         }
         if info.writes {
@@ -189,7 +218,8 @@ pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Tra
     // Read after write in the same layout: make the write visible unless already done.
     let missing_stages = info.stages & !state.visible_stages;
     let missing_access = info.access & !state.visible_access;
-    if !state.write_stages.is_empty() && (!missing_stages.is_empty() || !missing_access.is_empty()) {
+    if !state.write_stages.is_empty() && (!missing_stages.is_empty() || !missing_access.is_empty())
+    {
         barrier = Some(Transition {
             src_stages: state.write_stages,
             src_access: state.write_access,
@@ -232,16 +262,23 @@ mod tests {
         // A later write must wait for the readers (write-after-read).
         let w = apply(&mut s, Access::StorageWrite(Stages::Compute), true).expect("WAR");
         assert_eq!(w.src_stages, S::FRAGMENT_SHADER);
-        assert_eq!(w.src_access, vk::AccessFlags2::COLOR_ATTACHMENT_READ | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE);
+        assert_eq!(w.src_access, vk::AccessFlags2::NONE);
     }
 
     #[test]
     fn buffer_read_after_read_needs_no_barrier_and_ignores_layouts() {
         let mut s = SubState::UNDEFINED;
-        assert_eq!(apply(&mut s, Access::StorageRead(Stages::Vertex), false), None);
-        assert_eq!(apply(&mut s, Access::StorageRead(Stages::Compute), false), None);
+        assert_eq!(
+            apply(&mut s, Access::StorageRead(Stages::Vertex), false),
+            None
+        );
+        assert_eq!(
+            apply(&mut s, Access::StorageRead(Stages::Compute), false),
+            None
+        );
         let t = apply(&mut s, Access::StorageWrite(Stages::Compute), false).expect("WAR");
         assert_eq!(t.src_stages, S::VERTEX_SHADER | S::COMPUTE_SHADER);
+        assert_eq!(t.src_access, vk::AccessFlags2::NONE);
         assert_eq!(t.old_layout, vk::ImageLayout::UNDEFINED);
         let r = apply(&mut s, Access::IndirectRead, false).expect("RAW");
         assert_eq!(r.src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);

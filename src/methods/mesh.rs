@@ -47,7 +47,11 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             shaders: &["eval/mesh.vert", "eval/mesh.frag"],
             bindings: &[
                 Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, gfx),
-                Binding::new(BINDING_POINTS, vk::DescriptorType::STORAGE_BUFFER, vk::ShaderStageFlags::VERTEX),
+                Binding::new(
+                    BINDING_POINTS,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vk::ShaderStageFlags::VERTEX,
+                ),
             ],
             color_formats: &[HI_COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
             blends: &[Blend::Replace; 3],
@@ -81,12 +85,21 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         usage,
     };
     let color_usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
-    let hi_color = b.graph.image("mesh.hi_color", target(HI_COLOR_FORMAT, color_usage));
-    let hi_depth = b.graph.image("mesh.hi_depth", target(DEPTH_FORMAT, color_usage));
-    let hi_normal = b.graph.image("mesh.hi_normal", target(NORMAL_FORMAT, color_usage));
+    let hi_color = b
+        .graph
+        .image("mesh.hi_color", target(HI_COLOR_FORMAT, color_usage));
+    let hi_depth = b
+        .graph
+        .image("mesh.hi_depth", target(DEPTH_FORMAT, color_usage));
+    let hi_normal = b
+        .graph
+        .image("mesh.hi_normal", target(NORMAL_FORMAT, color_usage));
     let zbuffer = b.graph.image(
         "mesh.zbuffer",
-        target(ZBUFFER_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT),
+        target(
+            ZBUFFER_FORMAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+        ),
     );
     let (frame, points, t) = (b.frame, b.points, b.targets);
     let index_count = b.scene.index_count;

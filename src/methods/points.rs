@@ -5,7 +5,9 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use super::{BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use super::{
+    BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
+};
 use crate::gpu::layout::{BINDING_FRAME, BINDING_POINTS};
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::Descriptor;
@@ -33,7 +35,11 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             shaders: &["splat/points.vert", "splat/points.frag"],
             bindings: &[
                 Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
-                Binding::new(BINDING_POINTS, vk::DescriptorType::STORAGE_BUFFER, vk::ShaderStageFlags::VERTEX),
+                Binding::new(
+                    BINDING_POINTS,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vk::ShaderStageFlags::VERTEX,
+                ),
             ],
             color_formats: &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
             blends: &[Blend::Replace; 3],

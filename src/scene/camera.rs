@@ -114,7 +114,10 @@ mod tests {
     fn projection_flips_y_for_vulkan() {
         let c = Camera::framing(Vec3::ZERO, 1.0);
         let clip = c.projection(1.0) * c.view() * Vec3::new(0.0, 0.5, 0.0).extend(1.0);
-        assert!(clip.y / clip.w < 0.0, "world up must map to the top (negative NDC y)");
+        assert!(
+            clip.y / clip.w < 0.0,
+            "world up must map to the top (negative NDC y)"
+        );
     }
 
     #[test]
@@ -181,7 +184,9 @@ impl Pose {
                 orbit: [*az, *el],
                 distance: *d,
             }),
-            _ => Err(format!("expected AZ,EL or AZ,EL,DISTANCE (degrees), got {s:?}")),
+            _ => Err(format!(
+                "expected AZ,EL or AZ,EL,DISTANCE (degrees), got {s:?}"
+            )),
         }
     }
 }

@@ -35,6 +35,9 @@ pub struct Cloud {
     /// Offset that was subtracted from the file's coordinates.
     pub origin: DVec3,
     pub stats: LoadStats,
+    /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
+    /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
+    pub sensor: Option<Vec3>,
 }
 
 impl Cloud {
@@ -61,5 +64,58 @@ impl Cloud {
         let (lo, hi) = self.bounds()?;
         let centre = (lo + hi) * 0.5;
         Some((centre, ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE)))
+    }
+
+    /// Removes every point with a NaN or infinite coordinate, together with its normal, color,
+    /// radius and scalar values. Faces that used a removed point are removed; the others are
+    /// re-indexed. Adds the number of removed points to `stats.dropped_non_finite` and returns it.
+    pub fn retain_finite(&mut self) -> usize {
+        let keep: Vec<bool> = self.positions.iter().map(|p| p.is_finite()).collect();
+        let dropped = keep.iter().filter(|k| !**k).count();
+        if dropped == 0 {
+            return 0;
+        }
+        fn filter<T: Copy>(values: &mut Vec<T>, keep: &[bool]) {
+            if values.len() == keep.len() {
+                let mut i = 0;
+                values.retain(|_| {
+                    i += 1;
+                    keep[i - 1]
+                });
+            }
+        }
+        filter(&mut self.positions, &keep);
+        if let Some(normals) = &mut self.normals {
+            filter(normals, &keep);
+        }
+        if let Some(colors) = &mut self.colors {
+            filter(colors, &keep);
+        }
+        if let Some(radii) = &mut self.radii {
+            filter(radii, &keep);
+        }
+        for scalar in &mut self.scalars {
+            filter(&mut scalar.values, &keep);
+        }
+        if let Some(faces) = &mut self.faces {
+            let mut remap = Vec::with_capacity(keep.len());
+            let mut next = 0u32;
+            for &k in &keep {
+                remap.push(if k { Some(next) } else { None });
+                next += u32::from(k);
+            }
+            faces.retain_mut(|face| {
+                let mapped = face.map(|i| remap.get(i as usize).copied().flatten());
+                match mapped {
+                    [Some(a), Some(b), Some(c)] => {
+                        *face = [a, b, c];
+                        true
+                    }
+                    _ => false,
+                }
+            });
+        }
+        self.stats.dropped_non_finite += dropped;
+        dropped
     }
 }

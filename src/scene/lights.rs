@@ -59,7 +59,13 @@ pub fn ring(count: u32, radius: f32) -> Vec<Light> {
 }
 
 /// Resolves lights to view space for a frame at `time` seconds. At most `MAX_LIGHTS`.
-pub fn resolve(lights: &[Light], view: Mat4, centre: Vec3, radius: f32, time: f32) -> Vec<GpuLight> {
+pub fn resolve(
+    lights: &[Light],
+    view: Mat4,
+    centre: Vec3,
+    radius: f32,
+    time: f32,
+) -> Vec<GpuLight> {
     lights
         .iter()
         .take(MAX_LIGHTS as usize)
@@ -71,7 +77,11 @@ pub fn resolve(lights: &[Light], view: Mat4, centre: Vec3, radius: f32, time: f3
                 LightKind::Orbit => {
                     let angle = (p.z * time).to_radians();
                     let world = centre
-                        + Vec3::new(angle.cos() * p.x * radius, p.y * radius, angle.sin() * p.x * radius);
+                        + Vec3::new(
+                            angle.cos() * p.x * radius,
+                            p.y * radius,
+                            angle.sin() * p.x * radius,
+                        );
                     (view.transform_point3(world), LIGHT_ORBIT)
                 }
             };
@@ -109,7 +119,10 @@ mod tests {
         let r = ring(9, 1.0);
         let total: f32 = r.iter().map(|l| l.color[0]).sum();
         assert!((total - 1.0).abs() < 1e-5);
-        assert_eq!(resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).len(), MAX_LIGHTS as usize);
+        assert_eq!(
+            resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).len(),
+            MAX_LIGHTS as usize
+        );
     }
 
     #[test]

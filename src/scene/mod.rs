@@ -1,11 +1,53 @@
-//! Scene input: point clouds, loaders, preprocessing, camera, lights, scene files.
+//! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ and XYZ text, preprocessing (normals and
+//! splat radii from k nearest neighbours), mesh sampling, camera, lights and scene files.
 
 pub mod camera;
 pub mod cloud;
+pub mod error;
+pub mod las;
 pub mod lights;
+pub mod obj;
 pub mod pack;
+pub mod pcd;
+pub mod ply;
+pub mod preprocess;
+pub mod sample;
 pub mod scene_file;
+mod text;
+pub mod xyz;
+
+use std::path::Path;
 
 pub use camera::{Camera, Pose};
-pub use cloud::Cloud;
+pub use cloud::{Cloud, LoadStats, Scalar};
+pub use error::{LoadError, Location};
 pub use lights::{Light, LightKind};
+
+/// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):
+/// `ply`, `obj`, `pcd`, `las`, `laz`, `xyz`, `txt`, `pts`. Points with a non-finite coordinate
+/// are dropped and counted in `stats.dropped_non_finite`.
+pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match extension.as_str() {
+        "ply" => ply::load(path),
+        "obj" => obj::load(path),
+        "pcd" => pcd::load(path),
+        "las" | "laz" => las::load(path),
+        "xyz" | "txt" | "pts" => xyz::load(path),
+        _ => Err(LoadError::UnknownFormat {
+            file: path.display().to_string(),
+            extension,
+        }),
+    }
+}
+
+/// Reads a whole file into memory, naming it in the error.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LoadError> {
+    std::fs::read(path).map_err(|source| LoadError::Io {
+        file: path.display().to_string(),
+        source,
+    })
+}

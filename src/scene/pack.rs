@@ -25,7 +25,10 @@ pub fn oct_decode(packed: u32) -> Vec3 {
     let e = Vec2::new(s(packed).max(-1.0), s(packed >> 16).max(-1.0));
     let mut n = Vec3::new(e.x, e.y, 1.0 - e.x.abs() - e.y.abs());
     if n.z < 0.0 {
-        let sign = Vec2::new(if n.x >= 0.0 { 1.0 } else { -1.0 }, if n.y >= 0.0 { 1.0 } else { -1.0 });
+        let sign = Vec2::new(
+            if n.x >= 0.0 { 1.0 } else { -1.0 },
+            if n.y >= 0.0 { 1.0 } else { -1.0 },
+        );
         let xy = (Vec2::ONE - Vec2::new(n.y.abs(), n.x.abs())) * sign;
         n.x = xy.x;
         n.y = xy.y;
@@ -107,7 +110,13 @@ mod tests {
 
     #[test]
     fn vertex_normals_of_a_ccw_square_face_up() {
-        let pos = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y, Vec3::splat(9.0)];
+        let pos = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+            Vec3::splat(9.0),
+        ];
         let n = vertex_normals(&pos, &[[0, 1, 2], [0, 2, 3]]);
         assert!(n[..4].iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
         assert_eq!(n[4], Vec3::Z);

@@ -38,7 +38,8 @@ impl SceneFile {
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
         match ext {
-            "toml" => toml::from_str(text).with_context(|| format!("{}: invalid scene file", path.display())),
+            "toml" => toml::from_str(text)
+                .with_context(|| format!("{}: invalid scene file", path.display())),
             "json" => serde_json::from_str(text)
                 .with_context(|| format!("{}: invalid scene file", path.display())),
             _ => bail!("{}: scene files must end in .toml or .json", path.display()),

@@ -1,0 +1,381 @@
+//! The interactive viewer: a winit window, an ash swapchain, an orbit/pan/zoom camera, keys to
+//! switch methods and toggle color, and per-pass GPU milliseconds in the title.
+//!
+//! Controls: left drag orbits, right (or middle) drag pans, the wheel zooms, `M`/`N` switch to
+//! the next/previous method, `C` toggles point colors, `R` resets the camera, `Esc` quits.
+
+use std::sync::Arc;
+
+use anyhow::{Context as _, Result};
+use glam::{Vec2, Vec3};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{Key, NamedKey};
+use winit::raw_window_handle::HasDisplayHandle;
+use winit::window::{Window, WindowId};
+
+use crate::gpu::swapchain::Swapchain;
+use crate::gpu::{Context, ContextOptions, ImageDesc};
+use crate::methods::{MethodConfig, METHODS};
+use crate::render::{upload, Extras, Renderer, SceneInfo, View};
+use crate::scene::{Camera, Cloud, Light};
+
+/// What the viewer shows.
+pub struct ViewerOptions {
+    pub title: String,
+    pub method: MethodConfig,
+    pub camera: Camera,
+    pub lights: Vec<Light>,
+    pub width: u32,
+    pub height: u32,
+    /// Quit after this many frames (smoke tests); run until closed when `None`.
+    pub frames: Option<u64>,
+    pub validation: bool,
+}
+
+/// Orbit state around a target.
+struct Orbit {
+    target: Vec3,
+    distance: f32,
+    azimuth: f32,
+    elevation: f32,
+    home: Camera,
+}
+
+impl Orbit {
+    fn from_camera(c: &Camera) -> Self {
+        let d = c.eye - c.target;
+        let distance = d.length().max(1e-6);
+        Self {
+            target: c.target,
+            distance,
+            azimuth: d.x.atan2(d.z),
+            elevation: (d.y / distance).clamp(-1.0, 1.0).asin(),
+            home: *c,
+        }
+    }
+
+    fn camera(&self) -> Camera {
+        let (az, el) = (self.azimuth, self.elevation);
+        let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        Camera {
+            eye: self.target + dir * self.distance,
+            target: self.target,
+            ..self.home
+        }
+    }
+
+    fn pan(&mut self, delta: Vec2, height: f32) {
+        let c = self.camera();
+        let forward = (c.target - c.eye).normalize_or(Vec3::NEG_Z);
+        let right = forward.cross(c.up).normalize_or(Vec3::X);
+        let up = right.cross(forward);
+        let scale = 2.0 * self.distance * (c.fov_y * 0.5).tan() / height.max(1.0);
+        self.target += (-right * delta.x + up * delta.y) * scale;
+    }
+}
+
+struct Gpu {
+    renderer: Renderer,
+    swapchain: Swapchain,
+    window: Arc<Window>,
+}
+
+struct Viewer {
+    opts: ViewerOptions,
+    cloud: Cloud,
+    ctx: Option<Arc<Context>>,
+    scene: Option<(crate::methods::GpuScene, SceneInfo)>,
+    gpu: Option<Gpu>,
+    orbit: Orbit,
+    method: usize,
+    use_color: bool,
+    drag: Option<(MouseButton, Vec2)>,
+    cursor: Vec2,
+    frames: u64,
+    start: std::time::Instant,
+    error: Option<anyhow::Error>,
+}
+
+/// Opens the viewer window on `cloud` and runs until it is closed.
+pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
+    let event_loop =
+        EventLoop::new().context("cannot open a window system connection (is DISPLAY set?)")?;
+    let method = METHODS
+        .iter()
+        .position(|m| m.name == opts.method.method.name)
+        .unwrap_or(0);
+    let mut viewer = Viewer {
+        orbit: Orbit::from_camera(&opts.camera),
+        opts,
+        cloud,
+        ctx: None,
+        scene: None,
+        gpu: None,
+        method,
+        use_color: true,
+        drag: None,
+        cursor: Vec2::ZERO,
+        frames: 0,
+        start: std::time::Instant::now(),
+        error: None,
+    };
+    event_loop.run_app(&mut viewer)?;
+    if let Some(ctx) = &viewer.ctx {
+        if ctx.validation && ctx.validation_errors() > 0 {
+            anyhow::bail!("{} validation errors", ctx.validation_errors());
+        }
+    }
+    viewer.error.map_or(Ok(()), Err)
+}
+
+impl Viewer {
+    fn init(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        let attrs = Window::default_attributes()
+            .with_title(self.opts.title.clone())
+            .with_inner_size(PhysicalSize::new(self.opts.width, self.opts.height));
+        let window = Arc::new(event_loop.create_window(attrs)?);
+        if self.ctx.is_none() {
+            let display = event_loop.display_handle()?.as_raw();
+            let exts = ash_window::enumerate_required_extensions(display)?
+                .iter()
+                // SAFETY: ash-window returns pointers to static extension-name strings.
+                .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) })
+                .collect();
+            let ctx = Arc::new(Context::new(&ContextOptions {
+                validation: self.opts.validation,
+                surface_extensions: exts,
+            })?);
+            self.scene = Some(upload(&ctx, &self.cloud)?);
+            self.ctx = Some(ctx);
+        }
+        let ctx = self.ctx.clone().context("context")?;
+        let size = window.inner_size();
+        let swapchain = Swapchain::new(&ctx, &window, size.width.max(1), size.height.max(1))?;
+        let renderer = self.build_renderer(&ctx, &swapchain)?;
+        self.gpu = Some(Gpu {
+            renderer,
+            swapchain,
+            window,
+        });
+        Ok(())
+    }
+
+    fn config(&self) -> MethodConfig {
+        let m = &METHODS[self.method];
+        if m.name == self.opts.method.method.name {
+            self.opts.method.clone()
+        } else {
+            MethodConfig {
+                method: m,
+                params: Default::default(),
+            }
+        }
+    }
+
+    fn build_renderer(&self, ctx: &Arc<Context>, swapchain: &Swapchain) -> Result<Renderer> {
+        let (scene, info) = self.scene.as_ref().context("scene not uploaded")?;
+        let desc = ImageDesc {
+            format: swapchain.format,
+            width: swapchain.extent.width,
+            height: swapchain.extent.height,
+            mip_levels: 1,
+            usage: ash::vk::ImageUsageFlags::TRANSFER_DST,
+        };
+        Renderer::new(
+            ctx,
+            scene,
+            *info,
+            &self.config(),
+            swapchain.extent.width,
+            swapchain.extent.height,
+            Extras {
+                readback: false,
+                present: Some(desc),
+            },
+        )
+    }
+
+    fn rebuild(&mut self) -> Result<()> {
+        let ctx = self.ctx.clone().context("context")?;
+        if let Some(gpu) = self.gpu.as_mut() {
+            let size = gpu.window.inner_size();
+            if size.width == 0 || size.height == 0 {
+                return Ok(());
+            }
+            gpu.swapchain.recreate(size.width, size.height)?;
+        }
+        if let Some(gpu) = self.gpu.take() {
+            let renderer = self.build_renderer(&ctx, &gpu.swapchain)?;
+            self.gpu = Some(Gpu { renderer, ..gpu });
+        }
+        Ok(())
+    }
+
+    fn switch_method(&mut self, step: isize) -> Result<()> {
+        let has_faces = self
+            .scene
+            .as_ref()
+            .is_some_and(|(s, _)| s.indices.is_some());
+        for _ in 0..METHODS.len() {
+            self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
+            if !METHODS[self.method].needs_faces || has_faces {
+                break;
+            }
+        }
+        self.rebuild()
+    }
+
+    fn frame(&mut self) -> Result<()> {
+        let Some(gpu) = self.gpu.as_mut() else {
+            return Ok(());
+        };
+        let size = gpu.window.inner_size();
+        if size.width == 0 || size.height == 0 {
+            return Ok(());
+        }
+        if (size.width, size.height) != (gpu.swapchain.extent.width, gpu.swapchain.extent.height) {
+            return self.rebuild();
+        }
+        let Some((index, acquired)) = gpu.swapchain.acquire()? else {
+            return self.rebuild();
+        };
+        let image = gpu.swapchain.images[index as usize];
+        gpu.renderer
+            .bind_present_image(image, ash::vk::ImageView::null());
+        gpu.renderer.update(&View {
+            camera: self.orbit.camera(),
+            lights: self.opts.lights.clone(),
+            use_color: self.use_color,
+            time: self.start.elapsed().as_secs_f32(),
+        })?;
+        let cmd = gpu.renderer.record(false)?;
+        let ctx = self.ctx.as_ref().context("context")?;
+        ctx.submit_frame(
+            cmd,
+            Some(acquired),
+            Some(gpu.swapchain.rendered[index as usize]),
+        )?;
+        gpu.renderer.collect_timings()?;
+        let presented = gpu.swapchain.present(index)?;
+        self.frames += 1;
+        let passes: Vec<String> = gpu
+            .renderer
+            .last_timings()
+            .iter()
+            .filter(|(n, _)| !n.starts_with("present"))
+            .map(|(n, ms)| format!("{n} {ms:.2}"))
+            .collect();
+        gpu.window.set_title(&format!(
+            "{} - {} - {} ms{}",
+            self.opts.title,
+            gpu.renderer.config.label(),
+            passes.join(" | "),
+            if self.use_color { "" } else { " (no color)" }
+        ));
+        if !presented {
+            self.rebuild()?;
+        }
+        Ok(())
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
+        self.error = Some(e);
+        self.gpu = None;
+        event_loop.exit();
+    }
+}
+
+impl ApplicationHandler for Viewer {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gpu.is_none() {
+            if let Err(e) = self.init(event_loop) {
+                self.fail(event_loop, e);
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let result = match event {
+            WindowEvent::CloseRequested => {
+                self.gpu = None;
+                event_loop.exit();
+                Ok(())
+            }
+            WindowEvent::Resized(_) => Ok(()),
+            WindowEvent::RedrawRequested => self.frame(),
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                match event.logical_key.as_ref() {
+                    Key::Named(NamedKey::Escape) => {
+                        self.gpu = None;
+                        event_loop.exit();
+                        Ok(())
+                    }
+                    Key::Character("m") | Key::Named(NamedKey::Tab) => self.switch_method(1),
+                    Key::Character("n") => self.switch_method(-1),
+                    Key::Character("c") => {
+                        self.use_color = !self.use_color;
+                        Ok(())
+                    }
+                    Key::Character("r") => {
+                        self.orbit = Orbit::from_camera(&self.orbit.home);
+                        Ok(())
+                    }
+                    _ => Ok(()),
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                self.drag = (state == ElementState::Pressed).then_some((button, self.cursor));
+                Ok(())
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let p = Vec2::new(position.x as f32, position.y as f32);
+                if let Some((button, last)) = self.drag {
+                    let d = p - last;
+                    match button {
+                        MouseButton::Left => {
+                            self.orbit.azimuth -= d.x * 0.01;
+                            self.orbit.elevation =
+                                (self.orbit.elevation + d.y * 0.01).clamp(-1.55, 1.55);
+                        }
+                        _ => {
+                            let h = self
+                                .gpu
+                                .as_ref()
+                                .map_or(1.0, |g| g.swapchain.extent.height as f32);
+                            self.orbit.pan(d, h);
+                        }
+                    }
+                    self.drag = Some((button, p));
+                }
+                self.cursor = p;
+                Ok(())
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.orbit.distance *= 0.9f32.powf(lines);
+                Ok(())
+            }
+            _ => Ok(()),
+        };
+        if let Err(e) = result {
+            self.fail(event_loop, e);
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        if self.opts.frames.is_some_and(|n| self.frames >= n) {
+            self.gpu = None;
+            event_loop.exit();
+            return;
+        }
+        if let Some(gpu) = &self.gpu {
+            gpu.window.request_redraw();
+        }
+    }
+}

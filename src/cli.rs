@@ -1,0 +1,424 @@
+//! The command line: `surfel render | view | info | sample | bench | report`.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{bail, Context as _, Result};
+use clap::{Args, Parser, Subcommand};
+use serde::Serialize;
+
+use crate::gpu::{Context, ContextOptions, ScopeStats};
+use crate::methods::{MethodConfig, METHODS};
+use crate::render::{upload, Extras, Renderer, View};
+use crate::scene::camera::{parse_vec3, Pose};
+use crate::scene::preprocess::{self, PreprocessOptions};
+use crate::scene::scene_file::SceneFile;
+use crate::scene::{pack, Cloud, Light};
+
+/// surfel: a Vulkan point-cloud renderer.
+#[derive(Parser, Debug)]
+#[command(name = "surfel", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render FILE headless to a PNG (no window system needed).
+    Render(RenderArgs),
+    /// Open FILE in the interactive viewer.
+    View(ViewArgs),
+    /// Print counts, attributes, bounds, GPU memory per point and device capabilities.
+    Info(InfoArgs),
+    /// Sample a mesh into a point cloud (area-weighted, face normals, radii from density).
+    Sample(SampleArgs),
+}
+
+/// Input and preprocessing options shared by the commands that load a model.
+#[derive(Args, Debug, Clone)]
+pub struct InputArgs {
+    /// Neighbours for k-NN normals and radii.
+    #[arg(long, default_value_t = preprocess::DEFAULT_K)]
+    pub k: usize,
+    /// Reuse/store computed normals and radii in FILE.surfel-cache.
+    #[arg(long)]
+    pub cache: bool,
+}
+
+/// Camera and light options.
+#[derive(Args, Debug, Clone)]
+pub struct CameraArgs {
+    /// Orbit around the bounding-sphere centre: AZ,EL[,DISTANCE] in degrees (distance scales the
+    /// framing distance).
+    #[arg(long, value_name = "AZ,EL", allow_hyphen_values = true)]
+    pub orbit: Option<String>,
+    /// Eye position X,Y,Z (needs --target).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        allow_hyphen_values = true,
+        requires = "target"
+    )]
+    pub eye: Option<String>,
+    /// Look-at point X,Y,Z (needs --eye).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        allow_hyphen_values = true,
+        requires = "eye"
+    )]
+    pub target: Option<String>,
+    /// Scene file (TOML/JSON) with a camera pose and lights.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Render with the base color instead of the points' colors.
+    #[arg(long)]
+    pub no_color: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Model or point cloud (ply, obj, pcd, las, laz, xyz).
+    #[arg(required_unless_present = "list_methods")]
+    pub file: Option<PathBuf>,
+    /// Method, optionally with parameters: `points:size=3`.
+    #[arg(long, short, default_value = "points")]
+    pub method: String,
+    /// Image size WxH.
+    #[arg(long, default_value = "1024x1024")]
+    pub size: String,
+    /// Output PNG.
+    #[arg(long, short, default_value = "surfel.png")]
+    pub out: PathBuf,
+    /// Write per-pass GPU timings (median over --frames frames) as JSON.
+    #[arg(long, value_name = "JSON")]
+    pub timings: Option<PathBuf>,
+    /// Timed frames (after 3 warm-up frames) for --timings.
+    #[arg(long, default_value_t = 20)]
+    pub frames: u32,
+    /// Print the render graph's schedule (passes, accesses, barriers).
+    #[arg(long)]
+    pub dump_graph: bool,
+    /// Print the available methods, one per line, and exit.
+    #[arg(long)]
+    pub list_methods: bool,
+    /// Enable the Vulkan validation layers.
+    #[arg(long)]
+    pub validation: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    pub file: PathBuf,
+    #[arg(long, short, default_value = "points")]
+    pub method: String,
+    /// Initial window size WxH.
+    #[arg(long, default_value = "1024x768")]
+    pub size: String,
+    /// Quit after N frames (smoke tests).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    #[arg(long)]
+    pub validation: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    pub file: PathBuf,
+    /// Skip the GPU capability report.
+    #[arg(long)]
+    pub no_device: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct SampleArgs {
+    /// Mesh with faces (ply, obj).
+    pub mesh: PathBuf,
+    /// Number of points.
+    #[arg(long)]
+    pub points: usize,
+    /// Output binary PLY.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(a) => render(a),
+        Command::View(a) => view(a),
+        Command::Info(a) => info(a),
+        Command::Sample(a) => sample(a),
+    }
+}
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("size '{s}': expected WxH, e.g. 1024x768"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .with_context(|| format!("size '{s}': bad width"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .with_context(|| format!("size '{s}': bad height"))?;
+    if w == 0 || h == 0 || w > crate::render::MAX_EDGE || h > crate::render::MAX_EDGE {
+        bail!(
+            "size '{s}': each edge must be 1..={}",
+            crate::render::MAX_EDGE
+        );
+    }
+    Ok((w, h))
+}
+
+/// Loads `path` and completes what the methods need: normals (from faces for meshes, else PCA
+/// over k-NN) and radii (k-NN), optionally cached next to the input.
+pub fn load_prepared(path: &Path, input: &InputArgs) -> Result<Cloud> {
+    let mut cloud = crate::scene::load(path)?;
+    if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
+        cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
+    }
+    let options = PreprocessOptions {
+        k: input.k.max(1),
+        ..Default::default()
+    };
+    if cloud.normals.is_some() && cloud.radii.is_some() {
+        return Ok(cloud);
+    }
+    if input.cache {
+        if let Some((normals, radii)) = preprocess::load_cache(path, &options, cloud.len()) {
+            cloud.normals.get_or_insert(normals);
+            cloud.radii.get_or_insert(radii);
+            return Ok(cloud);
+        }
+    }
+    preprocess::preprocess(&mut cloud, &options);
+    if input.cache {
+        if let (Some(n), Some(r)) = (&cloud.normals, &cloud.radii) {
+            preprocess::save_cache(path, &options, n, r)
+                .with_context(|| format!("{}: cannot write the cache", path.display()))?;
+        }
+    }
+    Ok(cloud)
+}
+
+/// The pose and lights from the camera options (scene file first, flags override).
+pub fn view_settings(cam: &CameraArgs) -> Result<(Pose, Vec<Light>)> {
+    let file = match &cam.scene {
+        Some(p) => SceneFile::load(p)?,
+        None => SceneFile::default(),
+    };
+    let mut pose = file.camera.unwrap_or_default();
+    if let Some(o) = &cam.orbit {
+        pose = Pose::parse_orbit(o).map_err(anyhow::Error::msg)?;
+    }
+    if let (Some(eye), Some(target)) = (&cam.eye, &cam.target) {
+        pose = Pose::LookAt {
+            eye: parse_vec3(eye).map_err(anyhow::Error::msg)?,
+            target: parse_vec3(target).map_err(anyhow::Error::msg)?,
+        };
+    }
+    let lights = if file.lights.is_empty() {
+        vec![Light::headlight()]
+    } else {
+        file.lights
+    };
+    Ok((pose, lights))
+}
+
+fn context(validation: bool) -> Result<Arc<Context>> {
+    let mut options = ContextOptions::from_env();
+    options.validation |= validation;
+    Ok(Arc::new(Context::new(&options)?))
+}
+
+/// Timings written by `render --timings`.
+#[derive(Serialize)]
+struct Timings<'a> {
+    device: &'a str,
+    driver: &'a str,
+    method: String,
+    width: u32,
+    height: u32,
+    points: u32,
+    frames: u32,
+    passes: Vec<ScopeStats>,
+    frame: ScopeStats,
+    points_per_second: f64,
+}
+
+fn render(a: RenderArgs) -> Result<()> {
+    if a.list_methods {
+        for m in METHODS {
+            println!("{}", m.name);
+        }
+        return Ok(());
+    }
+    let file = a.file.context("FILE is required")?;
+    let config = MethodConfig::parse(&a.method)?;
+    let (width, height) = parse_size(&a.size)?;
+    let (pose, lights) = view_settings(&a.camera)?;
+    let cloud = load_prepared(&file, &a.input)?;
+    let ctx = context(a.validation)?;
+    let (scene, info) = upload(&ctx, &cloud)?;
+    let mut renderer = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        width,
+        height,
+        Extras {
+            readback: true,
+            present: None,
+        },
+    )?;
+    if a.dump_graph {
+        print!("{}", renderer.schedule());
+    }
+    let view = View {
+        camera: pose.camera(info.centre, info.radius),
+        lights,
+        use_color: !a.camera.no_color,
+        time: 0.0,
+    };
+    if let Some(path) = &a.timings {
+        for _ in 0..3 {
+            renderer.render(&view, false)?;
+        }
+        renderer.clear_timings();
+        for _ in 0..a.frames.max(1) {
+            renderer.render(&view, false)?;
+        }
+        let (passes, frame) = renderer.timings();
+        let timings = Timings {
+            device: &ctx.caps.device_name,
+            driver: &ctx.caps.driver,
+            method: config.label(),
+            width,
+            height,
+            points: info.points,
+            frames: a.frames.max(1),
+            points_per_second: if frame.median_ms > 0.0 {
+                info.points as f64 / (frame.median_ms / 1000.0)
+            } else {
+                0.0
+            },
+            passes,
+            frame,
+        };
+        std::fs::write(path, serde_json::to_string_pretty(&timings)?)
+            .with_context(|| format!("{}: cannot write timings", path.display()))?;
+        for p in &timings.passes {
+            eprintln!(
+                "{:<24} {:>9.3} ms (IQR {:.3})",
+                p.name, p.median_ms, p.spread_ms
+            );
+        }
+        eprintln!("{:<24} {:>9.3} ms", "frame", timings.frame.median_ms);
+    }
+    let frame = renderer
+        .render(&view, true)?
+        .context("renderer returned no frame")?;
+    drop(renderer);
+    if ctx.validation && ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    image::save_buffer(
+        &a.out,
+        bytemuck::cast_slice(&frame.color),
+        width,
+        height,
+        image::ExtendedColorType::Rgba8,
+    )
+    .with_context(|| format!("{}: cannot write PNG", a.out.display()))?;
+    eprintln!(
+        "{}: {} points, {} -> {}",
+        file.display(),
+        info.points,
+        config.label(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn view(a: ViewArgs) -> Result<()> {
+    let config = MethodConfig::parse(&a.method)?;
+    let (width, height) = parse_size(&a.size)?;
+    let (pose, lights) = view_settings(&a.camera)?;
+    let cloud = load_prepared(&a.file, &a.input)?;
+    let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+    crate::app::run(
+        cloud,
+        crate::app::ViewerOptions {
+            title: format!("surfel - {}", a.file.display()),
+            method: config,
+            camera: pose.camera(centre, radius),
+            lights,
+            width,
+            height,
+            frames: a.frames,
+            validation: a.validation || crate::gpu::context::validation_requested(),
+        },
+    )
+}
+
+fn info(a: InfoArgs) -> Result<()> {
+    let cloud = load_prepared(&a.file, &a.input)?;
+    println!("file              {}", a.file.display());
+    println!("points            {}", cloud.len());
+    println!("records in file   {}", cloud.stats.records);
+    println!("dropped (NaN/inf) {}", cloud.stats.dropped_non_finite);
+    println!(
+        "faces             {}",
+        cloud.faces.as_ref().map_or(0, |f| f.len())
+    );
+    let mut attrs = vec!["position"];
+    attrs.extend(cloud.normals.as_ref().map(|_| "normal"));
+    attrs.extend(cloud.colors.as_ref().map(|_| "color"));
+    attrs.extend(cloud.radii.as_ref().map(|_| "radius"));
+    let scalars: Vec<&str> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
+    attrs.extend(scalars);
+    println!("attributes        {}", attrs.join(", "));
+    if let Some((lo, hi)) = cloud.bounds() {
+        let o = cloud.origin;
+        println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
+        println!("bounds (local)    {lo:.6} .. {hi:.6}");
+    }
+    let bytes = std::mem::size_of::<crate::gpu::layout::GpuPoint>();
+    println!(
+        "GPU memory        {bytes} bytes/point (f32 position, octahedral normal, f16 radius, RGBA8), {:.2} MiB",
+        (bytes * cloud.len()) as f64 / (1 << 20) as f64
+    );
+    if !a.no_device {
+        let ctx = context(false)?;
+        println!("{}", ctx.caps);
+    }
+    Ok(())
+}
+
+fn sample(a: SampleArgs) -> Result<()> {
+    let mesh = crate::scene::load(&a.mesh)?;
+    let cloud = crate::scene::sample::sample_mesh(&mesh, a.points, a.seed)
+        .with_context(|| format!("{}: cannot sample", a.mesh.display()))?;
+    crate::scene::ply::save(&a.out, &cloud)
+        .with_context(|| format!("{}: cannot write", a.out.display()))?;
+    eprintln!("{} points -> {}", cloud.len(), a.out.display());
+    Ok(())
+}

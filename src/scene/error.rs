@@ -1,0 +1,85 @@
+//! Errors reported by the scene loaders.
+
+use std::fmt;
+
+/// Where in a file a problem was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line number of a text file.
+    Line(usize),
+    /// Byte offset into a binary file (or the binary part of a file).
+    ByteOffset(u64),
+    /// The position is not known (reported by a third-party parser, or a whole-file check).
+    Unknown,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(n) => write!(f, "line {n}: "),
+            Location::ByteOffset(n) => write!(f, "byte offset {n}: "),
+            Location::Unknown => Ok(()),
+        }
+    }
+}
+
+/// A failure to load a scene file. The message always starts with the file name, then the
+/// location when known, then what was expected and what was found.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The file could not be read.
+    #[error("{file}: cannot read file: {source}")]
+    Io {
+        /// The file, as given by the caller.
+        file: String,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The extension does not name a supported format.
+    #[error(
+        "{file}: unsupported file type {extension:?}; expected one of .ply, .obj, .pcd, .las, .laz, .xyz, .txt, .pts"
+    )]
+    UnknownFormat {
+        /// The file, as given by the caller.
+        file: String,
+        /// The extension that was found (empty when there is none).
+        extension: String,
+    },
+    /// The content does not match the format.
+    #[error("{file}: {location}{message}")]
+    Parse {
+        /// The file, as given by the caller.
+        file: String,
+        /// Where the problem was found.
+        location: Location,
+        /// What was expected and what was found.
+        message: String,
+    },
+}
+
+impl LoadError {
+    /// A parse error at `location` in `file`.
+    pub fn parse(file: &str, location: Location, message: impl Into<String>) -> Self {
+        LoadError::Parse {
+            file: file.to_owned(),
+            location,
+            message: message.into(),
+        }
+    }
+
+    /// A parse error on 1-based text line `line`.
+    pub fn at_line(file: &str, line: usize, message: impl Into<String>) -> Self {
+        Self::parse(file, Location::Line(line), message)
+    }
+
+    /// A parse error at byte `offset` of a binary file.
+    pub fn at_byte(file: &str, offset: usize, message: impl Into<String>) -> Self {
+        Self::parse(file, Location::ByteOffset(offset as u64), message)
+    }
+
+    /// A parse error without a known location.
+    pub fn whole(file: &str, message: impl Into<String>) -> Self {
+        Self::parse(file, Location::Unknown, message)
+    }
+}

@@ -1,0 +1,178 @@
+//! Wavefront OBJ reader, built on the `obj` crate.
+//!
+//! Positions (`v`) and faces (`f`, any polygon size, fan-triangulated) are read; when faces
+//! reference normals (`v//vn`, `v/vt/vn`), each position gets the normalized average of the
+//! normals it is used with. Positions that faces use without a normal get the area-weighted
+//! average of their faces' normals; positions no face uses get +Z. Material libraries
+//! (`mtllib`) are not opened, so a missing `.mtl` is not an error. Unknown commands are ignored.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::cloud::{Cloud, LoadStats};
+use super::error::LoadError;
+
+fn map_error(file: &str, err: obj::ObjError) -> LoadError {
+    use obj::ObjError as E;
+    // The crate counts lines from 0.
+    match err {
+        E::Io(e) => LoadError::whole(file, format!("cannot read the OBJ text: {e}")),
+        E::MalformedFaceGroup { line_number, group } => LoadError::at_line(
+            file,
+            line_number + 1,
+            format!("expected a face vertex like 3, 3/1, 3//2 or 3/1/2, found \"{group}\""),
+        ),
+        E::ArgumentListFailure { line_number, list } => LoadError::at_line(
+            file,
+            line_number + 1,
+            format!("expected numbers, found {list}"),
+        ),
+        E::UnexpectedCommand {
+            line_number,
+            command,
+        } => LoadError::at_line(
+            file,
+            line_number + 1,
+            format!("expected an OBJ command, found \"{command}\""),
+        ),
+        E::MissingMTLName { line_number } => {
+            LoadError::at_line(file, line_number + 1, "expected a file name after mtllib")
+        }
+        E::ZeroVertexNumber { line_number } => LoadError::at_line(
+            file,
+            line_number + 1,
+            "expected a 1-based or negative vertex index, found 0",
+        ),
+    }
+}
+
+/// Parses OBJ text held in memory. `file` names it in error messages.
+pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
+    let parsed = obj::ObjData::load_buf_with_config(data, obj::LoadConfig { strict: false })
+        .map_err(|e| map_error(file, e))?;
+    let n = parsed.position.len();
+    if n > u32::MAX as usize {
+        return Err(LoadError::whole(
+            file,
+            format!("{n} vertices exceed the 2^32 limit"),
+        ));
+    }
+    let positions: Vec<Vec3> = parsed.position.iter().map(|p| Vec3::from(*p)).collect();
+    let mut faces = Vec::new();
+    let mut normal_sum = vec![Vec3::ZERO; n];
+    let mut has_vn = vec![false; n];
+    let mut any_vn = false;
+    let mut face_index = 0usize;
+    for group in parsed.objects.iter().flat_map(|o| &o.groups) {
+        for poly in &group.polys {
+            let mut corners = Vec::with_capacity(poly.0.len());
+            for tuple in &poly.0 {
+                let p = tuple.0;
+                if p >= n {
+                    return Err(LoadError::whole(
+                        file,
+                        format!(
+                            "face {face_index}: position index is out of range; expected 1..={n} (or a negative relative index)"
+                        ),
+                    ));
+                }
+                if let Some(vn) = tuple.2 {
+                    let normal = parsed.normal.get(vn).ok_or_else(|| {
+                        LoadError::whole(
+                            file,
+                            format!(
+                                "face {face_index}: normal index is out of range; expected 1..={}",
+                                parsed.normal.len()
+                            ),
+                        )
+                    })?;
+                    let normal = Vec3::from(*normal).normalize_or_zero();
+                    normal_sum[p] += normal;
+                    has_vn[p] = true;
+                    any_vn = true;
+                }
+                corners.push(p as u32);
+            }
+            for k in 2..corners.len() {
+                faces.push([corners[0], corners[k - 1], corners[k]]);
+            }
+            face_index += 1;
+        }
+    }
+    let normals = any_vn.then(|| {
+        let mut face_sum = vec![Vec3::ZERO; n];
+        for f in &faces {
+            let [a, b, c] = f.map(|i| positions[i as usize]);
+            let area_normal = (b - a).cross(c - a);
+            for &i in f {
+                face_sum[i as usize] += area_normal;
+            }
+        }
+        (0..n)
+            .map(|i| {
+                let from_vn = if has_vn[i] {
+                    normal_sum[i].normalize_or_zero()
+                } else {
+                    Vec3::ZERO
+                };
+                if from_vn != Vec3::ZERO {
+                    from_vn
+                } else {
+                    let from_faces = face_sum[i].normalize_or_zero();
+                    if from_faces == Vec3::ZERO {
+                        Vec3::Z
+                    } else {
+                        from_faces
+                    }
+                }
+            })
+            .collect()
+    });
+    let mut cloud = Cloud {
+        positions,
+        normals,
+        faces: Some(faces),
+        stats: LoadStats {
+            records: n,
+            dropped_non_finite: 0,
+        },
+        ..Cloud::default()
+    };
+    cloud.retain_finite();
+    Ok(cloud)
+}
+
+/// Loads an OBJ file.
+pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+    let data = super::read_file(path)?;
+    parse(&path.display().to_string(), &data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn polygons_and_shared_normals() {
+        let text = b"mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 5 5 5\nvn 0 0 1\nvn 0 1 0\nusemtl leaf\nf 1//1 2//1 3//1 4//1\nf 1//2 2//2 3//2\n";
+        let c = parse("m.obj", text).unwrap();
+        assert_eq!(c.faces.as_ref().unwrap().len(), 3);
+        let normals = c.normals.unwrap();
+        let expected = Vec3::new(0.0, 1.0, 1.0).normalize();
+        assert!((normals[0] - expected).length() < 1e-6);
+        assert!((normals[3] - Vec3::Z).length() < 1e-6);
+        assert_eq!(normals[4], Vec3::Z);
+    }
+
+    #[test]
+    fn bad_number_names_line() {
+        let err = parse("bad.obj", b"v 0 0 0\nv 1 x 0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("bad.obj: line 2: expected numbers"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,285 @@
+//! The render graph derives the right barriers: MRT, ping-pong pyramids, compute -> graphics
+//! hand-offs, history and swapchain images, and rejects invalid declarations. No device needed.
+
+use ash::vk;
+use surfel::gpu::ImageDesc;
+use surfel::graph::{Access, Barrier, BarrierTarget, GraphBuilder, ImageId, Load, Stages};
+
+use vk::AccessFlags2 as A;
+use vk::ImageLayout as L;
+use vk::PipelineStageFlags2 as S;
+
+fn desc(format: vk::Format, mips: u32) -> ImageDesc {
+    ImageDesc {
+        format,
+        width: 64,
+        height: 64,
+        mip_levels: mips,
+        usage: vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::SAMPLED,
+    }
+}
+
+fn on_image(barriers: &[Barrier], id: ImageId) -> Vec<(u32, Barrier)> {
+    barriers
+        .iter()
+        .filter_map(|b| match b.target {
+            BarrierTarget::Image { id: i, mip } if i == id => Some((mip, *b)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn mrt_attachments_transition_then_become_visible_to_the_sampling_pass() {
+    let mut g = GraphBuilder::new();
+    let a = g.image("albedo", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    let n = g.image("normals", desc(vk::Format::R16G16B16A16_SFLOAT, 1));
+    let z = g.image("z", desc(vk::Format::D32_SFLOAT, 1));
+    let out = g.image("out", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("gbuffer")
+        .color(a, Load::Clear([0.0; 4]))
+        .color(n, Load::Clear([0.0; 4]))
+        .depth(z, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("shade")
+        .image(a, Access::Sampled(Stages::Fragment))
+        .image(n, Access::Sampled(Stages::Fragment))
+        .color(out, Load::DontCare)
+        .record(|_| {});
+    let first = g.first_frame_barriers().expect("valid");
+    assert_eq!(
+        first[0].len(),
+        3,
+        "albedo, normals and depth leave UNDEFINED"
+    );
+    let depth = on_image(&first[0], z)[0].1.transition;
+    assert_eq!(
+        (depth.old_layout, depth.new_layout),
+        (L::UNDEFINED, L::DEPTH_ATTACHMENT_OPTIMAL)
+    );
+    assert_eq!(
+        depth.dst_stages,
+        S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS
+    );
+
+    let steady = g.barriers().expect("valid");
+    for id in [a, n] {
+        let t = on_image(&steady[1], id)[0].1.transition;
+        assert_eq!(
+            (t.src_stages, t.dst_stages),
+            (S::COLOR_ATTACHMENT_OUTPUT, S::FRAGMENT_SHADER)
+        );
+        assert!(t.src_access.contains(A::COLOR_ATTACHMENT_WRITE));
+        assert_eq!(t.dst_access, A::SHADER_SAMPLED_READ);
+        assert_eq!(
+            (t.old_layout, t.new_layout),
+            (L::COLOR_ATTACHMENT_OPTIMAL, L::SHADER_READ_ONLY_OPTIMAL)
+        );
+        // Next frame the G-buffer pass waits for this frame's sampling before overwriting.
+        let w = on_image(&steady[0], id)[0].1.transition;
+        assert!(w.src_stages.contains(S::FRAGMENT_SHADER));
+        assert_eq!(
+            w.old_layout,
+            L::UNDEFINED,
+            "transient contents are discarded"
+        );
+    }
+    assert_eq!(on_image(&steady[1], out).len(), 1);
+}
+
+#[test]
+fn ping_pong_levels_alternate_images_and_only_touched_mips_get_barriers() {
+    let mut g = GraphBuilder::new();
+    let pp = g.ping_pong("pyramid", desc(vk::Format::R16G16B16A16_SFLOAT, 3));
+    assert_eq!(
+        (pp.holder(0), pp.holder(1), pp.holder(2)),
+        (pp.a, pp.b, pp.a)
+    );
+    g.pass("project")
+        .color_mip(pp.holder(0), 0, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    for level in 1..3 {
+        g.pass(&format!("analysis {level}"))
+            .image_mips(
+                pp.holder(level - 1),
+                level - 1,
+                1,
+                Access::Sampled(Stages::Fragment),
+            )
+            .color_mip(pp.holder(level), level, Load::DontCare)
+            .record(|_| {});
+    }
+    // Copy pass: give image A the level it is missing (level 1) for the synthesis phase.
+    g.pass("copy")
+        .image_mips(pp.b, 1, 1, Access::TransferSrc)
+        .image_mips(pp.a, 1, 1, Access::TransferDst)
+        .record(|_| {});
+    let b = g.barriers().expect("valid");
+    let analysis1_reads = on_image(&b[1], pp.a);
+    assert_eq!(analysis1_reads.len(), 1);
+    assert_eq!(analysis1_reads[0].0, 0, "reads A level 0 only");
+    assert_eq!(
+        analysis1_reads[0].1.transition.new_layout,
+        L::SHADER_READ_ONLY_OPTIMAL
+    );
+    let analysis1_writes = on_image(&b[1], pp.b);
+    assert_eq!(analysis1_writes.len(), 1);
+    assert_eq!(analysis1_writes[0].0, 1, "writes B level 1 only");
+    let analysis2 = on_image(&b[2], pp.b);
+    assert_eq!(analysis2[0].0, 1);
+    assert_eq!(
+        analysis2[0].1.transition.src_stages,
+        S::COLOR_ATTACHMENT_OUTPUT
+    );
+    let copy_src = on_image(&b[3], pp.b)[0].1.transition;
+    assert_eq!(
+        (copy_src.old_layout, copy_src.new_layout),
+        (L::SHADER_READ_ONLY_OPTIMAL, L::TRANSFER_SRC_OPTIMAL)
+    );
+    let copy_dst = on_image(&b[3], pp.a);
+    assert_eq!(copy_dst.len(), 1);
+    assert_eq!(copy_dst[0].0, 1);
+    assert_eq!(copy_dst[0].1.transition.new_layout, L::TRANSFER_DST_OPTIMAL);
+}
+
+#[test]
+fn compute_results_are_handed_to_indirect_draws_and_vertex_shaders() {
+    let mut g = GraphBuilder::new();
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER;
+    let args = g.buffer("args", 64, usage);
+    let verts = g.buffer("visible", 4096, usage);
+    let color = g.image("color", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("cull")
+        .buffer(args, Access::StorageWrite(Stages::Compute))
+        .buffer(verts, Access::StorageWrite(Stages::Compute))
+        .record(|_| {});
+    g.pass("draw")
+        .buffer(args, Access::IndirectRead)
+        .buffer(verts, Access::StorageRead(Stages::Vertex))
+        .color(color, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    let b = g.barriers().expect("valid");
+    let find = |pass: usize, name: surfel::graph::BufferId| {
+        b[pass]
+            .iter()
+            .find(|x| x.target == BarrierTarget::Buffer(name))
+            .map(|x| x.transition)
+    };
+    let t = find(1, args).expect("indirect barrier");
+    assert_eq!(
+        (t.src_stages, t.src_access),
+        (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE)
+    );
+    assert_eq!(
+        (t.dst_stages, t.dst_access),
+        (S::DRAW_INDIRECT, A::INDIRECT_COMMAND_READ)
+    );
+    let v = find(1, verts).expect("vertex barrier");
+    assert_eq!(
+        (v.dst_stages, v.dst_access),
+        (S::VERTEX_SHADER, A::SHADER_STORAGE_READ)
+    );
+    // Next frame the compute pass must wait for the draw's reads (write-after-read).
+    let war = find(0, args).expect("WAR barrier");
+    assert_eq!(war.src_stages, S::DRAW_INDIRECT);
+}
+
+#[test]
+fn history_keeps_its_layout_and_swapchain_images_chain_to_the_acquire() {
+    let mut g = GraphBuilder::new();
+    let history = g.history_image("previous", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    let swap = g.external_image("swapchain", desc(vk::Format::B8G8R8A8_UNORM, 1));
+    g.pass("read previous")
+        .image(history, Access::Sampled(Stages::Fragment))
+        .color(swap, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("write history")
+        .image(history, Access::StorageWrite(Stages::Compute))
+        .record(|_| {});
+    g.pass("present")
+        .image(swap, Access::Present)
+        .record(|_| {});
+    let first = g.first_frame_barriers().expect("valid");
+    let steady = g.barriers().expect("valid");
+    assert_eq!(
+        on_image(&first[0], history)[0].1.transition.old_layout,
+        L::UNDEFINED
+    );
+    let kept = on_image(&steady[0], history)[0].1.transition;
+    assert_eq!(
+        kept.old_layout,
+        L::GENERAL,
+        "history keeps last frame's layout and contents"
+    );
+    assert_eq!(kept.src_access, A::SHADER_STORAGE_WRITE);
+    let acquire = on_image(&steady[0], swap)[0].1.transition;
+    assert_eq!(acquire.src_stages, S::COLOR_ATTACHMENT_OUTPUT);
+    assert_eq!(acquire.old_layout, L::UNDEFINED);
+    let present = on_image(&steady[2], swap)[0].1.transition;
+    assert_eq!(present.new_layout, L::PRESENT_SRC_KHR);
+}
+
+#[test]
+fn invalid_declarations_are_rejected_with_the_pass_name() {
+    let mut g = GraphBuilder::new();
+    let img = g.image("img", desc(vk::Format::R8G8B8A8_UNORM, 2));
+    g.pass("too deep")
+        .image_mips(img, 1, 2, Access::Sampled(Stages::Compute))
+        .record(|_| {});
+    let e = g.barriers().unwrap_err().to_string();
+    assert!(e.contains("too deep") && e.contains("img"), "{e}");
+
+    let mut g = GraphBuilder::new();
+    let img = g.image("img", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("readback")
+        .image(img, Access::TransferSrc)
+        .on_demand()
+        .record(|_| {});
+    g.pass("late")
+        .image(img, Access::Sampled(Stages::Compute))
+        .record(|_| {});
+    assert!(g.barriers().unwrap_err().to_string().contains("late"));
+
+    let mut g = GraphBuilder::new();
+    let big = g.image("big", desc(vk::Format::R8G8B8A8_UNORM, 2));
+    let small = g.image("small", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("mixed")
+        .color_mip(big, 1, Load::DontCare)
+        .color(small, Load::DontCare)
+        .record(|_| {});
+    assert!(g
+        .barriers()
+        .unwrap_err()
+        .to_string()
+        .contains("differ in size"));
+
+    let mut g = GraphBuilder::new();
+    let img = g.image("img", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("twice")
+        .image(img, Access::Sampled(Stages::Compute))
+        .image(img, Access::StorageWrite(Stages::Compute))
+        .record(|_| {});
+    assert!(g.barriers().unwrap_err().to_string().contains("twice"));
+}
+
+#[test]
+fn schedule_lists_passes_accesses_and_barriers() {
+    let mut g = GraphBuilder::new();
+    let img = g.image("img", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("draw")
+        .color(img, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("readback")
+        .image(img, Access::TransferSrc)
+        .on_demand()
+        .record(|_| {});
+    let s = g.schedule().expect("valid");
+    assert!(
+        s.contains("0: draw") && s.contains("1: readback (on demand)"),
+        "{s}"
+    );
+    assert!(
+        s.contains("barrier img[mip 0]") && s.contains("TRANSFER_SRC_OPTIMAL"),
+        "{s}"
+    );
+}

@@ -1,0 +1,276 @@
+//! Malformed inputs fail with an error that names the file, the place and what was expected;
+//! none of them panics or allocates according to an absurd header count.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use surfel::scene::{self, Cloud, LoadError};
+
+/// Writes `bytes` to a fresh temporary file called `name`.
+fn file(name: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("surfel-malformed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+fn load(name: &str, bytes: &[u8]) -> Result<Cloud, LoadError> {
+    scene::load(&file(name, bytes))
+}
+
+/// Loads and returns the error message, asserting it starts with the file path.
+fn error(name: &str, bytes: &[u8]) -> String {
+    let path = file(name, bytes);
+    let message = match scene::load(&path) {
+        Ok(c) => panic!("{name} loaded {} points; expected an error", c.len()),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        message.starts_with(&format!("{}: ", path.display())),
+        "{message}"
+    );
+    message
+}
+
+fn assert_contains(message: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(message.contains(part), "{message:?} lacks {part:?}");
+    }
+}
+
+const PLY_XYZ: &str = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+
+#[test]
+fn truncated_binary_ply() {
+    let mut bytes = PLY_XYZ.as_bytes().to_vec();
+    bytes.extend_from_slice(&[0u8; 30]);
+    let m = error("trunc.ply", &bytes);
+    assert_contains(
+        &m,
+        &[
+            "byte offset",
+            "3 vertex records",
+            "need at least 36 bytes",
+            "only 30 bytes",
+        ],
+    );
+}
+
+#[test]
+fn more_vertices_declared_than_present() {
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n2 2 2\n3 3 3\n";
+    let m = error("short.ply", ascii.as_bytes());
+    assert_contains(&m, &["line 12", "unexpected end of file", "vertex 4 of 5"]);
+}
+
+#[test]
+fn huge_vertex_count_fails_fast() {
+    for format in ["ascii", "binary_little_endian"] {
+        let header = format!(
+            "ply\nformat {format} 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n"
+        );
+        let start = Instant::now();
+        let m = error("huge.ply", header.as_bytes());
+        assert!(
+            start.elapsed().as_millis() < 500,
+            "took {:?}",
+            start.elapsed()
+        );
+        assert_contains(
+            &m,
+            &["4000000000 vertex records", "bytes follow the header"],
+        );
+    }
+    let pcd = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 4000000000\nDATA binary\n\0\0\0\0";
+    assert_contains(
+        &error("huge.pcd", pcd.as_bytes()),
+        &["4000000000 points", "DATA size mismatch"],
+    );
+}
+
+#[test]
+fn bad_number_names_line_and_expectation() {
+    let ascii = "ply\nformat ascii 1.0\ncomment bad\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n1.0 abc\n";
+    let m = error("bunny.ply", ascii.as_bytes());
+    assert!(
+        m.ends_with("bunny.ply: line 11: expected 2 numbers for vertex 2, found \"1.0 abc\""),
+        "{m}"
+    );
+    let xyz = "# points\n0 0 0\n1 2 3\n4 5 x6\n";
+    assert_contains(
+        &error("pts.xyz", xyz.as_bytes()),
+        &["line 4", "expected a number in column 3", "\"x6\""],
+    );
+    let obj = "v 0 0 0\nv 1 1 1\nv 2 zz 2\n";
+    assert_contains(
+        &error("m.obj", obj.as_bytes()),
+        &["line 3", "expected numbers"],
+    );
+    let pcd = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA ascii\n0 0 0\n1 1\n";
+    assert_contains(
+        &error("a.pcd", pcd.as_bytes()),
+        &["line 7", "expected 3 numbers for point 1", "\"1 1\""],
+    );
+}
+
+#[test]
+fn face_index_out_of_range() {
+    let ascii = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 3\n";
+    let m = error("faces.ply", ascii.as_bytes());
+    assert_contains(
+        &m,
+        &[
+            "line 14",
+            "face 1",
+            "vertex index 3 is out of range",
+            "expected 0..3",
+        ],
+    );
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n";
+    assert_contains(
+        &error("faces.obj", obj.as_bytes()),
+        &["face 0", "out of range", "1..=3"],
+    );
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -7\n";
+    assert_contains(&error("neg.obj", obj.as_bytes()), &["out of range"]);
+}
+
+#[test]
+fn unknown_format() {
+    let m = error("cloud.e57", b"whatever");
+    assert_contains(&m, &["unsupported file type \"e57\"", ".ply", ".laz"]);
+    let m = error("noext", b"whatever");
+    assert_contains(&m, &["unsupported file type \"\""]);
+}
+
+fn compressed_pcd(block: &[u8], uncompressed: u32) -> Vec<u8> {
+    let mut bytes =
+        b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary_compressed\n"
+            .to_vec();
+    bytes.extend_from_slice(&(block.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(&uncompressed.to_le_bytes());
+    bytes.extend_from_slice(block);
+    bytes
+}
+
+#[test]
+fn pcd_compressed_corruption() {
+    // A valid block: one literal run of 24 bytes (2 points x 3 floats).
+    let mut block = vec![23u8];
+    for v in [0f32, 1.0, 0.0, 1.0, 0.0, 1.0] {
+        block.extend_from_slice(&v.to_le_bytes());
+    }
+    let ok = scene::load(&file("ok.pcd", &compressed_pcd(&block, 24))).unwrap();
+    assert_eq!(ok.len(), 2);
+
+    let mut truncated = compressed_pcd(&block, 24);
+    truncated.truncate(truncated.len() - 5);
+    assert_contains(
+        &error("trunc.pcd", &truncated),
+        &[
+            "byte offset",
+            "truncated compressed block",
+            "expected 25 bytes, found 20",
+        ],
+    );
+
+    let bad_ref = [0u8, 7, (1 << 5), 40, 0, 0];
+    let m = error("backref.pcd", &compressed_pcd(&bad_ref, 24));
+    assert_contains(
+        &m,
+        &[
+            "corrupt LZF data",
+            "back-reference at compressed offset 2 points 41 bytes back",
+        ],
+    );
+
+    let m = error("size.pcd", &compressed_pcd(&block, 30));
+    assert_contains(&m, &["DATA size mismatch", "need 24 bytes", "declares 30"]);
+}
+
+#[test]
+fn pcd_binary_size_mismatch() {
+    let mut bytes =
+        b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4\nHEIGHT 1\nDATA binary\n".to_vec();
+    bytes.extend_from_slice(&[0u8; 40]);
+    let m = error("short.pcd", &bytes);
+    assert_contains(
+        &m,
+        &[
+            "DATA size mismatch",
+            "4 points of 12 bytes need 48 bytes",
+            "only 40 bytes",
+        ],
+    );
+    let header = "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n0 0 0\n";
+    assert_contains(
+        &error("fields.pcd", header.as_bytes()),
+        &["one entry per field (3 fields)"],
+    );
+}
+
+#[test]
+fn empty_files() {
+    for (name, expected) in [
+        ("empty.ply", "empty file; expected a PLY header"),
+        ("empty.pcd", "empty file; expected a PCD header"),
+        ("empty.xyz", "no points; expected lines of x y z values"),
+        ("empty.las", "invalid LAS header"),
+        ("empty.laz", "invalid LAS header"),
+    ] {
+        assert_contains(&error(name, b""), &[expected]);
+    }
+    // An empty OBJ is a valid empty mesh.
+    let c = load("empty.obj", b"").unwrap();
+    assert!(c.is_empty());
+}
+
+#[test]
+fn binary_garbage() {
+    let garbage: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    assert_contains(
+        &error("g.ply", &garbage),
+        &["line 1", "expected the magic line \"ply\""],
+    );
+    assert_contains(&error("g.las", &garbage), &["invalid LAS header"]);
+    assert_contains(
+        &error("g.xyz", &garbage),
+        &["line 1", "expected a number in column 1"],
+    );
+    assert_contains(
+        &error("g.pcd", &garbage),
+        &["line 1", "expected a PCD header keyword"],
+    );
+    // Garbage after a valid PLY header: the face list lengths cannot fit.
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nelement face 100\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+    ply.extend_from_slice(&garbage[..24 + 100]);
+    let m = error("g2.ply", &ply);
+    assert_contains(&m, &["byte offset"]);
+}
+
+#[test]
+fn xyz_with_two_columns() {
+    let m = error("two.xyz", b"1 2\n3 4\n");
+    assert!(
+        m.ends_with("line 1: expected at least 3 numbers (x y z), found 2: \"1 2\""),
+        "{m}"
+    );
+}
+
+#[test]
+fn nan_coordinates_dropped_and_counted() {
+    let c = load("nan.xyz", b"0 0 0\nnan 1 1\n1 inf 1\n2 2 2\n").unwrap();
+    assert_eq!(
+        (c.len(), c.stats.records, c.stats.dropped_non_finite),
+        (2, 4, 2)
+    );
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\nnan 0 0\n0 1 0\n3 0 1 3\n3 0 1 2\n";
+    let c = load("nan.ply", ply.as_bytes()).unwrap();
+    assert_eq!(c.len(), 3);
+    assert_eq!(c.stats.dropped_non_finite, 1);
+    // The face through the dropped vertex is removed, the other re-indexed.
+    assert_eq!(c.faces, Some(vec![[0, 1, 2]]));
+}
