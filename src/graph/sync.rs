@@ -115,8 +115,18 @@ impl Access {
                 L::UNDEFINED,
                 false,
             ),
-            Access::TransferSrc => (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, false),
-            Access::TransferDst => (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, true),
+            Access::TransferSrc => (
+                S::ALL_TRANSFER,
+                A::TRANSFER_READ,
+                L::TRANSFER_SRC_OPTIMAL,
+                false,
+            ),
+            Access::TransferDst => (
+                S::ALL_TRANSFER,
+                A::TRANSFER_WRITE,
+                L::TRANSFER_DST_OPTIMAL,
+                true,
+            ),
             Access::HostRead => (S::HOST, A::HOST_READ, L::GENERAL, false),
             Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, false),
         };

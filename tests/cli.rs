@@ -1,0 +1,179 @@
+//! End-to-end command-line tests: the binary renders real data, reports timings, and fails
+//! cleanly (non-zero exit, file and location in the message, no panic) on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn data(rel: &str) -> PathBuf {
+    let root = std::env::var_os("SURFEL_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    root.join(rel)
+}
+
+fn surfel(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("run surfel")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("surfel-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn list_methods_prints_one_name_per_line() {
+    let o = surfel(&["render", "--list-methods"]);
+    assert!(o.status.success());
+    let names: Vec<String> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    let expected: Vec<String> = surfel::methods::METHODS
+        .iter()
+        .map(|m| m.name.to_string())
+        .collect();
+    assert_eq!(names, expected);
+    assert!(names.contains(&"points".to_string()) && names.contains(&"mesh".to_string()));
+}
+
+#[test]
+fn renders_the_dragon_with_per_pass_gpu_timings() {
+    let (png, json) = (tmp("dragon.png"), tmp("dragon.json"));
+    let dragon = data("stanford/dragon_vrip.ply");
+    let o = surfel(&[
+        "render",
+        dragon.to_str().expect("utf8"),
+        "--method",
+        "points",
+        "--size",
+        "160x120",
+        "--frames",
+        "3",
+        "--validation",
+        "--out",
+        png.to_str().expect("utf8"),
+        "--timings",
+        json.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&png).expect("png").to_rgba8();
+    assert_eq!(img.dimensions(), (160, 120));
+    let covered = img.pixels().filter(|p| p[3] == 255).count() as f64 / (160.0 * 120.0);
+    // The dragon fills a good part of the frame, but not all of it.
+    assert!(covered > 0.15 && covered < 0.8, "coverage {covered}");
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+    assert_eq!(t["points"], 437_645);
+    assert_eq!(t["passes"][0]["name"], "points.project");
+    assert_eq!(t["passes"][0]["samples"], 3);
+    assert!(t["passes"][0]["median_ms"].as_f64().expect("ms") > 0.0);
+    assert!(t["points_per_second"].as_f64().expect("rate") > 0.0);
+}
+
+#[test]
+fn mesh_method_on_a_cloud_without_faces_is_a_clean_error() {
+    let o = surfel(&[
+        "render",
+        data("lidar/vegetation_1_3.las").to_str().expect("utf8"),
+        "--method",
+        "mesh",
+        "--size",
+        "32x32",
+        "--out",
+        tmp("x.png").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("needs an input with triangle faces"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn malformed_input_exits_non_zero_with_file_and_line() {
+    let bad = tmp("bad.ply");
+    std::fs::write(&bad, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 oops 2\n").expect("write");
+    let o = surfel(&[
+        "render",
+        bad.to_str().expect("utf8"),
+        "--size",
+        "16x16",
+        "--out",
+        tmp("bad.png").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("bad.ply") && e.contains("line 9") && !e.contains("panicked"),
+        "{e}"
+    );
+}
+
+#[test]
+fn bad_arguments_are_explained() {
+    let bunny = data("stanford/bun_zipper.ply");
+    let b = bunny.to_str().expect("utf8");
+    let o = surfel(&["render", b, "--method", "nope"]);
+    assert!(stderr(&o).contains("unknown method 'nope'") && stderr(&o).contains("points"));
+    let o = surfel(&["render", b, "--method", "points:size=500"]);
+    assert!(stderr(&o).contains("outside"), "{}", stderr(&o));
+    let o = surfel(&["render", b, "--size", "0x10"]);
+    assert!(stderr(&o).contains("each edge"), "{}", stderr(&o));
+    let o = surfel(&["render", b, "--orbit", "1,x"]);
+    assert!(stderr(&o).contains("expected a number"), "{}", stderr(&o));
+    assert!(!o.status.success());
+}
+
+#[test]
+fn info_reports_counts_attributes_and_memory() {
+    let o = surfel(&[
+        "info",
+        data("ply/frag_115.ply").to_str().expect("utf8"),
+        "--no-device",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("points            64365"), "{s}");
+    assert!(s.contains("faces             127229"), "{s}");
+    assert!(s.contains("normal") && s.contains("color"), "{s}");
+    assert!(s.contains("24 bytes/point"), "{s}");
+}
+
+#[test]
+fn sample_writes_a_cloud_with_normals_and_radii() {
+    let out = tmp("bunny_sampled.ply");
+    let o = surfel(&[
+        "sample",
+        data("stanford/bun_zipper.ply").to_str().expect("utf8"),
+        "--points",
+        "5000",
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cloud = surfel::scene::load(&out).expect("reload");
+    assert_eq!(cloud.len(), 5000);
+    assert!(cloud.normals.is_some() && cloud.radii.is_some());
+}
+
+#[test]
+fn viewer_runs_under_xvfb() {
+    let o = Command::new("xvfb-run")
+        .args(["-a", env!("CARGO_BIN_EXE_surfel"), "view"])
+        .arg(data("stanford/bun_zipper.ply"))
+        .args(["--size", "200x150", "--frames", "5", "--validation"])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("xvfb-run is installed by ../shared/ci/install-vulkan.sh");
+    assert!(o.status.success(), "viewer failed: {}", stderr(&o));
+}
