@@ -1,0 +1,383 @@
+//! `surfel bench`: runs a sweep (models x methods x parameters x resolutions x poses x lights,
+//! point counts and stress values) on the GPU, scores every frame against the ground truth and
+//! writes `results.json`, `results.csv` and the charts.
+//!
+//! Timed frames are rendered without readback; the scored frame is a separate frame with
+//! readback, so neither readback nor PNG encoding is inside a timing.
+
+use std::collections::hash_map::Entry;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context as _, Result};
+use glam::Vec3;
+
+use super::config::{BenchConfig, Job, PoseSpec, StressKind};
+use super::metrics;
+use super::results::{PassTiming, Record, Results};
+use super::stress;
+use super::Frame;
+use crate::cli::{load_prepared, InputArgs};
+use crate::gpu::Context;
+use crate::methods::{GpuScene, MethodConfig};
+use crate::render::{upload, Extras, Renderer, SceneInfo, View};
+use crate::scene::{lights, sample, Camera, Cloud, Light, Pose};
+
+/// Frames of the slow orbit used for the temporal-flicker metric, and the step between them.
+const FLICKER_FRAMES: usize = 4;
+const FLICKER_STEP_DEG: f32 = 0.5;
+/// Seed of the cloud-side stress transforms and of mesh resampling (results are reproducible).
+const SEED: u64 = 7;
+
+/// A scene on the GPU plus what the jobs need to know about it.
+struct Loaded {
+    cloud: Cloud,
+    gpu: GpuScene,
+    info: SceneInfo,
+}
+
+fn load_gpu(ctx: &Arc<Context>, cloud: Cloud) -> Result<Loaded> {
+    let (gpu, info) = upload(ctx, &cloud)?;
+    Ok(Loaded { cloud, gpu, info })
+}
+
+/// The camera of a job: its pose, or the pose changed by a camera-side stress.
+fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
+    let base = match &job.pose.pose {
+        PoseSpec::Default => Pose::default(),
+        PoseSpec::Orbit {
+            azimuth,
+            elevation,
+            distance,
+        } => Pose::Orbit {
+            orbit: [*azimuth, *elevation],
+            distance: *distance,
+        },
+        PoseSpec::LookAt { eye, target } => Pose::LookAt {
+            eye: *eye,
+            target: *target,
+        },
+    };
+    let camera = base.camera(info.centre, info.radius);
+    let Some((kind, value)) = job.stress else {
+        return camera;
+    };
+    let value = value as f32;
+    let dir = (camera.eye - camera.target).normalize_or(Vec3::Z);
+    let at_distance = |d: f32| Camera {
+        eye: camera.target + dir * d,
+        ..camera
+    };
+    match kind {
+        // Tilt the view by `value` degrees away from the pose's direction (for a surface facing
+        // the pose's camera, the angle between view and surface normal).
+        StressKind::Grazing => {
+            let (az, el) = match base {
+                Pose::Orbit { orbit, .. } => (orbit[0], orbit[1]),
+                Pose::LookAt { .. } => (0.0, 0.0),
+            };
+            Camera::orbit(info.centre, info.radius, az, (el + value).min(89.0))
+        }
+        // Move in until the mean point spacing covers `value` pixels.
+        StressKind::Magnification => {
+            let d =
+                spacing * job.height as f32 / (2.0 * (camera.fov_y * 0.5).tan() * value.max(1e-3));
+            at_distance(d.max(camera.near * 2.0))
+        }
+        StressKind::Inside => at_distance(value * info.radius),
+        StressKind::Subsample | StressKind::Noise | StressKind::Nonuniform => camera,
+    }
+}
+
+/// Whether a stress changes the cloud (otherwise it changes the camera).
+fn cloud_side(kind: StressKind) -> bool {
+    matches!(
+        kind,
+        StressKind::Subsample | StressKind::Noise | StressKind::Nonuniform
+    )
+}
+
+/// Applies a cloud-side stress to `cloud`.
+fn stressed(cloud: &Cloud, kind: StressKind, value: f64) -> Result<Cloud> {
+    Ok(match kind {
+        StressKind::Subsample => stress::subsample(cloud, value, SEED)?,
+        StressKind::Noise => stress::noise(cloud, value, SEED)?,
+        StressKind::Nonuniform => stress::nonuniform(cloud, value, SEED)?,
+        StressKind::Grazing | StressKind::Magnification | StressKind::Inside => cloud.clone(),
+    })
+}
+
+fn job_lights(count: u32, radius: f32) -> Vec<Light> {
+    if count == 0 {
+        Vec::new()
+    } else if count == 1 {
+        vec![Light::headlight()]
+    } else {
+        lights::ring(count, radius)
+    }
+}
+
+/// Median point spacing from the radii (the density form radius is ~0.89 x the spacing).
+fn point_spacing(cloud: &Cloud, fallback: f32) -> f32 {
+    let Some(r) = &cloud.radii else {
+        return fallback;
+    };
+    let mut r: Vec<f32> = r
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .collect();
+    if r.is_empty() {
+        return fallback;
+    }
+    let mid = r.len() / 2;
+    let (_, m, _) = r.select_nth_unstable_by(mid, f32::total_cmp);
+    *m / 0.89
+}
+
+struct Timed {
+    passes: Vec<PassTiming>,
+    frame_ms: (f64, f64),
+    frames: Vec<Frame>,
+}
+
+/// Renders `views` once each with readback after `warmup` + `measured` timed frames of the
+/// first view.
+fn run_method(
+    ctx: &Arc<Context>,
+    scene: &Loaded,
+    config: &MethodConfig,
+    job: &Job,
+    views: &[View],
+) -> Result<Timed> {
+    let mut r = Renderer::new(
+        ctx,
+        &scene.gpu,
+        scene.info,
+        config,
+        job.width,
+        job.height,
+        Extras {
+            readback: true,
+            present: None,
+        },
+    )?;
+    for _ in 0..job.frames.warmup {
+        r.render(&views[0], false)?;
+    }
+    r.clear_timings();
+    for _ in 0..job.frames.measured.max(1) {
+        r.render(&views[0], false)?;
+    }
+    let (scopes, frame) = r.timings();
+    let frames = views
+        .iter()
+        .map(|v| r.render(v, true)?.context("no frame read back"))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Timed {
+        passes: scopes
+            .into_iter()
+            .map(|s| PassTiming {
+                name: s.name,
+                median_ms: s.median_ms,
+                spread_ms: s.spread_ms,
+            })
+            .collect(),
+        frame_ms: (frame.median_ms, frame.spread_ms),
+        frames,
+    })
+}
+
+/// Everything a sweep run produces.
+pub struct BenchOutput {
+    pub results: Results,
+    pub json: PathBuf,
+    pub csv: PathBuf,
+    pub charts: Vec<PathBuf>,
+}
+
+/// Runs every job of `config` and writes results and charts into `out_dir`.
+pub fn run(
+    ctx: &Arc<Context>,
+    config: &BenchConfig,
+    out_dir: &Path,
+    log: bool,
+) -> Result<BenchOutput> {
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("{}: cannot create", out_dir.display()))?;
+    let mut results = Results {
+        device: ctx.caps.device_name.clone(),
+        driver: ctx.caps.driver.clone(),
+        created: created_now(),
+        records: Vec::new(),
+    };
+    let mut models: HashMap<PathBuf, Loaded> = HashMap::new();
+    let mut variants: HashMap<(PathBuf, String), Loaded> = HashMap::new();
+    let jobs = config.jobs();
+    for (i, job) in jobs.iter().enumerate() {
+        if let Entry::Vacant(slot) = models.entry(job.model.path.clone()) {
+            let input = InputArgs {
+                k: crate::scene::preprocess::DEFAULT_K,
+                cache: false,
+            };
+            slot.insert(load_gpu(ctx, load_prepared(&job.model.path, &input)?)?);
+        }
+        let original = &models[&job.model.path];
+        // The scene the method renders: the model, a resampled copy, or a stressed copy.
+        let variant_key = match (job.points, job.stress) {
+            (Some(n), _) => Some(format!("points={n}")),
+            (None, Some((kind, v))) if cloud_side(kind) => Some(format!("{}={v}", kind.as_str())),
+            _ => None,
+        };
+        if let Some(key) = &variant_key {
+            if let Entry::Vacant(slot) = variants.entry((job.model.path.clone(), key.clone())) {
+                let cloud = match (job.points, job.stress) {
+                    (Some(n), _) => sample::sample_mesh(&original.cloud, n as usize, SEED)
+                        .with_context(|| {
+                            format!("{}: resampling to {n} points", job.model.path.display())
+                        })?,
+                    (_, stress) => {
+                        let (kind, v) = stress.context("variant without a stress")?;
+                        stressed(&original.cloud, kind, v)?
+                    }
+                };
+                slot.insert(load_gpu(ctx, cloud)?);
+            }
+        }
+        let scene = match &variant_key {
+            Some(key) => &variants[&(job.model.path.clone(), key.clone())],
+            None => original,
+        };
+        let params: Vec<String> = job.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        let spec = if params.is_empty() {
+            job.method.clone()
+        } else {
+            format!("{}:{}", job.method, params.join(","))
+        };
+        let config = MethodConfig::parse(&spec)?;
+        if config.method.needs_faces && scene.gpu.indices.is_none() {
+            continue;
+        }
+        let spacing = point_spacing(&scene.cloud, scene.info.radius / 100.0);
+        let camera = job_camera(job, &original.info, spacing);
+        let lights = job_lights(job.lights, original.info.radius);
+        let baseline = job.points.is_none() && job.stress.is_none();
+        let view_at = |step: usize| {
+            let mut c = camera;
+            if step > 0 {
+                let offset = c.eye - c.target;
+                let rot =
+                    glam::Quat::from_rotation_y((FLICKER_STEP_DEG * step as f32).to_radians());
+                c.eye = c.target + rot * offset;
+            }
+            View {
+                camera: c,
+                lights: lights.clone(),
+                use_color: true,
+                time: 0.0,
+            }
+        };
+        let steps = if baseline { FLICKER_FRAMES } else { 1 };
+        let views: Vec<View> = (0..steps).map(view_at).collect();
+        if log {
+            eprintln!(
+                "[{}/{}] {} {} {}x{} {}",
+                i + 1,
+                jobs.len(),
+                job.model.name,
+                config.label(),
+                job.width,
+                job.height,
+                job.stress
+                    .map_or(String::new(), |(k, v)| format!("{}={v}", k.as_str()))
+            );
+        }
+        let timed = run_method(ctx, scene, &config, job, &views)?;
+        for f in &timed.frames {
+            let report = metrics::check_finite(f)?;
+            if !report.is_clean() {
+                anyhow::bail!(
+                    "{}: non-finite pixels in {}: {report:?}",
+                    job.model.name,
+                    config.label()
+                );
+            }
+        }
+        // Ground truth: the original mesh with the same camera, size and lights.
+        let mut scores = metrics::Scores::default();
+        if original.gpu.indices.is_some() {
+            let gt_config = MethodConfig::parse("mesh")?;
+            let gt_job = Job {
+                frames: super::config::FrameCounts {
+                    warmup: 0,
+                    measured: 1,
+                },
+                ..job.clone()
+            };
+            let truth = run_method(ctx, original, &gt_config, &gt_job, &views)?;
+            scores = metrics::score(&timed.frames[0], &truth.frames[0])?;
+            if baseline {
+                scores.flicker = metrics::temporal_flicker(&timed.frames, &truth.frames)?;
+            }
+        }
+        let frame_ms = timed.frame_ms.0;
+        results.records.push(Record {
+            model: job.model.name.clone(),
+            points: u64::from(scene.info.points),
+            method: job.method.clone(),
+            params: job.params.clone(),
+            width: job.width,
+            height: job.height,
+            pose: job.pose.name.clone(),
+            lights: job.lights,
+            stress: job.stress.map(|(k, _)| k.as_str().to_string()),
+            stress_value: job.stress.map(|(_, v)| v),
+            device: results.device.clone(),
+            driver: results.driver.clone(),
+            passes: timed.passes,
+            frame_ms_median: frame_ms,
+            frame_ms_spread: timed.frame_ms.1,
+            points_per_second: if frame_ms > 0.0 {
+                f64::from(scene.info.points) / (frame_ms / 1000.0)
+            } else {
+                0.0
+            },
+            scores,
+        });
+    }
+    let json = out_dir.join("results.json");
+    let csv = out_dir.join("results.csv");
+    results.write_json(&json)?;
+    results.write_csv(&csv)?;
+    let charts = super::charts::write_charts(&results, &out_dir.join("charts"))?;
+    Ok(BenchOutput {
+        results,
+        json,
+        csv,
+        charts,
+    })
+}
+
+/// The current UTC time as RFC 3339 (civil-from-days conversion; no time-zone database).
+fn created_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs()) as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}

@@ -1,0 +1,723 @@
+//! Charts of a sweep, each written as PNG and SVG with the device name in the caption.
+//!
+//! Which records feed which chart (records with a stress are only used by the stress
+//! charts; the rest are the "baseline"):
+//! - speed vs accuracy and per-pass times, per model: the baseline records at the model's
+//!   largest resolution and, within it, its largest point count, averaged per method
+//!   configuration ([`Record::label`]) over poses and light counts;
+//! - time vs points: the baseline records at the resolution with the most distinct point
+//!   counts, averaged per (label, points) across models;
+//! - time vs resolution, per model: the baseline records at the point count with the most
+//!   distinct resolutions, averaged per (label, pixels);
+//! - metric vs stress, per model and stress kind: hole ratio (with the
+//!   [`BREAK_HOLE_RATIO`] threshold and each method's first breaking value marked) and PSNR.
+//!
+//! A chart with fewer than two data points is skipped.
+
+use std::collections::BTreeMap;
+use std::error::Error;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use anyhow::{anyhow, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::metrics::BREAK_HOLE_RATIO;
+use super::results::{pareto_front, stability, MetricFn, Record, Results};
+
+/// Pixel size of every chart.
+pub const CHART_SIZE: (u32, u32) = (1024, 720);
+
+/// DejaVu Sans (Bitstream Vera license, see `assets/fonts/LICENSE`), used for PNG text.
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+type DrawResult = Result<(), Box<dyn Error + Send + Sync>>;
+
+/// Registers the embedded font as `sans-serif` for plotters' text rendering (once).
+fn register_font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok()
+    });
+    ok.then_some(())
+        .ok_or_else(|| anyhow!("the embedded DejaVu Sans font is invalid"))
+}
+
+/// A chart that can draw itself on any plotters backend.
+trait Chart {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static;
+
+    /// Data points drawn; charts with fewer than two are skipped.
+    fn points(&self) -> usize;
+}
+
+/// Writes `chart` as `dir/stem.png` and `dir/stem.svg`; nothing when it has too few points.
+fn write_both(chart: &impl Chart, dir: &Path, stem: &str) -> Result<Vec<PathBuf>> {
+    if chart.points() < 2 {
+        return Ok(Vec::new());
+    }
+    let png = dir.join(format!("{stem}.png"));
+    let svg = dir.join(format!("{stem}.svg"));
+    let fail =
+        |path: &Path, e: Box<dyn Error + Send + Sync>| anyhow!("drawing {}: {e}", path.display());
+    {
+        let root = BitMapBackend::new(&png, CHART_SIZE).into_drawing_area();
+        chart.draw(&root).map_err(|e| fail(&png, e))?;
+        root.present().map_err(|e| fail(&png, e.into()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, CHART_SIZE).into_drawing_area();
+        chart.draw(&root).map_err(|e| fail(&svg, e))?;
+        root.present().map_err(|e| fail(&svg, e.into()))?;
+    }
+    Ok(vec![png, svg])
+}
+
+/// File-name-safe version of a model or stress name.
+fn slug(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// `[lo, hi]` of the values padded by 5 % (or by 1 for a single value).
+fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo > hi {
+        return (0.0, 1.0);
+    }
+    let pad = if hi > lo { (hi - lo) * 0.05 } else { 1.0 };
+    (lo - pad, hi + pad)
+}
+
+/// Compact number: 1.2k, 3.4M, 0.5.
+fn compact(v: f64) -> String {
+    let a = v.abs();
+    let (scaled, suffix) = if a >= 1e9 {
+        (v / 1e9, "G")
+    } else if a >= 1e6 {
+        (v / 1e6, "M")
+    } else if a >= 1e3 {
+        (v / 1e3, "k")
+    } else {
+        (v, "")
+    };
+    let text = format!("{scaled:.2}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    format!("{text}{suffix}")
+}
+
+fn mean(values: &[f64]) -> Option<f64> {
+    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    (!finite.is_empty()).then(|| finite.iter().sum::<f64>() / finite.len() as f64)
+}
+
+/// Labelled scatter of (time, accuracy) with its Pareto front as a step line.
+struct ParetoChart {
+    caption: String,
+    y_desc: String,
+    /// `(label, ms, accuracy)`.
+    points: Vec<(String, f64, f64)>,
+}
+
+impl Chart for ParetoChart {
+    fn points(&self) -> usize {
+        self.points.len()
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let (x0, x1) = padded_range(self.points.iter().map(|p| p.1));
+        let (y0, y1) = padded_range(self.points.iter().map(|p| p.2));
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.caption, ("sans-serif", 22))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        chart
+            .configure_mesh()
+            .x_desc("GPU time per frame (ms)")
+            .y_desc(self.y_desc.as_str())
+            .draw()?;
+        let xy: Vec<(f64, f64)> = self.points.iter().map(|p| (p.1, p.2)).collect();
+        let front = pareto_front(&xy);
+        let mut step = Vec::new();
+        for (k, &i) in front.iter().enumerate() {
+            if k > 0 {
+                step.push((xy[i].0, xy[front[k - 1]].1));
+            }
+            step.push(xy[i]);
+        }
+        if let Some(&last) = front.last() {
+            step.push((x1, xy[last].1));
+        }
+        chart
+            .draw_series(LineSeries::new(step, RED.stroke_width(2)))?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+        chart.draw_series(
+            front
+                .iter()
+                .map(|&i| Circle::new(xy[i], 9, RED.stroke_width(2))),
+        )?;
+        for (k, (label, ms, acc)) in self.points.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart.draw_series(std::iter::once(
+                EmptyElement::at((*ms, *acc))
+                    + Circle::new((0, 0), 5, color.filled())
+                    + Text::new(label.clone(), (8, -14), ("sans-serif", 14)),
+            ))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()?;
+        Ok(())
+    }
+}
+
+/// Horizontal stacked bars: one bar per method configuration, one segment per pass.
+struct StackedPassChart {
+    caption: String,
+    labels: Vec<String>,
+    passes: Vec<String>,
+    /// `ms[label][pass]`.
+    ms: Vec<Vec<f64>>,
+}
+
+impl Chart for StackedPassChart {
+    fn points(&self) -> usize {
+        self.labels.len()
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let total = self
+            .ms
+            .iter()
+            .map(|row| row.iter().sum::<f64>())
+            .fold(0.0, f64::max);
+        // A segmented 0..m range has m + 1 bands, one per label.
+        let n = self.labels.len() as i32;
+        let longest = self.labels.iter().map(|l| l.len()).max().unwrap_or(0) as u32;
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.caption, ("sans-serif", 22))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size((longest * 8 + 20).clamp(60, 400))
+            .build_cartesian_2d(
+                0.0..total.max(f64::MIN_POSITIVE) * 1.25,
+                (0..n - 1).into_segmented(),
+            )?;
+        let labels = &self.labels;
+        let label_of = |v: &SegmentValue<i32>| match v {
+            SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => usize::try_from(*i)
+                .ok()
+                .and_then(|i| labels.get(i))
+                .cloned()
+                .unwrap_or_default(),
+            SegmentValue::Last => String::new(),
+        };
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .y_labels(self.labels.len())
+            .y_label_formatter(&label_of)
+            .x_desc("GPU time per frame (ms)")
+            .draw()?;
+        for (p, pass) in self.passes.iter().enumerate() {
+            let color = Palette99::pick(p).to_rgba();
+            let bars = self.ms.iter().enumerate().map(|(row, times)| {
+                let start: f64 = times[..p].iter().sum();
+                let y = row as i32;
+                let mut bar = Rectangle::new(
+                    [
+                        (start, SegmentValue::Exact(y)),
+                        (start + times[p], SegmentValue::Exact(y + 1)),
+                    ],
+                    color.filled(),
+                );
+                bar.set_margin(6, 6, 0, 0);
+                bar
+            });
+            chart
+                .draw_series(bars)?
+                .label(pass.as_str())
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 6), (x + 12, y + 6)], color.filled())
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+        Ok(())
+    }
+}
+
+/// One line per series; optional horizontal threshold and marked points.
+struct LineChart {
+    caption: String,
+    x_desc: String,
+    y_desc: String,
+    /// Plot x as log10 (labels show the actual value).
+    log_x: bool,
+    series: Vec<(String, Vec<(f64, f64)>)>,
+    /// `(y, legend)` drawn as a dashed horizontal line.
+    threshold: Option<(f64, String)>,
+    /// Points to highlight, `(x, y, note)`.
+    marks: Vec<(f64, f64, String)>,
+}
+
+impl Chart for LineChart {
+    fn points(&self) -> usize {
+        self.series.iter().map(|(_, pts)| pts.len()).sum()
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let tx = |x: f64| {
+            if self.log_x {
+                x.max(f64::MIN_POSITIVE).log10()
+            } else {
+                x
+            }
+        };
+        let all = || self.series.iter().flat_map(|(_, pts)| pts.iter());
+        let (x0, x1) = padded_range(all().map(|p| tx(p.0)));
+        let ys = all()
+            .map(|p| p.1)
+            .chain(self.threshold.as_ref().map(|t| t.0));
+        let (y0, y1) = padded_range(ys);
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.caption, ("sans-serif", 22))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        let log_x = self.log_x;
+        let x_fmt = move |v: &f64| {
+            if log_x {
+                // Two significant digits: 10k, 16k, 100k.
+                let step = 10f64.powf(v.floor() - 1.0);
+                compact((10f64.powf(*v) / step).round() * step)
+            } else {
+                compact(*v)
+            }
+        };
+        // On a log axis ask for about one label per decade.
+        let x_labels = if log_x {
+            (x1 - x0).ceil() as usize + 1
+        } else {
+            10
+        };
+        chart
+            .configure_mesh()
+            .x_labels(x_labels)
+            .x_desc(self.x_desc.as_str())
+            .y_desc(self.y_desc.as_str())
+            .x_label_formatter(&x_fmt)
+            .draw()?;
+        for (k, (name, pts)) in self.series.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            let pts: Vec<(f64, f64)> = pts.iter().map(|&(x, y)| (tx(x), y)).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+            chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 4, color.filled())))?;
+        }
+        if let Some((y, legend)) = &self.threshold {
+            let dashes = DashedLineSeries::new(vec![(x0, *y), (x1, *y)], 10, 6, BLACK.into());
+            chart
+                .draw_series(dashes)?
+                .label(legend.as_str())
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        }
+        for (x, y, note) in &self.marks {
+            chart.draw_series(std::iter::once(
+                EmptyElement::at((tx(*x), *y))
+                    + Cross::new((0, 0), 9, RED.stroke_width(3))
+                    + Text::new(note.clone(), (10, 6), ("sans-serif", 14)),
+            ))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()?;
+        Ok(())
+    }
+}
+
+/// Baseline (unstressed) records.
+fn baseline(results: &Results) -> impl Iterator<Item = &Record> {
+    results.records.iter().filter(|r| r.stress.is_none())
+}
+
+/// Distinct model names in first-appearance order.
+pub fn models(results: &Results) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for r in &results.records {
+        if !out.contains(&r.model) {
+            out.push(r.model.clone());
+        }
+    }
+    out
+}
+
+/// The baseline records of `model` at its largest resolution and, within that, its largest
+/// point count: the slice the speed-vs-accuracy and per-pass charts (and the report's
+/// Pareto set) compare.
+pub fn headline_records<'a>(results: &'a Results, model: &str) -> Vec<&'a Record> {
+    let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
+    let Some(pixels) = of_model.iter().map(|r| r.pixels()).max() else {
+        return Vec::new();
+    };
+    let at_res: Vec<&Record> = of_model
+        .into_iter()
+        .filter(|r| r.pixels() == pixels)
+        .collect();
+    let points = at_res.iter().map(|r| r.points).max().unwrap_or(0);
+    at_res.into_iter().filter(|r| r.points == points).collect()
+}
+
+/// Per label (in first-appearance order): the records with that label.
+fn by_label<'a>(records: &[&'a Record]) -> Vec<(String, Vec<&'a Record>)> {
+    let mut out: Vec<(String, Vec<&Record>)> = Vec::new();
+    for r in records {
+        let label = r.label();
+        match out.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, group)) => group.push(r),
+            None => out.push((label, vec![r])),
+        }
+    }
+    out
+}
+
+/// `(label, mean frame ms, mean metric)` per label, skipping labels without the metric.
+pub fn speed_accuracy(
+    records: &[&Record],
+    metric: impl Fn(&Record) -> Option<f64>,
+) -> Vec<(String, f64, f64)> {
+    by_label(records)
+        .into_iter()
+        .filter_map(|(label, group)| {
+            let ms: Vec<f64> = group.iter().map(|r| r.frame_ms_median).collect();
+            let acc: Vec<f64> = group.iter().filter_map(|r| metric(r)).collect();
+            Some((label, mean(&ms)?, mean(&acc)?))
+        })
+        .collect()
+}
+
+/// Per label: points sorted by x of the mean frame time over records sharing `x(record)`.
+fn time_series(records: &[&Record], x: impl Fn(&Record) -> u64) -> Vec<(String, Vec<(f64, f64)>)> {
+    by_label(records)
+        .into_iter()
+        .map(|(label, group)| {
+            let mut at: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+            for r in group {
+                at.entry(x(r)).or_default().push(r.frame_ms_median);
+            }
+            let pts = at
+                .into_iter()
+                .filter_map(|(x, ms)| Some((x as f64, mean(&ms)?)))
+                .collect();
+            (label, pts)
+        })
+        .collect()
+}
+
+/// The value of `key` among `records` with the most distinct values of `other`.
+fn slice_with_most<K: Ord + Copy, O: Ord>(
+    records: &[&Record],
+    key: impl Fn(&Record) -> K,
+    other: impl Fn(&Record) -> O,
+) -> Option<K> {
+    let mut distinct: BTreeMap<K, std::collections::BTreeSet<O>> = BTreeMap::new();
+    for r in records {
+        distinct.entry(key(r)).or_default().insert(other(r));
+    }
+    distinct
+        .into_iter()
+        .max_by_key(|(_, set)| set.len())
+        .map(|(k, _)| k)
+}
+
+/// Writes every chart the data supports into `dir` (created if missing) and returns the
+/// paths written, PNG and SVG for each chart. Empty results write nothing.
+pub fn write_charts(results: &Results, dir: &Path) -> Result<Vec<PathBuf>> {
+    Ok(write_charts_by_model(results, dir)?
+        .into_iter()
+        .map(|(_, path)| path)
+        .collect())
+}
+
+/// [`write_charts`], with each path tagged by its model (`None` for cross-model charts).
+pub fn write_charts_by_model(
+    results: &Results,
+    dir: &Path,
+) -> Result<Vec<(Option<String>, PathBuf)>> {
+    register_font()?;
+    std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
+    let device = if results.device.is_empty() {
+        "unknown device"
+    } else {
+        results.device.as_str()
+    };
+    let mut written = Vec::new();
+    for model in models(results) {
+        let head = headline_records(results, &model);
+        let res = head.first().map(|r| r.resolution()).unwrap_or_default();
+        let accuracy: [(&str, &str, MetricFn); 2] = [
+            ("psnr", "PSNR (dB)", |r| r.scores.psnr),
+            ("ssim", "SSIM", |r| r.scores.ssim),
+        ];
+        let tag = |paths: Vec<PathBuf>| paths.into_iter().map(|p| (Some(model.clone()), p));
+        for (key, desc, metric) in accuracy {
+            let chart = ParetoChart {
+                caption: format!("{model} {res}: {desc} vs GPU time, {device}"),
+                y_desc: desc.to_string(),
+                points: speed_accuracy(&head, metric),
+            };
+            written.extend(tag(write_both(
+                &chart,
+                dir,
+                &format!("{}_speed_{key}", slug(&model)),
+            )?));
+        }
+        let groups = by_label(&head);
+        let mut passes: Vec<String> = Vec::new();
+        for p in head.iter().flat_map(|r| &r.passes) {
+            if !passes.contains(&p.name) {
+                passes.push(p.name.clone());
+            }
+        }
+        let ms = groups
+            .iter()
+            .map(|(_, group)| {
+                passes
+                    .iter()
+                    .map(|name| {
+                        let v: Vec<f64> = group
+                            .iter()
+                            .filter_map(|r| r.passes.iter().find(|p| &p.name == name))
+                            .map(|p| p.median_ms)
+                            .collect();
+                        mean(&v).unwrap_or(0.0).max(0.0)
+                    })
+                    .collect()
+            })
+            .collect();
+        let chart = StackedPassChart {
+            caption: format!("{model} {res}: GPU time per pass, {device}"),
+            labels: groups.into_iter().map(|(l, _)| l).collect(),
+            passes,
+            ms,
+        };
+        written.extend(tag(write_both(
+            &chart,
+            dir,
+            &format!("{}_passes", slug(&model)),
+        )?));
+
+        let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
+        if let Some(points) = slice_with_most(&of_model, |r| r.points, |r| r.pixels()) {
+            let slice: Vec<&Record> = of_model
+                .into_iter()
+                .filter(|r| r.points == points)
+                .collect();
+            let chart = LineChart {
+                caption: format!(
+                    "{model} ({} points): GPU time vs resolution, {device}",
+                    compact(points as f64)
+                ),
+                x_desc: "pixels".into(),
+                y_desc: "GPU time per frame (ms)".into(),
+                log_x: false,
+                series: time_series(&slice, Record::pixels),
+                threshold: None,
+                marks: Vec::new(),
+            };
+            written.extend(tag(write_both(
+                &chart,
+                dir,
+                &format!("{}_time_vs_resolution", slug(&model)),
+            )?));
+        }
+    }
+
+    let all: Vec<&Record> = baseline(results).collect();
+    if let Some(res) = slice_with_most(&all, |r| (r.width, r.height), |r| r.points) {
+        let slice: Vec<&Record> = all
+            .into_iter()
+            .filter(|r| (r.width, r.height) == res)
+            .collect();
+        let chart = LineChart {
+            caption: format!("GPU time vs points at {}x{}, {device}", res.0, res.1),
+            x_desc: "points (log scale)".into(),
+            y_desc: "GPU time per frame (ms)".into(),
+            log_x: true,
+            series: time_series(&slice, |r| r.points),
+            threshold: None,
+            marks: Vec::new(),
+        };
+        written.extend(
+            write_both(&chart, dir, "time_vs_points")?
+                .into_iter()
+                .map(|p| (None, p)),
+        );
+    }
+
+    written.extend(write_stress_charts(results, dir, device)?);
+    Ok(written)
+}
+
+fn write_stress_charts(
+    results: &Results,
+    dir: &Path,
+    device: &str,
+) -> Result<Vec<(Option<String>, PathBuf)>> {
+    let mut written = Vec::new();
+    let stab = stability(results);
+    let mut keys: Vec<(String, String)> = Vec::new();
+    for r in &results.records {
+        if let Some(kind) = &r.stress {
+            let key = (r.model.clone(), kind.clone());
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+    }
+    for (model, kind) in keys {
+        let unit = kind
+            .parse::<super::config::StressKind>()
+            .map(|k| k.unit().to_string())
+            .unwrap_or_else(|_| kind.clone());
+        let curves: Vec<_> = stab
+            .iter()
+            .filter(|s| s.model == model && s.kind == kind)
+            .collect();
+        let mut series = Vec::new();
+        let mut marks = Vec::new();
+        for s in &curves {
+            let mut pts: Vec<(f64, f64)> = s.curve.iter().map(|&(v, h)| (v, h * 100.0)).collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some(v) = s.breaks_at {
+                if let Some(&(_, h)) = s.curve.iter().find(|(x, _)| *x == v) {
+                    marks.push((v, h * 100.0, format!("{} breaks at {v}", s.label)));
+                }
+            }
+            series.push((s.label.clone(), pts));
+        }
+        let stem = format!("{}_stress_{}", slug(&model), slug(&kind));
+        let chart = LineChart {
+            caption: format!("{model}: holes vs {kind} stress, {device}"),
+            x_desc: unit.clone(),
+            y_desc: "hole ratio (%)".into(),
+            log_x: false,
+            series,
+            threshold: Some((
+                BREAK_HOLE_RATIO * 100.0,
+                format!("breaks above {}%", BREAK_HOLE_RATIO * 100.0),
+            )),
+            marks,
+        };
+        let tag = |paths: Vec<PathBuf>| paths.into_iter().map(|p| (Some(model.clone()), p));
+        written.extend(tag(write_both(&chart, dir, &format!("{stem}_holes"))?));
+
+        let stressed: Vec<&Record> = results
+            .records
+            .iter()
+            .filter(|r| r.model == model && r.stress.as_deref() == Some(kind.as_str()))
+            .collect();
+        let series = by_label(&stressed)
+            .into_iter()
+            .map(|(label, group)| {
+                let mut at: BTreeMap<u64, (f64, Vec<f64>)> = BTreeMap::new();
+                for r in group {
+                    if let (Some(v), Some(p)) = (r.stress_value, r.scores.psnr) {
+                        at.entry(v.to_bits()).or_insert((v, Vec::new())).1.push(p);
+                    }
+                }
+                let mut pts: Vec<(f64, f64)> = at
+                    .into_values()
+                    .filter_map(|(v, ps)| Some((v, mean(&ps)?)))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                (label, pts)
+            })
+            .collect();
+        let chart = LineChart {
+            caption: format!("{model}: PSNR vs {kind} stress, {device}"),
+            x_desc: unit,
+            y_desc: "PSNR (dB)".into(),
+            log_x: false,
+            series,
+            threshold: None,
+            marks: Vec::new(),
+        };
+        written.extend(tag(write_both(&chart, dir, &format!("{stem}_psnr"))?));
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compact_numbers_and_slugs() {
+        assert_eq!(compact(1500.0), "1.5k");
+        assert_eq!(compact(2_000_000.0), "2M");
+        assert_eq!(compact(0.25), "0.25");
+        assert_eq!(compact(3.0), "3");
+        assert_eq!(slug("my model/v2.ply"), "my_model_v2_ply");
+    }
+
+    #[test]
+    fn padded_range_handles_degenerate_input() {
+        assert_eq!(padded_range(std::iter::empty()), (0.0, 1.0));
+        assert_eq!(padded_range([2.0].into_iter()), (1.0, 3.0));
+        let (lo, hi) = padded_range([0.0, 10.0, f64::NAN].into_iter());
+        assert_eq!((lo, hi), (-0.5, 10.5));
+    }
+
+    #[test]
+    fn empty_results_write_nothing() {
+        let dir = std::env::temp_dir().join(format!("surfel_charts_empty_{}", std::process::id()));
+        let written = write_charts(&Results::default(), &dir).unwrap();
+        assert!(written.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,883 @@
+//! The benchmark sweep file (`surfel bench sweep.toml`) and its expansion into [`Job`]s.
+//!
+//! ```toml
+//! resolutions = ["640x480", "1280x720"]   # "WxH"
+//! lights = [1, 8]                         # light counts
+//!
+//! [frames]
+//! warmup = 5                              # frames rendered before timing
+//! measured = 20                           # frames timed (>= 1)
+//!
+//! [[models]]
+//! path = "data/bunny.obj"
+//! name = "bunny"                          # optional, defaults to the file stem
+//! points = [10000, 100000]                # optional: also resample the mesh to N points
+//!
+//! [[methods]]
+//! name = "points"
+//! params = { size = [1, 3] }              # lists, expanded as a cartesian product
+//!
+//! [[poses]]                               # optional, defaults to one "default" pose
+//! name = "side"
+//! orbit = [45.0, 20.0]                    # azimuth, elevation (degrees); or "default",
+//! distance = 1.0                          # or eye = [x, y, z] with target = [x, y, z]
+//!
+//! [[stress]]
+//! kind = "grazing"                        # see StressKind for kinds and units
+//! values = [0, 45, 85]
+//! ```
+//!
+//! Unknown keys are errors; every validation error names the offending key.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+/// The sweep `surfel bench --quick` runs (`benches/sweeps/quick.toml`).
+const QUICK_TOML: &str = include_str!("../../benches/sweeps/quick.toml");
+
+/// A sweep file that failed to load or validate.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The text is not valid TOML for the schema.
+    #[error("invalid sweep file: {0}")]
+    Parse(#[from] toml::de::Error),
+    /// A value is out of range or inconsistent; `key` is its path in the file.
+    #[error("{key}: {message}")]
+    Invalid { key: String, message: String },
+}
+
+fn invalid(key: impl Into<String>, message: impl Into<String>) -> ConfigError {
+    ConfigError::Invalid {
+        key: key.into(),
+        message: message.into(),
+    }
+}
+
+/// The kinds of stress sweep. Values are in the units described per variant; the order of
+/// increasing severity is [`StressKind::severity_increases_with_value`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StressKind {
+    /// Camera-side: angle in degrees between the view direction and the surface normal,
+    /// 0 (facing) to below 90 (grazing); typical 0..85.
+    Grazing,
+    /// Camera-side: screen-space pixels per point (zooming in until points are sparse),
+    /// at least 1; typical 1..64.
+    Magnification,
+    /// Cloud-side: fraction of the points kept, in (0, 1]; typical 1.0..0.01
+    /// ([`crate::eval::stress::subsample`]).
+    Subsample,
+    /// Cloud-side: positional noise sigma as a fraction of the bounding-box diagonal,
+    /// at least 0; typical 0..0.02 ([`crate::eval::stress::noise`]).
+    Noise,
+    /// Cloud-side: density contrast between the densest and sparsest end of the cloud,
+    /// at least 1 ([`crate::eval::stress::nonuniform`]).
+    Nonuniform,
+    /// Camera-side: camera distance from the bounding-sphere centre as a fraction of its
+    /// radius, > 0; typical 3.0 (outside) .. 0.5 (inside the cloud).
+    Inside,
+}
+
+impl StressKind {
+    /// Every kind, in file order.
+    pub const ALL: [StressKind; 6] = [
+        StressKind::Grazing,
+        StressKind::Magnification,
+        StressKind::Subsample,
+        StressKind::Noise,
+        StressKind::Nonuniform,
+        StressKind::Inside,
+    ];
+
+    /// The name used in sweep files and results.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StressKind::Grazing => "grazing",
+            StressKind::Magnification => "magnification",
+            StressKind::Subsample => "subsample",
+            StressKind::Noise => "noise",
+            StressKind::Nonuniform => "nonuniform",
+            StressKind::Inside => "inside",
+        }
+    }
+
+    /// Axis label of the value, with its unit.
+    pub fn unit(self) -> &'static str {
+        match self {
+            StressKind::Grazing => "angle to normal (deg)",
+            StressKind::Magnification => "pixels per point",
+            StressKind::Subsample => "fraction of points kept",
+            StressKind::Noise => "noise sigma / bbox diagonal",
+            StressKind::Nonuniform => "density contrast",
+            StressKind::Inside => "camera distance / radius",
+        }
+    }
+
+    /// True when larger values are harsher (false for `subsample` and `inside`, which get
+    /// harsher as the value shrinks).
+    pub fn severity_increases_with_value(self) -> bool {
+        !matches!(self, StressKind::Subsample | StressKind::Inside)
+    }
+
+    /// Checks one value's range; the message says what is allowed.
+    pub fn check_value(self, v: f64) -> Result<(), String> {
+        let ok = v.is_finite()
+            && match self {
+                StressKind::Grazing => (0.0..90.0).contains(&v),
+                StressKind::Magnification => v >= 1.0,
+                StressKind::Subsample => v > 0.0 && v <= 1.0,
+                StressKind::Noise => v >= 0.0,
+                StressKind::Nonuniform => v >= 1.0,
+                StressKind::Inside => v > 0.0,
+            };
+        let allowed = match self {
+            StressKind::Grazing => "degrees in [0, 90)",
+            StressKind::Magnification => "pixels per point >= 1",
+            StressKind::Subsample => "a fraction in (0, 1]",
+            StressKind::Noise => "a fraction of the bbox diagonal >= 0",
+            StressKind::Nonuniform => "a density contrast >= 1",
+            StressKind::Inside => "a fraction of the radius > 0",
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(format!("{v} out of range for {self}: expected {allowed}"))
+        }
+    }
+}
+
+impl fmt::Display for StressKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for StressKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        StressKind::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = StressKind::ALL.iter().map(|k| k.as_str()).collect();
+                format!(
+                    "unknown stress kind {s:?} (expected one of {})",
+                    names.join(", ")
+                )
+            })
+    }
+}
+
+/// A model to render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelSpec {
+    /// Short name used in results (the file stem unless given).
+    pub name: String,
+    pub path: PathBuf,
+    /// Point counts to resample the mesh to for the time-vs-points sweep (may be empty).
+    pub points: Vec<u64>,
+}
+
+/// A camera pose, relative to the model's bounding sphere unless `LookAt`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum PoseSpec {
+    /// The default framing (orbit 0, 0 at distance 1).
+    Default,
+    /// Azimuth/elevation in degrees around the bounding-sphere centre; `distance` scales the
+    /// default framing distance.
+    Orbit {
+        azimuth: f32,
+        elevation: f32,
+        distance: f32,
+    },
+    /// Eye and target in scene coordinates.
+    LookAt { eye: [f32; 3], target: [f32; 3] },
+}
+
+/// A named pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedPose {
+    pub name: String,
+    pub pose: PoseSpec,
+}
+
+/// A method with lists of parameter values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodSpec {
+    pub name: String,
+    /// Parameter name to candidate values (TOML scalars rendered as strings).
+    pub params: BTreeMap<String, Vec<String>>,
+}
+
+impl MethodSpec {
+    /// The cartesian product of the parameter lists, in key order with the last key varying
+    /// fastest; a method without parameters yields one empty map.
+    pub fn combinations(&self) -> Vec<BTreeMap<String, String>> {
+        let mut out = vec![BTreeMap::new()];
+        for (key, values) in &self.params {
+            out = out
+                .into_iter()
+                .flat_map(|combo| {
+                    values.iter().map(move |v| {
+                        let mut c = combo.clone();
+                        c.insert(key.clone(), v.clone());
+                        c
+                    })
+                })
+                .collect();
+        }
+        out
+    }
+}
+
+/// Frames rendered per job.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameCounts {
+    /// Frames rendered and discarded before timing.
+    pub warmup: u32,
+    /// Frames timed (at least 1); medians and spreads are over these.
+    pub measured: u32,
+}
+
+impl Default for FrameCounts {
+    fn default() -> Self {
+        FrameCounts {
+            warmup: 5,
+            measured: 20,
+        }
+    }
+}
+
+/// One stress sweep: a kind and the values to visit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StressSweep {
+    pub kind: StressKind,
+    pub values: Vec<f64>,
+}
+
+/// A validated sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchConfig {
+    pub models: Vec<ModelSpec>,
+    pub methods: Vec<MethodSpec>,
+    /// `(width, height)` pairs, in file order.
+    pub resolutions: Vec<(u32, u32)>,
+    pub poses: Vec<NamedPose>,
+    pub lights: Vec<u32>,
+    pub frames: FrameCounts,
+    pub stress: Vec<StressSweep>,
+}
+
+/// Which part of the sweep a job belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobGroup {
+    /// Native model, every resolution x pose x light count.
+    Baseline,
+    /// Mesh resampled to `Job::points`.
+    Points,
+    /// A stress value applied.
+    Stress,
+}
+
+/// One render-and-measure unit of a sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Job {
+    pub group: JobGroup,
+    pub model: ModelSpec,
+    /// Resample the mesh to this many points (`Points` jobs only); `None` renders the model as
+    /// loaded.
+    pub points: Option<u64>,
+    pub method: String,
+    pub params: BTreeMap<String, String>,
+    pub width: u32,
+    pub height: u32,
+    pub pose: NamedPose,
+    pub lights: u32,
+    /// The stress applied (`Stress` jobs only).
+    pub stress: Option<(StressKind, f64)>,
+    pub frames: FrameCounts,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConfig {
+    #[serde(default)]
+    models: Vec<RawModel>,
+    #[serde(default)]
+    methods: Vec<RawMethod>,
+    #[serde(default)]
+    resolutions: Vec<String>,
+    #[serde(default)]
+    poses: Vec<RawPose>,
+    #[serde(default)]
+    lights: Option<Vec<u32>>,
+    #[serde(default)]
+    frames: Option<FrameCounts>,
+    #[serde(default)]
+    stress: Vec<RawStress>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModel {
+    path: PathBuf,
+    name: Option<String>,
+    #[serde(default)]
+    points: Vec<u64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMethod {
+    name: String,
+    #[serde(default)]
+    params: BTreeMap<String, toml::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum RawOrbit {
+    Named(String),
+    Angles(Vec<f32>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPose {
+    name: String,
+    orbit: Option<RawOrbit>,
+    distance: Option<f32>,
+    eye: Option<[f32; 3]>,
+    target: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStress {
+    kind: String,
+    values: Vec<f64>,
+}
+
+/// Parses `"WxH"` into positive dimensions.
+pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected \"WxH\", got {s:?}"))?;
+    let dim = |t: &str| t.trim().parse::<u32>().ok().filter(|&v| v > 0);
+    match (dim(w), dim(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(format!("expected positive \"WxH\", got {s:?}")),
+    }
+}
+
+fn scalar_string(key: &str, v: &toml::Value) -> Result<String, ConfigError> {
+    match v {
+        toml::Value::String(s) => Ok(s.clone()),
+        toml::Value::Integer(i) => Ok(i.to_string()),
+        toml::Value::Float(f) if f.is_finite() => Ok(f.to_string()),
+        toml::Value::Boolean(b) => Ok(b.to_string()),
+        other => Err(invalid(
+            key,
+            format!(
+                "expected a string, number or boolean, got {}",
+                other.type_str()
+            ),
+        )),
+    }
+}
+
+fn finite_all(key: &str, values: &[f32]) -> Result<(), ConfigError> {
+    match values.iter().find(|v| !v.is_finite()) {
+        Some(v) => Err(invalid(key, format!("{v} is not finite"))),
+        None => Ok(()),
+    }
+}
+
+fn convert_pose(i: usize, raw: RawPose) -> Result<NamedPose, ConfigError> {
+    let key = |field: &str| format!("poses[{i}].{field}");
+    if raw.name.trim().is_empty() {
+        return Err(invalid(key("name"), "must not be empty"));
+    }
+    let pose = match (raw.orbit, raw.eye, raw.target) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+            return Err(invalid(key("orbit"), "cannot be combined with eye/target"))
+        }
+        (None, Some(eye), Some(target)) => {
+            if raw.distance.is_some() {
+                return Err(invalid(key("distance"), "only applies to orbit poses"));
+            }
+            finite_all(&key("eye"), &eye)?;
+            finite_all(&key("target"), &target)?;
+            if eye == target {
+                return Err(invalid(key("eye"), "must differ from target"));
+            }
+            PoseSpec::LookAt { eye, target }
+        }
+        (None, Some(_), None) => return Err(invalid(key("target"), "required with eye")),
+        (None, None, Some(_)) => return Err(invalid(key("eye"), "required with target")),
+        (orbit, None, None) => {
+            let distance = raw.distance.unwrap_or(1.0);
+            if !(distance.is_finite() && distance > 0.0) {
+                return Err(invalid(key("distance"), format!("{distance} must be > 0")));
+            }
+            let angles = match orbit {
+                None => [0.0, 0.0],
+                Some(RawOrbit::Named(s)) if s == "default" => [0.0, 0.0],
+                Some(RawOrbit::Named(s)) => {
+                    let parts: Result<Vec<f32>, _> =
+                        s.split(',').map(|t| t.trim().parse::<f32>()).collect();
+                    match parts.ok().as_deref() {
+                        Some(&[az, el]) => [az, el],
+                        _ => {
+                            return Err(invalid(
+                                key("orbit"),
+                                format!("expected \"default\", \"AZ,EL\" or [AZ, EL], got {s:?}"),
+                            ))
+                        }
+                    }
+                }
+                Some(RawOrbit::Angles(v)) => match v.as_slice() {
+                    &[az, el] => [az, el],
+                    _ => return Err(invalid(key("orbit"), "expected [azimuth, elevation]")),
+                },
+            };
+            finite_all(&key("orbit"), &angles)?;
+            if angles == [0.0, 0.0] && distance == 1.0 {
+                PoseSpec::Default
+            } else {
+                PoseSpec::Orbit {
+                    azimuth: angles[0],
+                    elevation: angles[1],
+                    distance,
+                }
+            }
+        }
+    };
+    Ok(NamedPose {
+        name: raw.name,
+        pose,
+    })
+}
+
+impl BenchConfig {
+    /// Reads and validates a sweep file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text)
+    }
+
+    /// Parses and validates sweep TOML.
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
+        let raw: RawConfig = toml::from_str(text)?;
+        if raw.models.is_empty() {
+            return Err(invalid("models", "at least one model is required"));
+        }
+        let mut models = Vec::new();
+        for (i, m) in raw.models.into_iter().enumerate() {
+            let name = match m.name {
+                Some(n) if n.trim().is_empty() => {
+                    return Err(invalid(format!("models[{i}].name"), "must not be empty"))
+                }
+                Some(n) => n,
+                None => m
+                    .path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .filter(|s| !s.is_empty())
+                    .ok_or_else(|| invalid(format!("models[{i}].path"), "has no file name"))?,
+            };
+            if let Some(p) = m.points.iter().position(|&p| p == 0) {
+                return Err(invalid(format!("models[{i}].points[{p}]"), "must be > 0"));
+            }
+            if models.iter().any(|other: &ModelSpec| other.name == name) {
+                return Err(invalid(
+                    format!("models[{i}].name"),
+                    format!("duplicate model name {name:?}"),
+                ));
+            }
+            models.push(ModelSpec {
+                name,
+                path: m.path,
+                points: m.points,
+            });
+        }
+        if raw.methods.is_empty() {
+            return Err(invalid("methods", "at least one method is required"));
+        }
+        let mut methods = Vec::new();
+        for (i, m) in raw.methods.into_iter().enumerate() {
+            if m.name.trim().is_empty() {
+                return Err(invalid(format!("methods[{i}].name"), "must not be empty"));
+            }
+            let mut params = BTreeMap::new();
+            for (k, v) in m.params {
+                let key = format!("methods[{i}].params.{k}");
+                let values = match v {
+                    toml::Value::Array(items) => items
+                        .iter()
+                        .enumerate()
+                        .map(|(j, item)| scalar_string(&format!("{key}[{j}]"), item))
+                        .collect::<Result<Vec<_>, _>>()?,
+                    scalar => vec![scalar_string(&key, &scalar)?],
+                };
+                if values.is_empty() {
+                    return Err(invalid(key, "empty list"));
+                }
+                params.insert(k, values);
+            }
+            methods.push(MethodSpec {
+                name: m.name,
+                params,
+            });
+        }
+        if raw.resolutions.is_empty() {
+            return Err(invalid("resolutions", "at least one \"WxH\" is required"));
+        }
+        let resolutions = raw
+            .resolutions
+            .iter()
+            .enumerate()
+            .map(|(i, r)| parse_resolution(r).map_err(|e| invalid(format!("resolutions[{i}]"), e)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let poses = if raw.poses.is_empty() {
+            vec![NamedPose {
+                name: "default".into(),
+                pose: PoseSpec::Default,
+            }]
+        } else {
+            raw.poses
+                .into_iter()
+                .enumerate()
+                .map(|(i, p)| convert_pose(i, p))
+                .collect::<Result<Vec<_>, _>>()?
+        };
+        for (i, pose) in poses.iter().enumerate() {
+            if poses[..i].iter().any(|p| p.name == pose.name) {
+                return Err(invalid(
+                    format!("poses[{i}].name"),
+                    format!("duplicate pose name {:?}", pose.name),
+                ));
+            }
+        }
+        let lights = raw.lights.unwrap_or_else(|| vec![1]);
+        if lights.is_empty() {
+            return Err(invalid("lights", "at least one light count is required"));
+        }
+        let frames = raw.frames.unwrap_or_default();
+        if frames.measured == 0 {
+            return Err(invalid("frames.measured", "must be at least 1"));
+        }
+        let mut stress = Vec::new();
+        for (i, s) in raw.stress.into_iter().enumerate() {
+            let kind: StressKind = s
+                .kind
+                .parse()
+                .map_err(|e| invalid(format!("stress[{i}].kind"), e))?;
+            if s.values.is_empty() {
+                return Err(invalid(format!("stress[{i}].values"), "empty list"));
+            }
+            for (j, &v) in s.values.iter().enumerate() {
+                kind.check_value(v)
+                    .map_err(|e| invalid(format!("stress[{i}].values[{j}]"), e))?;
+            }
+            stress.push(StressSweep {
+                kind,
+                values: s.values,
+            });
+        }
+        Ok(BenchConfig {
+            models,
+            methods,
+            resolutions,
+            poses,
+            lights,
+            frames,
+            stress,
+        })
+    }
+
+    /// The tiny sweep for CI (`benches/sweeps/quick.toml`, embedded at build time): the bunny
+    /// and two resampled copies, `points` at two sizes and the `mesh` ground truth, 64x64 and
+    /// 128x128, 1 warm-up and 3 measured frames, subsample, grazing and magnification stresses.
+    pub fn quick() -> Result<Self, ConfigError> {
+        Self::parse(QUICK_TOML)
+    }
+
+    /// Expands the sweep into jobs, in this order:
+    ///
+    /// 1. `Baseline`: for each model, resolution, pose, light count, method and parameter
+    ///    combination (see [`MethodSpec::combinations`]), nested in that order (the last
+    ///    varies fastest), the model as loaded.
+    /// 2. `Points`: for each model, each of its `points` counts, each method and combination,
+    ///    at the first resolution, pose and light count.
+    /// 3. `Stress`: for each model, each stress sweep in file order, each value in file
+    ///    order, each method and combination, at the first resolution, pose and light count
+    ///    with the model as loaded.
+    pub fn jobs(&self) -> Vec<Job> {
+        let mut jobs = Vec::new();
+        let method_combos: Vec<(&str, BTreeMap<String, String>)> = self
+            .methods
+            .iter()
+            .flat_map(|m| {
+                m.combinations()
+                    .into_iter()
+                    .map(move |c| (m.name.as_str(), c))
+            })
+            .collect();
+        let (Some(&first_res), Some(first_pose), Some(&first_lights)) = (
+            self.resolutions.first(),
+            self.poses.first(),
+            self.lights.first(),
+        ) else {
+            return jobs;
+        };
+        let frames = self.frames;
+        let job =
+            |group, model: &ModelSpec, (width, height): (u32, u32), pose: &NamedPose, lights| {
+                let jobs: Vec<Job> = method_combos
+                    .iter()
+                    .map(|(method, params)| Job {
+                        group,
+                        model: model.clone(),
+                        points: None,
+                        method: method.to_string(),
+                        params: params.clone(),
+                        width,
+                        height,
+                        pose: pose.clone(),
+                        lights,
+                        stress: None,
+                        frames,
+                    })
+                    .collect();
+                jobs
+            };
+        for model in &self.models {
+            for &res in &self.resolutions {
+                for pose in &self.poses {
+                    for &lights in &self.lights {
+                        jobs.extend(job(JobGroup::Baseline, model, res, pose, lights));
+                    }
+                }
+            }
+        }
+        for model in &self.models {
+            for &n in &model.points {
+                let group = job(JobGroup::Points, model, first_res, first_pose, first_lights);
+                jobs.extend(group.into_iter().map(|j| Job {
+                    points: Some(n),
+                    ..j
+                }));
+            }
+        }
+        for model in &self.models {
+            for sweep in &self.stress {
+                for &value in &sweep.values {
+                    let group = job(JobGroup::Stress, model, first_res, first_pose, first_lights);
+                    jobs.extend(group.into_iter().map(|j| Job {
+                        stress: Some((sweep.kind, value)),
+                        ..j
+                    }));
+                }
+            }
+        }
+        jobs
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SAMPLE: &str = r#"
+resolutions = ["64x64", "128x96"]
+lights = [1, 4]
+
+[frames]
+warmup = 2
+measured = 5
+
+[[models]]
+path = "data/bunny.obj"
+points = [1000, 5000]
+
+[[models]]
+path = "data/x.ply"
+name = "dragon"
+
+[[methods]]
+name = "points"
+params = { size = [1, 2, 3], round = [true, false] }
+
+[[methods]]
+name = "mesh"
+
+[[poses]]
+name = "front"
+
+[[poses]]
+name = "side"
+orbit = "45,20"
+
+[[poses]]
+name = "inside"
+eye = [0, 0, 0.5]
+target = [0, 0, -1]
+
+[[stress]]
+kind = "grazing"
+values = [0, 45, 85]
+
+[[stress]]
+kind = "subsample"
+values = [1.0, 0.1]
+"#;
+
+    fn err(text: &str) -> String {
+        BenchConfig::parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn parses_the_sample() {
+        let c = BenchConfig::parse(SAMPLE).unwrap();
+        assert_eq!(c.models[0].name, "bunny");
+        assert_eq!(c.models[1].name, "dragon");
+        assert_eq!(c.resolutions, vec![(64, 64), (128, 96)]);
+        assert_eq!(
+            c.frames,
+            FrameCounts {
+                warmup: 2,
+                measured: 5
+            }
+        );
+        assert_eq!(c.poses[0].pose, PoseSpec::Default);
+        assert_eq!(
+            c.poses[1].pose,
+            PoseSpec::Orbit {
+                azimuth: 45.0,
+                elevation: 20.0,
+                distance: 1.0
+            }
+        );
+        assert!(matches!(c.poses[2].pose, PoseSpec::LookAt { .. }));
+        assert_eq!(c.methods[0].params["round"], vec!["true", "false"]);
+        assert_eq!(c.stress[1].kind, StressKind::Subsample);
+    }
+
+    #[test]
+    fn expansion_counts_and_order() {
+        let c = BenchConfig::parse(SAMPLE).unwrap();
+        let jobs = c.jobs();
+        let combos = 3 * 2 + 1;
+        let baseline = 2 * 2 * 3 * 2 * combos;
+        let points = 2 * combos;
+        let stress = 2 * (3 + 2) * combos;
+        assert_eq!(jobs.len(), baseline + points + stress);
+        let count = |g| jobs.iter().filter(|j| j.group == g).count();
+        assert_eq!(count(JobGroup::Baseline), baseline);
+        assert_eq!(count(JobGroup::Points), points);
+        assert_eq!(count(JobGroup::Stress), stress);
+        // Keys in sorted order, values in file order, last key fastest:
+        // round=true,size=1 then round=true,size=2 ...
+        assert_eq!(jobs[0].params["round"], "true");
+        assert_eq!(jobs[0].params["size"], "1");
+        assert_eq!(jobs[1].params["size"], "2");
+        assert_eq!(jobs[3].params["round"], "false");
+        assert_eq!(jobs[6].method, "mesh");
+        assert!(jobs[6].params.is_empty());
+        assert_eq!(jobs[7].lights, 4);
+        assert_eq!(jobs[baseline].points, Some(1000));
+        assert_eq!((jobs[baseline].width, jobs[baseline].height), (64, 64));
+        let s = &jobs[baseline + points];
+        assert_eq!(s.stress, Some((StressKind::Grazing, 0.0)));
+        assert_eq!(s.model.name, "bunny");
+        assert_eq!(s.frames.measured, 5);
+        // Deterministic.
+        assert_eq!(jobs, c.jobs());
+    }
+
+    #[test]
+    fn validation_errors_name_the_key() {
+        let base = "resolutions = [\"8x8\"]\n[[models]]\npath = \"a.obj\"\n[[methods]]\nname = \"points\"\n";
+        assert!(BenchConfig::parse(base).is_ok());
+        let cases = [
+            ("resolutions = [\"8x8\"]\n[[methods]]\nname = \"p\"\n", "models:"),
+            (
+                "resolutions = [\"8by8\"]\n[[models]]\npath = \"a.obj\"\n[[methods]]\nname = \"p\"\n",
+                "resolutions[0]:",
+            ),
+            (&format!("{base}params = {{ size = [] }}\n"), "methods[0].params.size: empty list"),
+            (&format!("{base}params = {{ size = [[1]] }}\n"), "methods[0].params.size[0]:"),
+            (&format!("{base}[frames]\nwarmup = 0\nmeasured = 0\n"), "frames.measured:"),
+            (&format!("{base}[[stress]]\nkind = \"wobble\"\nvalues = [1]\n"), "stress[0].kind:"),
+            (
+                &format!("{base}[[stress]]\nkind = \"subsample\"\nvalues = [1.0, 1.5]\n"),
+                "stress[0].values[1]:",
+            ),
+            (&format!("{base}[[stress]]\nkind = \"grazing\"\nvalues = [90]\n"), "stress[0].values[0]:"),
+            (&format!("{base}[[poses]]\nname = \"p\"\norbit = [1]\n"), "poses[0].orbit:"),
+            (&format!("{base}[[poses]]\nname = \"p\"\neye = [1, 2, 3]\n"), "poses[0].target:"),
+            (
+                &format!("{base}[[poses]]\nname = \"p\"\norbit = \"1,2\"\neye = [1, 2, 3]\n"),
+                "poses[0].orbit:",
+            ),
+            (&format!("{base}[[poses]]\nname = \"p\"\ndistance = 0\n"), "poses[0].distance:"),
+            (&format!("{base}lightz = [1]\n"), "unknown field `lightz`"),
+        ];
+        for (text, expected) in cases {
+            let e = err(text);
+            assert!(e.contains(expected), "{expected:?} not in {e:?}");
+        }
+        let dup = format!("{base}[[poses]]\nname = \"p\"\n[[poses]]\nname = \"p\"\n");
+        assert!(err(&dup).contains("poses[1].name: duplicate pose name"));
+        let dup = base.replace("[[methods]]", "[[models]]\npath = \"b/a.ply\"\n[[methods]]");
+        assert!(err(&dup).contains("models[1].name: duplicate model name \"a\""));
+        let e = err("resolutions = [\"8x8\"]\n[[models]]\npath = \"a.obj\"\npoints = [0]\n[[methods]]\nname = \"p\"\n");
+        assert!(e.contains("models[0].points[0]"), "{e}");
+    }
+
+    #[test]
+    fn quick_config_and_example_files_are_valid() {
+        let q = BenchConfig::quick().unwrap();
+        let jobs = q.jobs();
+        // Baseline: 2 resolutions x 3 method configurations; 2 point counts x 3; 3 stress
+        // kinds x 2 values x 3.
+        assert_eq!(jobs.len(), 2 * 3 + 2 * 3 + 3 * 2 * 3);
+        assert!(jobs
+            .iter()
+            .all(|j| j.frames.measured == 3 && j.width <= 128));
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/sweeps");
+        let quick = BenchConfig::load(&dir.join("quick.toml")).unwrap();
+        assert_eq!(quick, q);
+        let full = BenchConfig::load(&dir.join("full.toml")).unwrap();
+        let kinds: Vec<_> = full.stress.iter().map(|s| s.kind).collect();
+        assert_eq!(kinds, StressKind::ALL.to_vec());
+        assert!(full.jobs().len() > jobs.len());
+    }
+
+    #[test]
+    fn stress_kinds_round_trip_and_order_severity() {
+        for k in StressKind::ALL {
+            assert_eq!(k.as_str().parse::<StressKind>().unwrap(), k);
+        }
+        assert!(StressKind::Grazing.severity_increases_with_value());
+        assert!(!StressKind::Inside.severity_increases_with_value());
+        assert!(StressKind::Magnification.check_value(0.5).is_err());
+        assert!(StressKind::Noise.check_value(f64::NAN).is_err());
+    }
+}

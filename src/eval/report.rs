@@ -1,0 +1,327 @@
+//! The markdown report of a sweep: results tables, Pareto sets, stability under stress and
+//! the charts.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Component, Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use super::charts::{headline_records, models, speed_accuracy, write_charts_by_model};
+use super::metrics::{BREAK_HOLE_RATIO, PSNR_CAP_DB};
+use super::results::{pareto_front, stability, MetricFn, Record, Results};
+
+/// Subdirectory of the report's directory that holds its charts.
+pub const CHARTS_DIR: &str = "charts";
+
+/// Writes `out_dir/report.md` and the charts it embeds (via
+/// [`crate::eval::charts::write_charts`], into `out_dir/charts/`, overwriting charts already
+/// written there) and returns the report's path. `results_path` is linked from the header,
+/// relative to `out_dir` where possible.
+pub fn write_report(results: &Results, results_path: &Path, out_dir: &Path) -> Result<PathBuf> {
+    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let charts = write_charts_by_model(results, &out_dir.join(CHARTS_DIR))?;
+    let text = render(
+        results,
+        &relative_link(results_path, out_dir),
+        &charts,
+        out_dir,
+    );
+    let path = out_dir.join("report.md");
+    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}
+
+/// `path` relative to `base` when both resolve (e.g. `../results.json`), else `path` as is,
+/// with `/` separators for markdown.
+fn relative_link(path: &Path, base: &Path) -> String {
+    let resolved = (path.canonicalize(), base.canonicalize());
+    let rel = match resolved {
+        (Ok(p), Ok(b)) => {
+            let (pc, bc): (Vec<Component>, Vec<Component>) =
+                (p.components().collect(), b.components().collect());
+            let common = pc.iter().zip(&bc).take_while(|(a, b)| a == b).count();
+            let mut rel = PathBuf::new();
+            for _ in common..bc.len() {
+                rel.push("..");
+            }
+            for c in &pc[common..] {
+                rel.push(c);
+            }
+            rel
+        }
+        _ => path.to_path_buf(),
+    };
+    rel.to_string_lossy().replace('\\', "/")
+}
+
+/// Escapes a table cell.
+fn cell(s: &str) -> String {
+    s.replace('|', "\\|").replace('\n', " ")
+}
+
+/// Renders a metric value for a table cell.
+type Formatter = fn(Option<f64>) -> String;
+
+fn fmt_opt(v: Option<f64>, decimals: usize, scale: f64) -> String {
+    match v {
+        Some(v) if v.is_finite() => format!("{:.*}", decimals, v * scale),
+        _ => "–".into(),
+    }
+}
+
+fn fmt_psnr(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v >= PSNR_CAP_DB => format!("≥{PSNR_CAP_DB:.0}"),
+        other => fmt_opt(other, 2, 1.0),
+    }
+}
+
+fn params_text(r: &Record) -> String {
+    let parts: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    if parts.is_empty() {
+        "–".into()
+    } else {
+        parts.join(", ")
+    }
+}
+
+fn render(
+    results: &Results,
+    results_link: &str,
+    charts: &[(Option<String>, PathBuf)],
+    out_dir: &Path,
+) -> String {
+    let mut md = String::new();
+    let or_unknown = |s: &str| {
+        if s.is_empty() {
+            "unknown".to_string()
+        } else {
+            s.to_string()
+        }
+    };
+    let _ = writeln!(md, "# surfel evaluation report\n");
+    let _ = writeln!(md, "- Device: {}", or_unknown(&results.device));
+    let _ = writeln!(md, "- Driver: {}", or_unknown(&results.driver));
+    let _ = writeln!(md, "- Date: {}", or_unknown(&results.created));
+    let _ = writeln!(md, "- Results: [{results_link}]({results_link})");
+    let _ = writeln!(md, "- Records: {}\n", results.records.len());
+    if results.records.is_empty() {
+        let _ = writeln!(md, "No records.");
+        return md;
+    }
+    let chart_link = |path: &PathBuf| {
+        path.strip_prefix(out_dir)
+            .unwrap_or(path)
+            .to_string_lossy()
+            .replace('\\', "/")
+    };
+    let embed = |md: &mut String, model: Option<&str>| {
+        for (_, path) in charts
+            .iter()
+            .filter(|(m, p)| m.as_deref() == model && p.extension().is_some_and(|e| e == "png"))
+        {
+            let link = chart_link(path);
+            let svg = link.trim_end_matches(".png").to_string() + ".svg";
+            let name = path.file_stem().unwrap_or_default().to_string_lossy();
+            let _ = writeln!(md, "![{name}]({link}) ([SVG]({svg}))\n");
+        }
+    };
+    for model in models(results) {
+        let _ = writeln!(md, "## Model `{model}`\n");
+        model_table(&mut md, results, &model);
+        pareto_section(&mut md, results, &model);
+        embed(&mut md, Some(&model));
+    }
+    stability_section(&mut md, results);
+    if charts.iter().any(|(m, _)| m.is_none()) {
+        let _ = writeln!(md, "## Cross-model charts\n");
+        embed(&mut md, None);
+    }
+    md
+}
+
+fn model_table(md: &mut String, results: &Results, model: &str) {
+    let mut rows: Vec<&Record> = results
+        .records
+        .iter()
+        .filter(|r| r.model == model && r.stress.is_none())
+        .collect();
+    if rows.is_empty() {
+        let _ = writeln!(md, "No unstressed records.\n");
+        return;
+    }
+    rows.sort_by(|a, b| {
+        (a.pixels(), a.points, a.label(), &a.pose, a.lights).cmp(&(
+            b.pixels(),
+            b.points,
+            b.label(),
+            &b.pose,
+            b.lights,
+        ))
+    });
+    let mut passes: Vec<&str> = Vec::new();
+    for p in rows.iter().flat_map(|r| &r.passes) {
+        if !passes.contains(&p.name.as_str()) {
+            passes.push(&p.name);
+        }
+    }
+    let mut header = vec![
+        "method".to_string(),
+        "params".into(),
+        "resolution".into(),
+        "points".into(),
+        "pose".into(),
+        "lights".into(),
+        "frame ms (IQR)".into(),
+    ];
+    header.extend(passes.iter().map(|p| format!("{} ms", cell(p))));
+    header.extend(
+        [
+            "Mpts/s",
+            "PSNR dB",
+            "SSIM",
+            "hole %",
+            "IoU",
+            "boundary px",
+            "depth err %",
+        ]
+        .map(String::from),
+    );
+    let _ = writeln!(md, "| {} |", header.join(" | "));
+    let _ = writeln!(md, "|{}", "---|".repeat(header.len()));
+    for r in rows {
+        let mut row = vec![
+            cell(&r.method),
+            cell(&params_text(r)),
+            r.resolution(),
+            r.points.to_string(),
+            cell(&r.pose),
+            r.lights.to_string(),
+            format!("{:.3} ({:.3})", r.frame_ms_median, r.frame_ms_spread),
+        ];
+        row.extend(passes.iter().map(|name| {
+            let p = r.passes.iter().find(|p| p.name == *name);
+            fmt_opt(p.map(|p| p.median_ms), 3, 1.0)
+        }));
+        let s = &r.scores;
+        row.extend([
+            fmt_opt(Some(r.points_per_second), 1, 1e-6),
+            fmt_psnr(s.psnr),
+            fmt_opt(s.ssim, 4, 1.0),
+            fmt_opt(s.hole_ratio, 2, 100.0),
+            fmt_opt(s.iou, 4, 1.0),
+            fmt_opt(s.boundary_px, 2, 1.0),
+            fmt_opt(s.depth_rel_mean, 2, 100.0),
+        ]);
+        let _ = writeln!(md, "| {} |", row.join(" | "));
+    }
+    let _ = writeln!(md);
+}
+
+fn pareto_section(md: &mut String, results: &Results, model: &str) {
+    let head = headline_records(results, model);
+    let Some(first) = head.first() else {
+        return;
+    };
+    let accuracy: [(&str, MetricFn, Formatter); 2] = [
+        ("PSNR dB", |r| r.scores.psnr, fmt_psnr),
+        ("SSIM", |r| r.scores.ssim, |v| fmt_opt(v, 4, 1.0)),
+    ];
+    for (name, metric, fmt) in accuracy {
+        let pts = speed_accuracy(&head, metric);
+        if pts.is_empty() {
+            continue;
+        }
+        let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.1, p.2)).collect();
+        let _ = writeln!(
+            md,
+            "### Pareto set: GPU time vs {name} ({}, {} points)\n",
+            first.resolution(),
+            first.points
+        );
+        let _ = writeln!(md, "| method | frame ms | {name} |\n|---|---|---|");
+        for i in pareto_front(&xy) {
+            let (label, ms, acc) = &pts[i];
+            let _ = writeln!(md, "| {} | {ms:.3} | {} |", cell(label), fmt(Some(*acc)));
+        }
+        let _ = writeln!(md);
+    }
+}
+
+fn stability_section(md: &mut String, results: &Results) {
+    let stab = stability(results);
+    if stab.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "## Stability under stress\n\nFirst stress value (in order of increasing severity) at \
+         which the hole ratio exceeds {}%, or \"stable\" over the values tested.\n",
+        BREAK_HOLE_RATIO * 100.0
+    );
+    let mut by_model: BTreeMap<&str, Vec<_>> = BTreeMap::new();
+    for s in &stab {
+        by_model.entry(s.model.as_str()).or_default().push(s);
+    }
+    for (model, entries) in by_model {
+        let mut kinds: Vec<&str> = entries.iter().map(|s| s.kind.as_str()).collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        let mut labels: Vec<&str> = entries.iter().map(|s| s.label.as_str()).collect();
+        labels.sort_unstable();
+        labels.dedup();
+        let _ = writeln!(md, "### `{model}`\n");
+        let _ = writeln!(md, "| method | {} |", kinds.join(" | "));
+        let _ = writeln!(md, "|{}", "---|".repeat(kinds.len() + 1));
+        for label in labels {
+            let cells: Vec<String> = kinds
+                .iter()
+                .map(
+                    |kind| match entries.iter().find(|s| s.label == label && s.kind == *kind) {
+                        Some(s) => match s.breaks_at {
+                            Some(v) => format!("breaks at {v}"),
+                            None => "stable".into(),
+                        },
+                        None => "–".into(),
+                    },
+                )
+                .collect();
+            let _ = writeln!(md, "| {} | {} |", cell(label), cells.join(" | "));
+        }
+        let _ = writeln!(md);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_links_and_cells() {
+        let dir = std::env::temp_dir().join(format!("surfel_report_rel_{}", std::process::id()));
+        let out = dir.join("out");
+        std::fs::create_dir_all(&out).unwrap();
+        let file = dir.join("results.json");
+        std::fs::write(&file, "{}").unwrap();
+        assert_eq!(relative_link(&file, &out), "../results.json");
+        assert_eq!(
+            relative_link(Path::new("missing.json"), &out),
+            "missing.json"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(cell("a|b"), "a\\|b");
+        assert_eq!(fmt_psnr(Some(100.0)), "≥100");
+        assert_eq!(fmt_opt(Some(0.0123), 2, 100.0), "1.23");
+        assert_eq!(fmt_opt(None, 2, 1.0), "–");
+    }
+
+    #[test]
+    fn empty_results_give_a_short_report() {
+        let dir = std::env::temp_dir().join(format!("surfel_report_empty_{}", std::process::id()));
+        let path = write_report(&Results::default(), Path::new("r.json"), &dir).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("No records."));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

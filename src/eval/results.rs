@@ -1,0 +1,482 @@
+//! Sweep results: one [`Record`] per job, saved as JSON (lossless) and CSV (flat, for
+//! spreadsheets), plus the derived views the charts and the report share (labels, Pareto
+//! fronts, stability under stress).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+
+use super::config::StressKind;
+use super::metrics::{Scores, BREAK_HOLE_RATIO};
+
+/// Extracts one metric from a record (`None` when it was not computed).
+pub type MetricFn = fn(&Record) -> Option<f64>;
+
+/// (model, stress kind, label) to (value bits to (value, worst hole ratio)).
+type StressGroups = BTreeMap<(String, String, String), BTreeMap<u64, (f64, f64)>>;
+
+/// GPU time of one render pass over the measured frames.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PassTiming {
+    pub name: String,
+    /// Median over the measured frames, milliseconds.
+    pub median_ms: f64,
+    /// Interquartile range over the measured frames, milliseconds.
+    pub spread_ms: f64,
+}
+
+/// One row of a sweep: what was rendered, how long it took and how accurate it was.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// Model name (see `ModelSpec::name`).
+    pub model: String,
+    /// Points rendered.
+    pub points: u64,
+    pub method: String,
+    /// Method parameters as given in the sweep.
+    pub params: BTreeMap<String, String>,
+    pub width: u32,
+    pub height: u32,
+    /// Pose name.
+    pub pose: String,
+    pub lights: u32,
+    /// Stress kind name (see [`StressKind`]) when a stress was applied.
+    pub stress: Option<String>,
+    pub stress_value: Option<f64>,
+    pub device: String,
+    pub driver: String,
+    /// Per-pass GPU times in execution order.
+    pub passes: Vec<PassTiming>,
+    /// Median GPU time of the whole frame, milliseconds.
+    pub frame_ms_median: f64,
+    /// Interquartile range of the frame time, milliseconds.
+    pub frame_ms_spread: f64,
+    /// `points / (frame_ms_median / 1000)`.
+    pub points_per_second: f64,
+    pub scores: Scores,
+}
+
+impl Record {
+    /// `method` or `method(key=value, ...)`: the identity of a method configuration in charts
+    /// and tables.
+    pub fn label(&self) -> String {
+        if self.params.is_empty() {
+            return self.method.clone();
+        }
+        let params: Vec<String> = self
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        format!("{}({})", self.method, params.join(", "))
+    }
+
+    /// Pixels per frame.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// `"WxH"`.
+    pub fn resolution(&self) -> String {
+        format!("{}x{}", self.width, self.height)
+    }
+}
+
+/// A whole sweep.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Results {
+    /// GPU name.
+    pub device: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// When the sweep ran (free-form, e.g. RFC 3339).
+    pub created: String,
+    pub records: Vec<Record>,
+}
+
+impl Results {
+    /// Writes pretty-printed JSON.
+    pub fn write_json(&self, path: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self).context("serializing results")?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))
+    }
+
+    /// Reads results written by [`Results::write_json`].
+    pub fn read_json(path: &Path) -> Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    }
+
+    /// Writes [`Results::to_csv`].
+    pub fn write_csv(&self, path: &Path) -> Result<()> {
+        std::fs::write(path, self.to_csv()).with_context(|| format!("writing {}", path.display()))
+    }
+
+    /// Flat CSV (RFC 4180, `\n` line ends): the fixed columns, then the scores, then one
+    /// `param.KEY` column per parameter key seen in any record (sorted), then
+    /// `pass.NAME.median_ms` and `pass.NAME.spread_ms` per pass name in order of first
+    /// appearance. Missing values are empty cells.
+    pub fn to_csv(&self) -> String {
+        let param_keys: BTreeSet<&str> = self
+            .records
+            .iter()
+            .flat_map(|r| r.params.keys().map(String::as_str))
+            .collect();
+        let mut pass_names: Vec<&str> = Vec::new();
+        for p in self.records.iter().flat_map(|r| &r.passes) {
+            if !pass_names.contains(&p.name.as_str()) {
+                pass_names.push(&p.name);
+            }
+        }
+        let mut header: Vec<String> = [
+            "model",
+            "points",
+            "method",
+            "width",
+            "height",
+            "pose",
+            "lights",
+            "stress",
+            "stress_value",
+            "device",
+            "driver",
+            "frame_ms_median",
+            "frame_ms_spread",
+            "points_per_second",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        header.extend(
+            Scores::default()
+                .fields()
+                .iter()
+                .map(|(n, _)| n.to_string()),
+        );
+        header.extend(param_keys.iter().map(|k| format!("param.{k}")));
+        for name in &pass_names {
+            header.push(format!("pass.{name}.median_ms"));
+            header.push(format!("pass.{name}.spread_ms"));
+        }
+        let mut out = String::new();
+        write_row(&mut out, &header);
+        let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
+        for r in &self.records {
+            let mut row = vec![
+                r.model.clone(),
+                r.points.to_string(),
+                r.method.clone(),
+                r.width.to_string(),
+                r.height.to_string(),
+                r.pose.clone(),
+                r.lights.to_string(),
+                r.stress.clone().unwrap_or_default(),
+                opt(r.stress_value),
+                r.device.clone(),
+                r.driver.clone(),
+                r.frame_ms_median.to_string(),
+                r.frame_ms_spread.to_string(),
+                r.points_per_second.to_string(),
+            ];
+            row.extend(r.scores.fields().iter().map(|(_, v)| opt(*v)));
+            row.extend(
+                param_keys
+                    .iter()
+                    .map(|k| r.params.get(*k).cloned().unwrap_or_default()),
+            );
+            for name in &pass_names {
+                let pass = r.passes.iter().find(|p| p.name == *name);
+                row.push(opt(pass.map(|p| p.median_ms)));
+                row.push(opt(pass.map(|p| p.spread_ms)));
+            }
+            write_row(&mut out, &row);
+        }
+        out
+    }
+}
+
+/// Quotes a CSV field when it contains a comma, quote, CR or LF (doubling inner quotes).
+pub fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn write_row(out: &mut String, fields: &[String]) {
+    let line: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
+    let _ = writeln!(out, "{}", line.join(","));
+}
+
+/// Median and interquartile range (linear interpolation between order statistics) of
+/// samples, e.g. per-frame GPU times; `None` for no finite samples.
+pub fn median_and_iqr(samples: &[f64]) -> Option<(f64, f64)> {
+    let mut v: Vec<f64> = samples.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let quantile = |q: f64| {
+        let pos = q * (v.len() - 1) as f64;
+        let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+        v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
+    };
+    Some((quantile(0.5), quantile(0.75) - quantile(0.25)))
+}
+
+/// Indices of the Pareto-optimal points for minimal `x` (time) and maximal `y` (accuracy),
+/// sorted by increasing `x`. A point is optimal when no other point is at least as good in
+/// both and better in one; of exact duplicates only the first is kept. Non-finite points
+/// are ignored.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].0.is_finite() && points[i].1.is_finite())
+        .collect();
+    // Increasing x, and for equal x decreasing y, so the first of each x is its best.
+    order.sort_by(|&a, &b| {
+        points[a]
+            .0
+            .total_cmp(&points[b].0)
+            .then(points[b].1.total_cmp(&points[a].1))
+            .then(a.cmp(&b))
+    });
+    let mut front = Vec::new();
+    let mut best_y = f64::NEG_INFINITY;
+    for i in order {
+        if points[i].1 > best_y {
+            best_y = points[i].1;
+            front.push(i);
+        }
+    }
+    front
+}
+
+/// How one method configuration held up along one stress sweep of one model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stability {
+    pub model: String,
+    /// [`Record::label`].
+    pub label: String,
+    /// Stress kind name.
+    pub kind: String,
+    /// `(value, hole ratio)` in order of increasing severity; with several records per value
+    /// the worst hole ratio counts.
+    pub curve: Vec<(f64, f64)>,
+    /// The first value (in severity order) whose hole ratio exceeds [`BREAK_HOLE_RATIO`];
+    /// `None` when the method is stable over the whole sweep.
+    pub breaks_at: Option<f64>,
+}
+
+/// Stability of every (model, label, stress kind) with stress records carrying a hole
+/// ratio, sorted by model, kind, then label. Severity order follows
+/// [`StressKind::severity_increases_with_value`] (ascending values for unknown kinds).
+pub fn stability(results: &Results) -> Vec<Stability> {
+    let mut groups: StressGroups = BTreeMap::new();
+    for r in &results.records {
+        let (Some(kind), Some(value), Some(hole)) =
+            (&r.stress, r.stress_value, r.scores.hole_ratio)
+        else {
+            continue;
+        };
+        if !value.is_finite() || !hole.is_finite() {
+            continue;
+        }
+        let entry = groups
+            .entry((r.model.clone(), kind.clone(), r.label()))
+            .or_default()
+            .entry(value.to_bits())
+            .or_insert((value, hole));
+        entry.1 = entry.1.max(hole);
+    }
+    groups
+        .into_iter()
+        .map(|((model, kind, label), by_value)| {
+            let ascending = kind
+                .parse::<StressKind>()
+                .map_or(true, StressKind::severity_increases_with_value);
+            let mut curve: Vec<(f64, f64)> = by_value.into_values().collect();
+            curve.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if !ascending {
+                curve.reverse();
+            }
+            let breaks_at = curve
+                .iter()
+                .find(|(_, h)| *h > BREAK_HOLE_RATIO)
+                .map(|(v, _)| *v);
+            Stability {
+                model,
+                label,
+                kind,
+                curve,
+                breaks_at,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(method: &str, size: &str, ms: f64, psnr: f64) -> Record {
+        Record {
+            model: "bunny".into(),
+            points: 1000,
+            method: method.into(),
+            params: BTreeMap::from([("size".to_string(), size.to_string())]),
+            width: 64,
+            height: 32,
+            pose: "default".into(),
+            lights: 1,
+            stress: None,
+            stress_value: None,
+            device: "GPU \"X\", rev 2".into(),
+            driver: "1.0".into(),
+            passes: vec![PassTiming {
+                name: "splat".into(),
+                median_ms: ms * 0.75,
+                spread_ms: 0.1,
+            }],
+            frame_ms_median: ms,
+            frame_ms_spread: 0.2,
+            points_per_second: 1000.0 / (ms / 1000.0),
+            scores: Scores {
+                psnr: Some(psnr),
+                ..Scores::default()
+            },
+        }
+    }
+
+    #[test]
+    fn labels_list_params() {
+        let r = record("points", "3", 1.0, 30.0);
+        assert_eq!(r.label(), "points(size=3)");
+        let bare = Record {
+            params: BTreeMap::new(),
+            ..r
+        };
+        assert_eq!(bare.label(), "points");
+        assert_eq!(bare.resolution(), "64x32");
+        assert_eq!(bare.pixels(), 2048);
+    }
+
+    #[test]
+    fn csv_quoting() {
+        assert_eq!(csv_field("plain"), "plain");
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+        assert_eq!(csv_field("say \"hi\""), "\"say \"\"hi\"\"\"");
+        assert_eq!(csv_field("two\nlines"), "\"two\nlines\"");
+    }
+
+    #[test]
+    fn csv_has_stable_param_and_pass_columns() {
+        let mut a = record("points", "1", 2.0, 30.0);
+        a.passes.push(PassTiming {
+            name: "resolve".into(),
+            median_ms: 0.5,
+            spread_ms: 0.0,
+        });
+        let mut b = record("pyramid", "2", 3.0, 35.0);
+        b.params.insert("levels".into(), "4".into());
+        b.passes.insert(
+            0,
+            PassTiming {
+                name: "build".into(),
+                median_ms: 1.0,
+                spread_ms: 0.0,
+            },
+        );
+        b.stress = Some("noise".into());
+        b.stress_value = Some(0.01);
+        let results = Results {
+            records: vec![a, b],
+            ..Results::default()
+        };
+        let csv = results.to_csv();
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines.len(), 3);
+        let header: Vec<&str> = lines[0].split(',').collect();
+        let tail = &header[header.len() - 8..];
+        assert_eq!(
+            tail,
+            [
+                "param.levels",
+                "param.size",
+                "pass.splat.median_ms",
+                "pass.splat.spread_ms",
+                "pass.resolve.median_ms",
+                "pass.resolve.spread_ms",
+                "pass.build.median_ms",
+                "pass.build.spread_ms",
+            ]
+        );
+        assert!(lines[1].contains("\"GPU \"\"X\"\", rev 2\""));
+        assert!(lines[1].ends_with(",,1,1.5,0.1,0.5,0,,"), "{}", lines[1]);
+        assert!(lines[2].contains(",noise,0.01,"));
+        assert!(lines[2].ends_with(",4,2,2.25,0.1,,,1,0"), "{}", lines[2]);
+        assert_eq!(Results::default().to_csv().lines().count(), 1);
+    }
+
+    #[test]
+    fn median_and_iqr_are_known() {
+        assert_eq!(median_and_iqr(&[]), None);
+        assert_eq!(median_and_iqr(&[f64::NAN]), None);
+        assert_eq!(median_and_iqr(&[4.0]), Some((4.0, 0.0)));
+        // 1..=5: median 3, quartiles 2 and 4.
+        assert_eq!(median_and_iqr(&[5.0, 1.0, 4.0, 2.0, 3.0]), Some((3.0, 2.0)));
+        assert_eq!(median_and_iqr(&[1.0, 2.0, 3.0, 4.0]), Some((2.5, 1.5)));
+    }
+
+    #[test]
+    fn pareto_front_is_known() {
+        let pts = [
+            (1.0, 20.0),      // 0: fastest
+            (2.0, 25.0),      // 1: front
+            (2.0, 22.0),      // 2: same time, worse
+            (3.0, 24.0),      // 3: dominated by 1
+            (4.0, 30.0),      // 4: front
+            (5.0, 30.0),      // 5: slower, equal
+            (f64::NAN, 99.0), // ignored
+            (1.0, 20.0),      // duplicate of 0
+        ];
+        assert_eq!(pareto_front(&pts), vec![0, 1, 4]);
+        assert!(pareto_front(&[]).is_empty());
+    }
+
+    #[test]
+    fn stability_finds_the_first_breaking_value_in_severity_order() {
+        let stressed = |method: &str, kind: &str, value: f64, hole: f64| Record {
+            stress: Some(kind.into()),
+            stress_value: Some(value),
+            scores: Scores {
+                hole_ratio: Some(hole),
+                ..Scores::default()
+            },
+            ..record(method, "1", 1.0, 30.0)
+        };
+        let results = Results {
+            records: vec![
+                stressed("a", "subsample", 1.0, 0.0),
+                stressed("a", "subsample", 0.1, 0.05),
+                stressed("a", "subsample", 0.5, 0.02),
+                stressed("a", "subsample", 0.5, 0.001),
+                stressed("b", "grazing", 0.0, 0.0),
+                stressed("b", "grazing", 85.0, 0.005),
+                record("c", "1", 1.0, 30.0),
+            ],
+            ..Results::default()
+        };
+        let s = stability(&results);
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].kind, "grazing");
+        assert_eq!(s[0].breaks_at, None);
+        assert_eq!(s[1].label, "a(size=1)");
+        assert_eq!(s[1].curve, vec![(1.0, 0.0), (0.5, 0.02), (0.1, 0.05)]);
+        assert_eq!(s[1].breaks_at, Some(0.5));
+    }
+}

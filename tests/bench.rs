@@ -1,0 +1,104 @@
+//! `surfel bench --quick` on lavapipe: results, charts and report for `points` and the `mesh`
+//! ground truth, with validation on.
+
+mod common;
+
+use surfel::eval::bench;
+use surfel::eval::config::BenchConfig;
+use surfel::eval::results::Results;
+
+#[test]
+fn quick_sweep_writes_results_charts_and_report() {
+    let ctx = common::context();
+    let out = std::env::temp_dir().join(format!("surfel-bench-{}", std::process::id()));
+    let config = BenchConfig::quick().expect("quick sweep");
+    let run = bench::run(&ctx, &config, &out, false).expect("sweep");
+    common::assert_clean(&ctx);
+
+    let results = Results::read_json(&run.json).expect("results.json");
+    assert_eq!(results, run.results);
+    assert_eq!(results.device, ctx.caps.device_name);
+    let csv = std::fs::read_to_string(&run.csv).expect("csv");
+    assert_eq!(csv.lines().count(), results.records.len() + 1);
+
+    let find = |method: &str, size: Option<&str>, points: u64, stress: Option<(&str, f64)>| {
+        results
+            .records
+            .iter()
+            .find(|r| {
+                r.method == method
+                    && r.params.get("size").map(String::as_str) == size
+                    && r.points == points
+                    && r.width == 64
+                    && r.stress.as_deref() == stress.map(|s| s.0)
+                    && r.stress_value == stress.map(|s| s.1)
+            })
+            .unwrap_or_else(|| panic!("no record {method} {size:?} {points} {stress:?}"))
+    };
+    // The ground truth scored against itself is perfect.
+    let mesh = find("mesh", None, 35_947, None);
+    assert_eq!(mesh.scores.psnr, Some(100.0));
+    assert_eq!(mesh.scores.iou, Some(1.0));
+    assert!(mesh
+        .passes
+        .iter()
+        .any(|p| p.name == "mesh.raster" && p.median_ms > 0.0));
+    // 1 px points of a 2 000-point resample leave holes; the full bunny at 64x64 does not.
+    let sparse = find("points", Some("1"), 2000, None);
+    let full = find("points", Some("1"), 35_947, None);
+    assert!(
+        sparse.scores.hole_ratio.expect("holes") > 0.05,
+        "{:?}",
+        sparse.scores
+    );
+    assert!(
+        full.scores.hole_ratio.expect("holes") < 0.01,
+        "{:?}",
+        full.scores
+    );
+    assert!(full.scores.psnr.expect("psnr") > sparse.scores.psnr.expect("psnr"));
+    assert!(
+        full.scores.flicker.is_some(),
+        "baseline jobs measure flicker"
+    );
+    // Magnifying until points are 8 px apart breaks 1 px points.
+    let magnified = find("points", Some("1"), 35_947, Some(("magnification", 8.0)));
+    assert!(
+        magnified.scores.hole_ratio.expect("holes") > 0.2,
+        "{:?}",
+        magnified.scores
+    );
+    for r in &results.records {
+        assert!(
+            r.frame_ms_median > 0.0 && r.points_per_second > 0.0,
+            "{r:?}"
+        );
+        for (name, v) in r.scores.fields() {
+            assert!(v.is_none_or(f64::is_finite), "{name} = {v:?} in {r:?}");
+        }
+    }
+
+    let charts: Vec<String> = run
+        .charts
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    for expected in [
+        "bunny_speed_psnr.png",
+        "bunny_speed_ssim.svg",
+        "bunny_passes.png",
+        "time_vs_points.png",
+        "bunny_time_vs_resolution.png",
+        "bunny_stress_magnification_holes.png",
+    ] {
+        assert!(
+            charts.iter().any(|c| c == expected),
+            "missing {expected} in {charts:?}"
+        );
+    }
+    let report = surfel::eval::report::write_report(&results, &run.json, &out).expect("report");
+    let text = std::fs::read_to_string(report).expect("report.md");
+    assert!(text.contains("llvmpipe") || text.contains(&results.device));
+    assert!(text.contains("Pareto") && text.contains("points(size=1)") && text.contains("mesh"));
+    std::fs::remove_dir_all(&out).ok();
+}
