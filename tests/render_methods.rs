@@ -107,3 +107,41 @@ fn large_points_fill_a_sparse_grid() {
     let (fraction, _) = square_fraction();
     assert!(big > 0.9 * fraction, "{big} vs {fraction}");
 }
+
+#[test]
+fn degenerate_clouds_render_without_nan_or_errors() {
+    use glam::Vec3;
+    use surfel::scene::Cloud;
+    let one = |p: Vec3, n: Vec3| Cloud {
+        positions: vec![p],
+        normals: Some(vec![n]),
+        ..Default::default()
+    };
+    let empty = render(&Cloud::default(), "points:size=1", 32);
+    assert_eq!(common::coverage(&empty), 0.0);
+    // One point frames itself at the image centre and covers exactly one pixel.
+    let single = render(
+        &one(Vec3::new(5.0, -2.0, 1.0), Vec3::Z),
+        "points:size=1",
+        32,
+    );
+    assert_eq!(
+        (0..single.pixels()).filter(|&i| single.covered(i)).count(),
+        1
+    );
+    // Zero normal: rendered (decoded as +z), never NaN.
+    let zero = render(&one(Vec3::ZERO, Vec3::ZERO), "points:size=3", 32);
+    assert!(common::coverage(&zero) > 0.0);
+    // All points identical.
+    let dup = Cloud {
+        positions: vec![Vec3::ONE; 1000],
+        normals: Some(vec![Vec3::Y; 1000]),
+        ..Default::default()
+    };
+    let d = render(&dup, "points:size=1", 32);
+    assert_eq!((0..d.pixels()).filter(|&i| d.covered(i)).count(), 1);
+    for f in [&empty, &single, &zero, &d] {
+        let report = surfel::eval::metrics::check_finite(f).expect("sizes");
+        assert!(report.is_clean(), "{report:?}");
+    }
+}

@@ -213,22 +213,6 @@ fn write_row(out: &mut String, fields: &[String]) {
     let _ = writeln!(out, "{}", line.join(","));
 }
 
-/// Median and interquartile range (linear interpolation between order statistics) of
-/// samples, e.g. per-frame GPU times; `None` for no finite samples.
-pub fn median_and_iqr(samples: &[f64]) -> Option<(f64, f64)> {
-    let mut v: Vec<f64> = samples.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let quantile = |q: f64| {
-        let pos = q * (v.len() - 1) as f64;
-        let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-        v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
-    };
-    Some((quantile(0.5), quantile(0.75) - quantile(0.25)))
-}
-
 /// Indices of the Pareto-optimal points for minimal `x` (time) and maximal `y` (accuracy),
 /// sorted by increasing `x`. A point is optimal when no other point is at least as good in
 /// both and better in one; of exact duplicates only the first is kept. Non-finite points
@@ -420,16 +404,6 @@ mod tests {
         assert!(lines[2].contains(",noise,0.01,"));
         assert!(lines[2].ends_with(",4,2,2.25,0.1,,,1,0"), "{}", lines[2]);
         assert_eq!(Results::default().to_csv().lines().count(), 1);
-    }
-
-    #[test]
-    fn median_and_iqr_are_known() {
-        assert_eq!(median_and_iqr(&[]), None);
-        assert_eq!(median_and_iqr(&[f64::NAN]), None);
-        assert_eq!(median_and_iqr(&[4.0]), Some((4.0, 0.0)));
-        // 1..=5: median 3, quartiles 2 and 4.
-        assert_eq!(median_and_iqr(&[5.0, 1.0, 4.0, 2.0, 3.0]), Some((3.0, 2.0)));
-        assert_eq!(median_and_iqr(&[1.0, 2.0, 3.0, 4.0]), Some((2.5, 1.5)));
     }
 
     #[test]
