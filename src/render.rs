@@ -392,7 +392,7 @@ fn add_readback(
     }
     copy.record(move |ctx| {
         for (image, buffer) in ids {
-            ctx.copy_image_to_buffer(image, buffer);
+            ctx.copy_image_to_buffer(image, 0, buffer);
         }
     });
     // Makes the copies visible to the host after the frame's fence; records no commands.
@@ -409,7 +409,7 @@ fn add_present(g: &mut GraphBuilder, color: ImageId, desc: ImageDesc) -> ImageId
     g.pass("present.blit")
         .image(color, Access::TransferSrc)
         .image(swapchain, Access::TransferDst)
-        .record(move |ctx| ctx.blit(color, swapchain));
+        .record(move |ctx| ctx.blit(color, 0, swapchain, 0));
     g.pass("present.transition")
         .image(swapchain, Access::Present)
         .record(|_| {});

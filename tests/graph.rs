@@ -241,6 +241,18 @@ fn invalid_declarations_are_rejected_with_the_pass_name() {
     assert!(g.barriers().unwrap_err().to_string().contains("late"));
 
     let mut g = GraphBuilder::new();
+    let kept = g.history_image("kept", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("peek")
+        .image(kept, Access::TransferSrc)
+        .on_demand()
+        .record(|_| {});
+    assert!(g
+        .barriers()
+        .unwrap_err()
+        .to_string()
+        .contains("not transient"));
+
+    let mut g = GraphBuilder::new();
     let big = g.image("big", desc(vk::Format::R8G8B8A8_UNORM, 2));
     let small = g.image("small", desc(vk::Format::R8G8B8A8_UNORM, 1));
     g.pass("mixed")

@@ -185,7 +185,8 @@ pub fn aspect_of(format: vk::Format) -> vk::ImageAspectFlags {
     }
 }
 
-/// A 2D image with a view of the whole mip chain and one view per mip level.
+/// A 2D image with a view of the whole mip chain and one view per mip level (no views for
+/// transfer-only images).
 pub struct Image {
     ctx: Arc<Context>,
     pub raw: vk::Image,
@@ -248,10 +249,21 @@ impl Image {
                     });
                 ctx.device.create_image_view(&view, None)
             };
-            let view = make_view(0, desc.mip_levels)?;
-            let mip_views = (0..desc.mip_levels)
-                .map(|l| make_view(l, 1))
-                .collect::<Result<Vec<_>, _>>()?;
+            // Transfer-only images cannot have views.
+            let viewable = desc.usage.intersects(
+                vk::ImageUsageFlags::SAMPLED
+                    | vk::ImageUsageFlags::STORAGE
+                    | vk::ImageUsageFlags::COLOR_ATTACHMENT
+                    | vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            );
+            let (view, mip_views) = if viewable {
+                let mips = (0..desc.mip_levels)
+                    .map(|l| make_view(l, 1))
+                    .collect::<Result<Vec<_>, _>>()?;
+                (make_view(0, desc.mip_levels)?, mips)
+            } else {
+                (vk::ImageView::null(), Vec::new())
+            };
             Ok(Self {
                 ctx: ctx.clone(),
                 raw,
@@ -271,7 +283,9 @@ impl Drop for Image {
             for v in self.mip_views.drain(..) {
                 self.ctx.device.destroy_image_view(v, None);
             }
-            self.ctx.device.destroy_image_view(self.view, None);
+            if self.view != vk::ImageView::null() {
+                self.ctx.device.destroy_image_view(self.view, None);
+            }
             self.ctx.device.destroy_image(self.raw, None);
         }
         if let Some(a) = self.allocation.take() {

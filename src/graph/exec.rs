@@ -197,6 +197,22 @@ fn validate(builder: &GraphBuilder) -> Result<()> {
                 pass.name
             );
         }
+        if pass.on_demand {
+            // Their state must not leak into frames that skip them: only transient images
+            // (discarded each frame) and buffers (no layouts) may be touched.
+            for (sub, _) in &pass.uses {
+                if let Subresource::Image { id, .. } = sub {
+                    let res = &builder.images[id.0 as usize];
+                    if !matches!(res.source, ImageSource::Transient(_)) {
+                        bail!(
+                            "on-demand pass '{}' uses '{}', which is not transient",
+                            pass.name,
+                            res.name
+                        );
+                    }
+                }
+            }
+        }
         let mut seen: HashMap<Subresource, Access> = HashMap::new();
         for (sub, access) in &pass.uses {
             match *sub {
@@ -521,29 +537,25 @@ impl PassContext<'_> {
         unsafe { self.ctx.device.cmd_dispatch(self.cmd, x, y, z) };
     }
 
-    /// Scales mip 0 of `src` onto mip 0 of `dst` (both declared TransferSrc/TransferDst).
-    pub fn blit(&self, src: ImageId, dst: ImageId) {
-        let corner = |d: ImageDesc| {
+    /// Scales mip `src_mip` of `src` onto mip `dst_mip` of `dst` (declared TransferSrc /
+    /// TransferDst on those levels). Also presents to swapchain images (mip 0 to mip 0).
+    pub fn blit(&self, src: ImageId, src_mip: u32, dst: ImageId, dst_mip: u32) {
+        let corner = |d: ImageDesc, mip: u32| {
+            let (w, h) = d.level_extent(mip);
             [
                 vk::Offset3D::default(),
                 vk::Offset3D {
-                    x: d.width as i32,
-                    y: d.height as i32,
+                    x: w as i32,
+                    y: h as i32,
                     z: 1,
                 },
             ]
         };
-        let layers = vk::ImageSubresourceLayers {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
-            mip_level: 0,
-            base_array_layer: 0,
-            layer_count: 1,
-        };
         let region = vk::ImageBlit::default()
-            .src_subresource(layers)
-            .src_offsets(corner(self.desc(src)))
-            .dst_subresource(layers)
-            .dst_offsets(corner(self.desc(dst)));
+            .src_subresource(color_layers(src_mip))
+            .src_offsets(corner(self.desc(src), src_mip))
+            .dst_subresource(color_layers(dst_mip))
+            .dst_offsets(corner(self.desc(dst), dst_mip));
         // SAFETY: layouts match the declared transfer accesses.
         unsafe {
             self.ctx.device.cmd_blit_image(
@@ -558,19 +570,66 @@ impl PassContext<'_> {
         };
     }
 
-    /// Copies mip 0 of `image` (tightly packed) into `buffer` at offset 0.
-    pub fn copy_image_to_buffer(&self, image: ImageId, buffer: BufferId) {
+    /// Copies one mip level between two images of the same format and size (the ping-pong
+    /// "copy pass" that fills the levels an image is missing).
+    pub fn copy_mip(&self, src: ImageId, dst: ImageId, mip: u32) {
+        let (width, height) = self.desc(src).level_extent(mip);
+        let region = vk::ImageCopy::default()
+            .src_subresource(color_layers(mip))
+            .dst_subresource(color_layers(mip))
+            .extent(vk::Extent3D {
+                width,
+                height,
+                depth: 1,
+            });
+        // SAFETY: the pass declared TransferSrc/TransferDst on `mip` of both images.
+        unsafe {
+            self.ctx.device.cmd_copy_image(
+                self.cmd,
+                self.image(src),
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                self.image(dst),
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[region],
+            )
+        };
+    }
+
+    /// Clears one mip level of a color image (declared TransferDst).
+    pub fn clear(&self, image: ImageId, mip: u32, color: [f32; 4]) {
+        let range = vk::ImageSubresourceRange {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            base_mip_level: mip,
+            level_count: 1,
+            base_array_layer: 0,
+            layer_count: 1,
+        };
+        // SAFETY: the pass declared TransferDst on `mip`.
+        unsafe {
+            self.ctx.device.cmd_clear_color_image(
+                self.cmd,
+                self.image(image),
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &vk::ClearColorValue { float32: color },
+                &[range],
+            )
+        };
+    }
+
+    /// Copies mip `mip` of `image` (tightly packed) into `buffer` at offset 0.
+    pub fn copy_image_to_buffer(&self, image: ImageId, mip: u32, buffer: BufferId) {
         let desc = self.desc(image);
+        let (width, height) = desc.level_extent(mip);
         let region = vk::BufferImageCopy::default()
             .image_subresource(vk::ImageSubresourceLayers {
                 aspect_mask: desc.aspect(),
-                mip_level: 0,
+                mip_level: mip,
                 base_array_layer: 0,
                 layer_count: 1,
             })
             .image_extent(vk::Extent3D {
-                width: desc.width,
-                height: desc.height,
+                width,
+                height,
                 depth: 1,
             });
         // SAFETY: the pass declared TransferSrc on the image and TransferDst on the buffer.
@@ -583,6 +642,15 @@ impl PassContext<'_> {
                 &[region],
             )
         };
+    }
+}
+
+fn color_layers(mip: u32) -> vk::ImageSubresourceLayers {
+    vk::ImageSubresourceLayers {
+        aspect_mask: vk::ImageAspectFlags::COLOR,
+        mip_level: mip,
+        base_array_layer: 0,
+        layer_count: 1,
     }
 }
 
