@@ -7,4 +7,5 @@ pub mod gpu;
 pub mod graph;
 pub mod methods;
 pub mod render;
+pub mod rng;
 pub mod scene;

@@ -177,3 +177,40 @@ fn viewer_runs_under_xvfb() {
         .expect("xvfb-run is installed by ../shared/ci/install-vulkan.sh");
     assert!(o.status.success(), "viewer failed: {}", stderr(&o));
 }
+
+#[test]
+fn bench_quick_and_report_run_from_the_command_line() {
+    let out = tmp("bench");
+    let o = surfel(&[
+        "bench",
+        "--quick",
+        "--validation",
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "results.json",
+        "results.csv",
+        "charts/bunny_speed_psnr.png",
+        "charts/bunny_passes.svg",
+    ] {
+        assert!(out.join(f).is_file(), "missing {f}");
+    }
+    let report_dir = tmp("report");
+    let o = surfel(&[
+        "report",
+        out.join("results.json").to_str().expect("utf8"),
+        "--out",
+        report_dir.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(report_dir.join("report.md")).expect("report.md");
+    assert!(
+        text.contains("## Model `bunny`") && text.contains("Stability"),
+        "{text}"
+    );
+    let o = surfel(&["report", tmp("missing.json").to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("missing.json"), "{}", stderr(&o));
+}

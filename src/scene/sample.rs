@@ -12,6 +12,7 @@
 use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats};
+use crate::rng::SplitMix64;
 
 /// Radius factor over the equal-area disc radius (see the module documentation).
 pub const SPLAT_RADIUS_FACTOR: f32 = 2.0;
@@ -37,43 +38,6 @@ pub enum SampleError {
         /// Number of vertices.
         vertices: usize,
     },
-}
-
-/// A small PCG32 generator (O'Neill's XSH-RR variant): deterministic and fast.
-#[derive(Clone, Debug)]
-pub struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
-
-impl Pcg32 {
-    const MUL: u64 = 6_364_136_223_846_793_005;
-
-    /// A generator seeded with `seed`.
-    pub fn new(seed: u64) -> Self {
-        let mut rng = Pcg32 {
-            state: 0,
-            inc: (0xda3e_39cb_94b9_5bdb << 1) | 1,
-        };
-        rng.next_u32();
-        rng.state = rng.state.wrapping_add(seed);
-        rng.next_u32();
-        rng
-    }
-
-    /// The next 32 random bits.
-    pub fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old.wrapping_mul(Self::MUL).wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        xorshifted.rotate_right((old >> 59) as u32)
-    }
-
-    /// A uniform `f64` in `[0, 1)` (53 random bits).
-    pub fn next_f64(&mut self) -> f64 {
-        let bits = (u64::from(self.next_u32()) << 21) ^ u64::from(self.next_u32() >> 11);
-        bits as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// Samples `n_points` points uniformly by area from the mesh in `mesh` (its `faces` index its
@@ -111,7 +75,7 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         .partition_point(|&c| c < total)
         .min(faces.len() - 1);
     let colors = mesh.colors.as_ref().filter(|c| c.len() == vertices);
-    let mut rng = Pcg32::new(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut positions = Vec::with_capacity(n_points);
     let mut normals = Vec::with_capacity(n_points);
     let mut out_colors = colors.map(|_| Vec::with_capacity(n_points));
