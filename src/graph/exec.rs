@@ -434,52 +434,54 @@ impl PassContext<'_> {
     /// Binds `pipeline` and pushes its descriptors.
     pub fn bind(&self, pipeline: &Pipeline, descriptors: &[Descriptor]) {
         let d = &self.ctx.device;
-        let mut buffer_infos = Vec::new();
-        let mut image_infos = Vec::new();
-        for desc in descriptors {
-            match *desc {
-                Descriptor::Buffer(_, id) => {
-                    let (raw, size) = self.graph.buffer_raw(id);
-                    buffer_infos
-                        .push([vk::DescriptorBufferInfo::default().buffer(raw).range(size)]);
-                }
-                Descriptor::StorageImage(_, id, mip) => {
-                    image_infos.push([vk::DescriptorImageInfo::default()
-                        .image_view(self.graph.view(id, mip))
-                        .image_layout(vk::ImageLayout::GENERAL)])
-                }
-                Descriptor::Sampled(_, id, mip) => {
-                    image_infos.push([vk::DescriptorImageInfo::default()
-                        .image_view(self.graph.view(id, mip))
-                        .sampler(self.graph.nearest)
-                        .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)])
-                }
-            }
+        enum Info {
+            Buffer([vk::DescriptorBufferInfo; 1]),
+            Image([vk::DescriptorImageInfo; 1]),
         }
-        let (mut bi, mut ii) = (0, 0);
-        let writes: Vec<_> = descriptors
+        let image = |id: ImageId, mip: u32, layout: vk::ImageLayout, sampler: vk::Sampler| {
+            Info::Image([vk::DescriptorImageInfo::default()
+                .image_view(self.graph.view(id, mip))
+                .sampler(sampler)
+                .image_layout(layout)])
+        };
+        let infos: Vec<(u32, vk::DescriptorType, Info)> = descriptors
             .iter()
             .map(|desc| match *desc {
-                Descriptor::Buffer(binding, _) => {
-                    bi += 1;
-                    vk::WriteDescriptorSet::default()
-                        .dst_binding(binding)
-                        .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                        .buffer_info(&buffer_infos[bi - 1])
+                Descriptor::Buffer(binding, id) => {
+                    let (raw, size) = self.graph.buffer_raw(id);
+                    let info = vk::DescriptorBufferInfo::default().buffer(raw).range(size);
+                    (
+                        binding,
+                        vk::DescriptorType::STORAGE_BUFFER,
+                        Info::Buffer([info]),
+                    )
                 }
-                Descriptor::StorageImage(binding, _, _) => {
-                    ii += 1;
-                    vk::WriteDescriptorSet::default()
-                        .dst_binding(binding)
-                        .descriptor_type(vk::DescriptorType::STORAGE_IMAGE)
-                        .image_info(&image_infos[ii - 1])
-                }
-                Descriptor::Sampled(binding, _, _) => {
-                    ii += 1;
-                    vk::WriteDescriptorSet::default()
-                        .dst_binding(binding)
-                        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                        .image_info(&image_infos[ii - 1])
+                Descriptor::StorageImage(binding, id, mip) => (
+                    binding,
+                    vk::DescriptorType::STORAGE_IMAGE,
+                    image(id, mip, vk::ImageLayout::GENERAL, vk::Sampler::null()),
+                ),
+                Descriptor::Sampled(binding, id, mip) => (
+                    binding,
+                    vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                    image(
+                        id,
+                        mip,
+                        vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+                        self.graph.nearest,
+                    ),
+                ),
+            })
+            .collect();
+        let writes: Vec<_> = infos
+            .iter()
+            .map(|(binding, ty, info)| {
+                let w = vk::WriteDescriptorSet::default()
+                    .dst_binding(*binding)
+                    .descriptor_type(*ty);
+                match info {
+                    Info::Buffer(b) => w.buffer_info(b),
+                    Info::Image(i) => w.image_info(i),
                 }
             })
             .collect();
