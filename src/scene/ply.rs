@@ -51,6 +51,7 @@ impl ScalarType {
     }
 
     /// Decodes one value from exactly `self.size()` bytes.
+    #[inline]
     fn decode(self, b: &[u8], big: bool) -> f64 {
         macro_rules! num {
             ($t:ty, $n:literal) => {{
@@ -109,8 +110,6 @@ struct Element {
     name: String,
     count: usize,
     props: Vec<Property>,
-    /// Binary record size when the element has no list property.
-    fixed: Option<usize>,
 }
 
 impl Element {
@@ -213,7 +212,6 @@ fn parse_header(file: &str, data: &[u8]) -> Result<Header, LoadError> {
                     name: String::from_utf8_lossy(name).into_owned(),
                     count,
                     props: Vec::new(),
-                    fixed: None,
                 });
             }
             Some(b"property") => {
@@ -347,7 +345,7 @@ impl<'a> Body<'a> {
         scalars: &mut [f64],
         list: &mut Vec<f64>,
     ) -> Result<(), LoadError> {
-        if let Some(size) = element.fixed {
+        if let Some(size) = element.fixed_record_size() {
             let record = self.take(size, element, index)?;
             let mut offset = 0;
             for (value, prop) in scalars.iter_mut().zip(&element.props) {
@@ -573,48 +571,82 @@ fn read_vertices(
         .collect();
     let mut values = vec![0.0f64; element.props.len()];
     let mut list = Vec::new();
-    for i in 0..n {
-        body.record(element, i, None, &mut values, &mut list)?;
-        let mut p = [0.0f64; 3];
-        let mut nrm = [0.0f32; 3];
-        let mut rgba = [0.0f64, 0.0, 0.0, 255.0];
-        for (role, &v) in roles.iter().zip(&values) {
+    // Binary records without lists: take the whole element at once (one bounds check) and
+    // decode it column by column, one tight loop per property.
+    if let (Encoding::Binary { big }, Some(size)) = (body.encoding, element.fixed_record_size()) {
+        let bytes = body.take(n.saturating_mul(size), element, 0)?;
+        positions.resize(n, DVec3::ZERO);
+        if let Some(v) = normals.as_mut() {
+            v.resize(n, Vec3::ZERO);
+        }
+        if let Some(v) = colors.as_mut() {
+            v.resize(n, [0, 0, 0, 255]);
+        }
+        if let Some(v) = radii.as_mut() {
+            v.resize(n, 0.0);
+        }
+        for s in &mut scalars {
+            s.values.resize(n, 0.0);
+        }
+        for ((offset, t), role) in binary_layout(element).into_iter().zip(&roles) {
+            let column = bytes
+                .chunks_exact(size.max(1))
+                .map(|r| t.decode(&r[offset..offset + t.size()], big));
+            let set_f32 = |dst: Option<&mut Vec<f32>>| {
+                if let Some(dst) = dst {
+                    dst.iter_mut()
+                        .zip(column.clone())
+                        .for_each(|(d, v)| *d = v as f32);
+                }
+            };
             match *role {
-                Role::X => p[0] = v,
-                Role::Y => p[1] = v,
-                Role::Z => p[2] = v,
-                Role::Nx => nrm[0] = v as f32,
-                Role::Ny => nrm[1] = v as f32,
-                Role::Nz => nrm[2] = v as f32,
-                Role::Red => rgba[0] = v,
-                Role::Green => rgba[1] = v,
-                Role::Blue => rgba[2] = v,
-                Role::Alpha => rgba[3] = v,
-                Role::Radius => {
-                    if let Some(r) = radii.as_mut() {
-                        r.push(v as f32);
+                Role::X => positions.iter_mut().zip(column).for_each(|(d, v)| d.x = v),
+                Role::Y => positions.iter_mut().zip(column).for_each(|(d, v)| d.y = v),
+                Role::Z => positions.iter_mut().zip(column).for_each(|(d, v)| d.z = v),
+                Role::Nx | Role::Ny | Role::Nz => {
+                    let axis = match *role {
+                        Role::Nx => 0,
+                        Role::Ny => 1,
+                        _ => 2,
+                    };
+                    if let Some(ns) = normals.as_mut() {
+                        ns.iter_mut()
+                            .zip(column)
+                            .for_each(|(d, v)| d[axis] = v as f32);
                     }
                 }
-                Role::Scalar(s) => scalars[s].values.push(v as f32),
+                Role::Red | Role::Green | Role::Blue | Role::Alpha => {
+                    let channel = match *role {
+                        Role::Red => 0,
+                        Role::Green => 1,
+                        Role::Blue => 2,
+                        _ => 3,
+                    };
+                    if let Some(cs) = colors.as_mut() {
+                        cs.iter_mut()
+                            .zip(column)
+                            .for_each(|(d, v)| d[channel] = t.to_u8_channel(v));
+                    }
+                }
+                Role::Radius => set_f32(radii.as_mut()),
+                Role::Scalar(s) => set_f32(Some(&mut scalars[s].values)),
                 Role::Ignore => {}
             }
         }
-        positions.push(DVec3::from(p));
-        if let Some(normals) = normals.as_mut() {
-            normals.push(Vec3::from(nrm));
-        }
-        if let Some(colors) = colors.as_mut() {
-            let alpha = if has_alpha {
-                color_types[3].to_u8_channel(rgba[3])
-            } else {
-                255
-            };
-            colors.push([
-                color_types[0].to_u8_channel(rgba[0]),
-                color_types[1].to_u8_channel(rgba[1]),
-                color_types[2].to_u8_channel(rgba[2]),
-                alpha,
-            ]);
+    } else {
+        for i in 0..n {
+            body.record(element, i, None, &mut values, &mut list)?;
+            push_vertex(
+                &roles,
+                &values,
+                &color_types,
+                has_alpha,
+                &mut positions,
+                &mut normals,
+                &mut colors,
+                &mut radii,
+                &mut scalars,
+            );
         }
     }
     let origin = local_origin(&positions);
@@ -625,6 +657,78 @@ fn read_vertices(
     cloud.radii = radii;
     cloud.scalars = scalars;
     Ok(())
+}
+
+/// Appends one decoded vertex record (`values` by property index) to the attribute arrays.
+#[allow(clippy::too_many_arguments)]
+fn push_vertex(
+    roles: &[Role],
+    values: &[f64],
+    color_types: &[ScalarType; 4],
+    has_alpha: bool,
+    positions: &mut Vec<DVec3>,
+    normals: &mut Option<Vec<Vec3>>,
+    colors: &mut Option<Vec<[u8; 4]>>,
+    radii: &mut Option<Vec<f32>>,
+    scalars: &mut [Scalar],
+) {
+    let mut p = [0.0f64; 3];
+    let mut nrm = [0.0f32; 3];
+    let mut rgba = [0.0f64, 0.0, 0.0, 255.0];
+    for (role, &v) in roles.iter().zip(values) {
+        match *role {
+            Role::X => p[0] = v,
+            Role::Y => p[1] = v,
+            Role::Z => p[2] = v,
+            Role::Nx => nrm[0] = v as f32,
+            Role::Ny => nrm[1] = v as f32,
+            Role::Nz => nrm[2] = v as f32,
+            Role::Red => rgba[0] = v,
+            Role::Green => rgba[1] = v,
+            Role::Blue => rgba[2] = v,
+            Role::Alpha => rgba[3] = v,
+            Role::Radius => {
+                if let Some(r) = radii.as_mut() {
+                    r.push(v as f32);
+                }
+            }
+            Role::Scalar(s) => scalars[s].values.push(v as f32),
+            Role::Ignore => {}
+        }
+    }
+    positions.push(DVec3::from(p));
+    if let Some(normals) = normals.as_mut() {
+        normals.push(Vec3::from(nrm));
+    }
+    if let Some(colors) = colors.as_mut() {
+        let alpha = if has_alpha {
+            color_types[3].to_u8_channel(rgba[3])
+        } else {
+            255
+        };
+        colors.push([
+            color_types[0].to_u8_channel(rgba[0]),
+            color_types[1].to_u8_channel(rgba[1]),
+            color_types[2].to_u8_channel(rgba[2]),
+            alpha,
+        ]);
+    }
+}
+
+/// Offset and type of every (scalar) property of a list-free element's binary record.
+fn binary_layout(element: &Element) -> Vec<(usize, ScalarType)> {
+    let mut offset = 0;
+    element
+        .props
+        .iter()
+        .filter_map(|p| match p.kind {
+            Kind::Scalar(t) => {
+                offset += t.size();
+                Some((offset - t.size(), t))
+            }
+            Kind::List { .. } => None,
+        })
+        .collect()
 }
 
 /// The origin for a local frame: zero for small coordinates (so round trips are exact), else
