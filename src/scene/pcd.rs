@@ -72,10 +72,14 @@ pub fn lzf_decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, Stri
                 ));
             }
             let start = out.len() - distance;
-            // Byte by byte: the source may overlap the bytes being written (run-length copies).
-            for k in 0..len {
-                let b = out[start + k];
-                out.push(b);
+            if distance >= len {
+                out.extend_from_within(start..start + len);
+            } else {
+                // The source overlaps the bytes being written (run-length copies): byte by byte.
+                for k in 0..len {
+                    let b = out[start + k];
+                    out.push(b);
+                }
             }
         }
     }
@@ -109,6 +113,7 @@ impl Field {
     }
 
     /// Decodes one little-endian element of this field.
+    #[inline]
     fn decode(&self, b: &[u8]) -> f64 {
         match (self.ty, self.size) {
             (FieldType::Int, 1) => f64::from(b[0] as i8),
@@ -378,6 +383,7 @@ impl Builder {
 
     /// Stores element `element` of field `field` for point `point`, given its raw bytes (binary)
     /// and decoded value.
+    #[inline]
     fn set(&mut self, field: usize, element: usize, point: usize, raw: [u8; 4], value: f64) {
         match self.roles[field] {
             Role::Position(a) => self.positions[point][a] = value as f32,
