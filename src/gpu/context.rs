@@ -134,6 +134,7 @@ pub struct Context {
     counters: Box<DebugCounters>,
     pub validation: bool,
     command_pool: vk::CommandPool,
+    submit_fence: Mutex<vk::Fence>,
 }
 
 unsafe extern "system" fn debug_callback(
@@ -336,7 +337,10 @@ impl Context {
             None,
         )?;
 
+        let submit_fence = device.create_fence(&vk::FenceCreateInfo::default(), None)?;
+
         Ok(Self {
+            submit_fence: Mutex::new(submit_fence),
             push_descriptor: khr::push_descriptor::Device::new(&instance, &device),
             debug_utils: debug_available.then(|| ext::debug_utils::Device::new(&instance, &device)),
             mesh_shader: (has_mesh && mesh_q.mesh_shader != 0)
@@ -435,22 +439,24 @@ impl Context {
                     .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
             })
             .collect();
-        // SAFETY: cmd is fully recorded; the fence is created, waited and destroyed here.
+        // One fence, reused: submissions are serialized by the lock and waited on here.
+        let fence = self
+            .submit_fence
+            .lock()
+            .map_err(|_| anyhow!("submit lock poisoned"))?;
+        // SAFETY: cmd is fully recorded; the fence is unsignalled after the reset and no other
+        // submission uses it while the lock is held.
         unsafe {
-            let fence = self
-                .device
-                .create_fence(&vk::FenceCreateInfo::default(), None)?;
+            self.device.reset_fences(&[*fence])?;
             let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
             let submit = [vk::SubmitInfo2::default()
                 .command_buffer_infos(&cmds)
                 .wait_semaphore_infos(&waits)
                 .signal_semaphore_infos(&signals)];
-            let result = self
-                .device
-                .queue_submit2(self.queue, &submit, fence)
-                .and_then(|_| self.device.wait_for_fences(&[fence], true, u64::MAX));
-            self.device.destroy_fence(fence, None);
-            result.context("queue submission failed (device lost?)")
+            self.device
+                .queue_submit2(self.queue, &submit, *fence)
+                .and_then(|_| self.device.wait_for_fences(&[*fence], true, u64::MAX))
+                .context("queue submission failed (device lost?)")
         }
     }
 
@@ -491,6 +497,9 @@ impl Drop for Context {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
+            if let Ok(fence) = self.submit_fence.lock() {
+                self.device.destroy_fence(*fence, None);
+            }
             if let Ok(mut guard) = self.allocator.lock() {
                 guard.take();
             }
