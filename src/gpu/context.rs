@@ -111,7 +111,6 @@ impl fmt::Display for Capabilities {
 #[derive(Default)]
 pub struct DebugCounters {
     pub errors: AtomicU32,
-    pub warnings: AtomicU32,
     /// The first error messages, kept for test failure reports.
     pub first_errors: Mutex<Vec<String>>,
 }
@@ -159,7 +158,6 @@ unsafe extern "system" fn debug_callback(
         }
         eprintln!("[vulkan error] {message}");
     } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
-        counters.warnings.fetch_add(1, Ordering::SeqCst);
         eprintln!("[vulkan warning] {message}");
     }
     vk::FALSE

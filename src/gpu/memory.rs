@@ -157,11 +157,6 @@ pub struct ImageDesc {
 }
 
 impl ImageDesc {
-    /// Full mip chain length for a width x height image.
-    pub fn full_mip_count(width: u32, height: u32) -> u32 {
-        32 - width.max(height).max(1).leading_zeros()
-    }
-
     /// Extent of `level`.
     pub fn level_extent(&self, level: u32) -> (u32, u32) {
         ((self.width >> level).max(1), (self.height >> level).max(1))
@@ -294,15 +289,4 @@ impl Drop for Image {
                 .with_allocator(|al| al.free(a).map_err(|e| anyhow!("{e}")));
         }
     }
-}
-
-/// Bytes per texel of the formats the renderer reads back.
-pub fn texel_size(format: vk::Format) -> Result<u32> {
-    Ok(match format {
-        vk::Format::R8G8B8A8_UNORM | vk::Format::R8G8B8A8_SRGB | vk::Format::B8G8R8A8_UNORM => 4,
-        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::D32_SFLOAT => 4,
-        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,
-        vk::Format::R32G32B32A32_SFLOAT => 16,
-        other => return Err(anyhow!("no texel size known for {other:?}")),
-    })
 }

@@ -23,11 +23,6 @@ pub fn spirv(path: &str) -> Result<Vec<u32>> {
         .with_context(|| format!("bad SPIR-V in {path}"))
 }
 
-/// Names of every embedded shader.
-pub fn shader_names() -> impl Iterator<Item = &'static str> {
-    embedded::SHADERS.iter().map(|(p, _)| *p)
-}
-
 /// One binding of the push-descriptor set 0.
 #[derive(Clone, Copy, Debug)]
 pub struct Binding {
