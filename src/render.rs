@@ -182,7 +182,11 @@ impl Renderer {
         } else {
             None
         };
-        let schedule = g.schedule()?;
+        let culled = g.cull();
+        let mut schedule = g.schedule()?;
+        if !culled.is_empty() {
+            schedule.push_str(&format!("culled (results unused): {}\n", culled.join(", ")));
+        }
         let graph = g.compile(ctx)?;
         Ok(Self {
             ctx: ctx.clone(),

@@ -295,3 +295,50 @@ fn schedule_lists_passes_accesses_and_barriers() {
         "{s}"
     );
 }
+
+#[test]
+fn passes_whose_results_nothing_uses_are_culled() {
+    let mut g = GraphBuilder::new();
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let scratch = g.image("scratch", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    let feed = g.image("feed", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    let accumulated = g.image("accumulated", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    let swap = g.external_image("swapchain", desc(vk::Format::B8G8R8A8_UNORM, 1));
+    let stats = g.buffer("stats", 64, usage);
+    g.pass("debug view")
+        .color(scratch, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("unused stats")
+        .buffer(stats, Access::StorageWrite(Stages::Compute))
+        .record(|_| {});
+    g.pass("feed")
+        .color(feed, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("first layer")
+        .color(accumulated, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    // Loads the first layer's result: that pass stays.
+    g.pass("second layer")
+        .image(feed, Access::Sampled(Stages::Fragment))
+        .color(accumulated, Load::Load)
+        .record(|_| {});
+    // Overwrites `scratch` without reading it: "debug view" stays dead.
+    g.pass("overwrite")
+        .color(scratch, Load::Clear([1.0; 4]))
+        .record(|_| {});
+    g.pass("blit")
+        .image(accumulated, Access::TransferSrc)
+        .image(swap, Access::TransferDst)
+        .record(|_| {});
+    g.pass("present")
+        .image(swap, Access::Present)
+        .record(|_| {});
+    let culled = g.cull();
+    assert_eq!(culled, ["debug view", "unused stats", "overwrite"]);
+    let s = g.schedule().expect("valid");
+    for kept in ["feed", "first layer", "second layer", "blit", "present"] {
+        assert!(s.contains(kept), "{kept} missing from\n{s}");
+    }
+    assert!(!s.contains("debug view"));
+    assert!(g.cull().is_empty(), "culling is idempotent");
+}

@@ -23,7 +23,9 @@ fn ping_pong_pyramid_history_and_readback_run_hazard_free() {
         mip_levels: 3,
         usage: vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST,
     };
-    let readback: Vec<Arc<Buffer>> = (0..3)
+    // Levels 0..3 of A, then B's level 0 (last frame's history).
+    let readback: Vec<Arc<Buffer>> = [0, 1, 2, 0]
+        .into_iter()
         .map(|l| {
             let (w, h) = desc.level_extent(l);
             Arc::new(
@@ -79,16 +81,17 @@ fn ping_pong_pyramid_history_and_readback_run_hazard_free() {
         .image_mips(a, 0, 1, Access::TransferSrc)
         .image(history, Access::TransferDst)
         .record(move |ctx| ctx.blit(a, 0, history, 0));
+    let sources = [(a, 0), (a, 1), (a, 2), (previous, 0)];
     let mut readback_pass = g.pass("readback").on_demand();
-    for (l, id) in rb.iter().enumerate() {
+    for ((image, level), id) in sources.iter().zip(&rb) {
         readback_pass = readback_pass
-            .image_mips(a, l as u32, 1, Access::TransferSrc)
+            .image_mips(*image, *level, 1, Access::TransferSrc)
             .buffer(*id, Access::TransferDst);
     }
     let ids = rb.clone();
     readback_pass.record(move |ctx| {
-        for (l, id) in ids.iter().enumerate() {
-            ctx.copy_image_to_buffer(a, l as u32, *id);
+        for ((image, level), id) in sources.iter().zip(&ids) {
+            ctx.copy_image_to_buffer(*image, *level, *id);
         }
     });
     let mut host = g.pass("readback.host").on_demand();

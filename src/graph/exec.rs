@@ -263,8 +263,81 @@ fn validate(builder: &GraphBuilder) -> Result<()> {
 }
 
 impl GraphBuilder {
-    /// Validates, derives barriers, allocates transient resources and timestamp scopes.
-    pub fn compile(self, ctx: &Arc<Context>) -> Result<CompiledGraph> {
+    /// Removes passes whose results nothing uses and returns their names. A pass is kept when
+    /// it is on demand, presents or hands data to the host, writes a resource that outlives
+    /// the frame (imported, history, external), or writes something a kept pass reads (an
+    /// attachment loaded with `Load::Load` is read too).
+    pub fn cull(&mut self) -> Vec<String> {
+        let persistent_image =
+            |id: ImageId| !matches!(self.images[id.0 as usize].source, ImageSource::Transient(_));
+        let persistent_buffer = |id: BufferId| {
+            matches!(
+                self.buffers[id.0 as usize].source,
+                BufferSource::Imported(_)
+            )
+        };
+        let mut needed: std::collections::HashSet<(bool, u32, u32)> = Default::default();
+        let key = |sub: &Subresource| -> Vec<(bool, u32, u32)> {
+            match *sub {
+                Subresource::Image { id, base, count } => {
+                    (base..base + count).map(|m| (true, id.0, m)).collect()
+                }
+                Subresource::Buffer(id) => vec![(false, id.0, 0)],
+            }
+        };
+        let mut live = vec![false; self.passes.len()];
+        for (i, pass) in self.passes.iter().enumerate().rev() {
+            let effect = pass.on_demand
+                || pass.uses.is_empty()
+                || pass.uses.iter().any(|(sub, access)| {
+                    let writes = access.info().writes;
+                    matches!(access, Access::Present | Access::HostRead)
+                        || (writes
+                            && match *sub {
+                                Subresource::Image { id, .. } => persistent_image(id),
+                                Subresource::Buffer(id) => persistent_buffer(id),
+                            })
+                        || (writes && key(sub).iter().any(|k| needed.contains(k)))
+                });
+            if !effect {
+                continue;
+            }
+            live[i] = true;
+            let loaded: Vec<(ImageId, u32)> = pass
+                .colors
+                .iter()
+                .chain(&pass.depth)
+                .filter(|a| a.load == Load::Load)
+                .map(|a| (a.image, a.mip))
+                .collect();
+            for (sub, access) in &pass.uses {
+                let attachment =
+                    matches!(access, Access::ColorAttachment | Access::DepthAttachment);
+                let reads = !access.info().writes
+                    || matches!(access, Access::StorageReadWrite(_))
+                    || (attachment
+                        && matches!(*sub, Subresource::Image { id, base, .. } if loaded.contains(&(id, base))));
+                if reads {
+                    needed.extend(key(sub));
+                }
+            }
+        }
+        let mut culled = Vec::new();
+        let mut index = 0;
+        self.passes.retain(|p| {
+            index += 1;
+            if !live[index - 1] {
+                culled.push(p.name.clone());
+            }
+            live[index - 1]
+        });
+        culled
+    }
+
+    /// Validates, culls unused passes, derives barriers, allocates transient resources and
+    /// timestamp scopes.
+    pub fn compile(mut self, ctx: &Arc<Context>) -> Result<CompiledGraph> {
+        self.cull();
         let barriers = derive(&self)?;
         let images = self
             .images

@@ -14,7 +14,8 @@ pub enum Access {
     Sampled(Stages),
     /// Storage image/buffer read.
     StorageRead(Stages),
-    /// Storage image/buffer written (not read).
+    /// Storage image/buffer written without being read. Earlier contents count as dead (the
+    /// producer may be culled): declare `StorageReadWrite` for partial updates.
     StorageWrite(Stages),
     /// Storage image/buffer read and written (atomics, in-place updates).
     StorageReadWrite(Stages),
