@@ -215,13 +215,6 @@ impl Renderer {
         let p = view
             .camera
             .projection(self.width as f32 / self.height as f32);
-        let lights = lights::resolve(
-            &view.lights,
-            v,
-            self.info.centre,
-            self.info.radius,
-            view.time,
-        );
         block.u.view = v;
         block.u.proj = p;
         block.u.view_proj = p * v;
@@ -247,9 +240,18 @@ impl Renderer {
         } else {
             0
         };
-        block.u.light_count = lights.len() as u32;
         block.u.point_count = self.info.points;
-        block.lights[..lights.len()].copy_from_slice(&lights);
+        let resolved = lights::resolve(
+            &view.lights,
+            v,
+            self.info.centre,
+            self.info.radius,
+            view.time,
+        );
+        for (slot, light) in block.lights.iter_mut().zip(resolved) {
+            *slot = light;
+            block.u.light_count += 1;
+        }
         self.frame.write(bytemuck::bytes_of(&block))
     }
 

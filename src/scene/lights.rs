@@ -65,32 +65,28 @@ pub fn resolve(
     centre: Vec3,
     radius: f32,
     time: f32,
-) -> Vec<GpuLight> {
-    lights
-        .iter()
-        .take(MAX_LIGHTS as usize)
-        .map(|l| {
-            let p = Vec3::from(l.position);
-            let (view_pos, kind) = match l.kind {
-                LightKind::Camera => (p, LIGHT_CAMERA),
-                LightKind::Static => (view.transform_point3(p), LIGHT_STATIC),
-                LightKind::Orbit => {
-                    let angle = (p.z * time).to_radians();
-                    let world = centre
-                        + Vec3::new(
-                            angle.cos() * p.x * radius,
-                            p.y * radius,
-                            angle.sin() * p.x * radius,
-                        );
-                    (view.transform_point3(world), LIGHT_ORBIT)
-                }
-            };
-            GpuLight {
-                position: view_pos.extend(1.0),
-                color_kind: Vec4::new(l.color[0], l.color[1], l.color[2], kind as f32),
+) -> impl Iterator<Item = GpuLight> + '_ {
+    lights.iter().take(MAX_LIGHTS as usize).map(move |l| {
+        let p = Vec3::from(l.position);
+        let (view_pos, kind) = match l.kind {
+            LightKind::Camera => (p, LIGHT_CAMERA),
+            LightKind::Static => (view.transform_point3(p), LIGHT_STATIC),
+            LightKind::Orbit => {
+                let angle = (p.z * time).to_radians();
+                let world = centre
+                    + Vec3::new(
+                        angle.cos() * p.x * radius,
+                        p.y * radius,
+                        angle.sin() * p.x * radius,
+                    );
+                (view.transform_point3(world), LIGHT_ORBIT)
             }
-        })
-        .collect()
+        };
+        GpuLight {
+            position: view_pos.extend(1.0),
+            color_kind: Vec4::new(l.color[0], l.color[1], l.color[2], kind as f32),
+        }
+    })
 }
 
 #[cfg(test)]
@@ -108,7 +104,7 @@ mod tests {
                 color: [1.0; 3],
             },
         ];
-        let g = resolve(&lights, view, Vec3::ZERO, 1.0, 0.0);
+        let g: Vec<_> = resolve(&lights, view, Vec3::ZERO, 1.0, 0.0).collect();
         assert_eq!(g[0].position.truncate(), Vec3::ZERO);
         assert_eq!(g[1].position.truncate(), Vec3::new(1.0, 0.0, -5.0));
         assert_eq!(g[1].color_kind.w, LIGHT_STATIC as f32);
@@ -120,7 +116,7 @@ mod tests {
         let total: f32 = r.iter().map(|l| l.color[0]).sum();
         assert!((total - 1.0).abs() < 1e-5);
         assert_eq!(
-            resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).len(),
+            resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).count(),
             MAX_LIGHTS as usize
         );
     }
@@ -132,8 +128,14 @@ mod tests {
             position: [2.0, 0.0, 90.0],
             color: [1.0; 3],
         }];
-        let a = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0)[0].position;
-        let b = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 1.0)[0].position;
+        let a = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0)
+            .next()
+            .expect("light")
+            .position;
+        let b = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 1.0)
+            .next()
+            .expect("light")
+            .position;
         assert!((a.x - 2.0).abs() < 1e-5 && (b.z - 2.0).abs() < 1e-5);
     }
 }
