@@ -434,10 +434,26 @@ fn info(a: InfoArgs) -> Result<()> {
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
         println!("bounds (local)    {lo:.6} .. {hi:.6}");
     }
-    let bytes = std::mem::size_of::<crate::gpu::layout::GpuPoint>();
+    let n = cloud.len() as u64;
+    let streams = crate::streams::StreamLayout::streams_for(&cloud);
+    let mut total = 0;
+    println!("GPU streams       bytes/point  MiB");
+    for s in streams {
+        let bytes = crate::streams::StreamLayout::stream_bytes(s, n);
+        total += bytes;
+        println!(
+            "  {:<22} {:>5}  {:>9.2}",
+            s.name(),
+            s.bytes_per_point(),
+            bytes as f64 / (1 << 20) as f64
+        );
+    }
+    let batches = n.div_ceil(u64::from(crate::gpu::layout::BATCH_POINTS));
     println!(
-        "GPU memory        {bytes} bytes/point (f32 position, octahedral normal, f16 radius, RGBA8), {:.2} MiB",
-        (bytes * cloud.len()) as f64 / (1 << 20) as f64
+        "GPU memory        {:.2} bytes/point, {:.2} MiB in {batches} batches of {} points",
+        total as f64 / n.max(1) as f64,
+        total as f64 / (1 << 20) as f64,
+        crate::gpu::layout::BATCH_POINTS
     );
     if !a.no_device {
         let ctx = context(false)?;

@@ -9,3 +9,4 @@ pub mod methods;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod streams;

@@ -16,7 +16,8 @@ use crate::graph::{Access, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
-use crate::scene::{lights, pack, Camera, Cloud, Light};
+use crate::scene::{lights, Camera, Cloud, Light};
+use crate::streams::{upload, StreamLayout, UploadOptions};
 
 /// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
 pub const MAX_EDGE: u32 = 8192;
@@ -31,33 +32,48 @@ pub struct SceneInfo {
     pub has_normals: bool,
 }
 
-/// Uploads `cloud` (points and, when present, triangle indices).
+/// Uploads `cloud` as point streams (Morton-ordered batches, segments fitted to the device)
+/// and, when present, its triangle indices (remapped to stream order).
 pub fn upload(ctx: &Arc<Context>, cloud: &Cloud) -> Result<(GpuScene, SceneInfo)> {
+    upload_with(ctx, cloud, UploadOptions::default())
+}
+
+/// `upload` with explicit segment and chunk sizes.
+pub fn upload_with(
+    ctx: &Arc<Context>,
+    cloud: &Cloud,
+    options: UploadOptions,
+) -> Result<(GpuScene, SceneInfo)> {
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
-    let packed = pack::pack(cloud);
-    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let points = Arc::new(Buffer::with_data(
-        ctx,
-        "points",
-        bytemuck::cast_slice(&packed),
-        storage,
-    )?);
+    let segment_points = options
+        .segment_points
+        .unwrap_or_else(|| upload::default_segment_points(ctx));
+    let layout = StreamLayout::new(cloud, segment_points).map_err(anyhow::Error::msg)?;
+    let streams = upload::upload(ctx, cloud, &layout, options)?;
     let (indices, index_count) = match &cloud.faces {
-        Some(f) if !f.is_empty() => (
-            Some(Arc::new(Buffer::with_data(
-                ctx,
-                "indices",
-                bytemuck::cast_slice(f),
-                vk::BufferUsageFlags::INDEX_BUFFER | storage,
-            )?)),
-            (f.len() * 3) as u32,
-        ),
+        Some(f) if !f.is_empty() => {
+            let inverse = layout.inverse();
+            let remapped: Vec<[u32; 3]> = f
+                .iter()
+                .map(|t| t.map(|i| inverse.get(i as usize).copied().unwrap_or(0)))
+                .collect();
+            let count = u32::try_from(remapped.len() * 3).context("more than 4G indices")?;
+            (
+                Some(Arc::new(Buffer::with_data(
+                    ctx,
+                    "indices",
+                    bytemuck::cast_slice(&remapped),
+                    vk::BufferUsageFlags::INDEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER,
+                )?)),
+                count,
+            )
+        }
         _ => (None, 0),
     };
-    let point_count = u32::try_from(cloud.len()).context("more than 4G points")?;
+    let point_count = streams.point_count;
     Ok((
         GpuScene {
-            points,
+            streams,
             indices,
             point_count,
             index_count,
@@ -112,6 +128,8 @@ pub struct Renderer {
     pub info: SceneInfo,
     pub config: MethodConfig,
     schedule: String,
+    segment_points: u32,
+    batch_count: u32,
 }
 
 impl Renderer {
@@ -157,7 +175,8 @@ impl Renderer {
             normal: g.image("normal", output(NORMAL_FORMAT)),
         };
         let frame_id = g.import_buffer("frame", frame.clone());
-        let points_id = g.import_buffer("points", scene.points.clone());
+        let segments_id = g.import_buffer("stream.segments", scene.streams.table.clone());
+        let batches_id = g.import_buffer("stream.batches", scene.streams.batches.clone());
         let indices_id = scene
             .indices
             .as_ref()
@@ -168,7 +187,8 @@ impl Renderer {
             config,
             scene,
             frame: frame_id,
-            points: points_id,
+            segments: segments_id,
+            batches: batches_id,
             indices: indices_id,
             targets,
             width,
@@ -200,6 +220,8 @@ impl Renderer {
             info,
             config: config.clone(),
             schedule,
+            segment_points: scene.streams.segment_points,
+            batch_count: scene.streams.batch_count,
         })
     }
 
@@ -241,6 +263,8 @@ impl Renderer {
             0
         };
         block.u.point_count = self.info.points;
+        block.u.segment_points = self.segment_points;
+        block.u.batch_count = self.batch_count;
         let resolved = lights::resolve(
             &view.lights,
             v,

@@ -1,4 +1,4 @@
-// Shared helpers: the frame block, point unpacking, sRGB encoding and Phong lighting.
+// Shared helpers: the frame block, normal decoding, sRGB encoding and Phong lighting.
 #ifndef SURFEL_COMMON_GLSL
 #define SURFEL_COMMON_GLSL
 #include "shared.glsl"
@@ -7,8 +7,6 @@ layout(std430, set = 0, binding = BINDING_FRAME) readonly buffer FrameBlock {
     FrameUniforms u;
     GpuLight lights[MAX_LIGHTS];
 } frame;
-
-vec3 point_position(GpuPoint p) { return vec3(p.x, p.y, p.z); }
 
 // Octahedral normal decoding (two snorm16 in one uint).
 vec3 oct_decode(uint packed) {
@@ -21,8 +19,6 @@ vec3 oct_decode(uint packed) {
     return len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
 }
 
-float point_radius(GpuPoint p) { return unpackHalf2x16(p.radius_kind).x; }
-
 vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));
 }
@@ -30,14 +26,6 @@ vec3 srgb_to_linear(vec3 c) {
 vec3 linear_to_srgb(vec3 c) {
     c = clamp(c, 0.0, 1.0);
     return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
-}
-
-// Albedo of a point in linear space: its color when the frame uses colors, else the base color.
-vec3 point_albedo(GpuPoint p) {
-    if ((frame.u.flags & FLAG_USE_COLOR) != 0u) {
-        return srgb_to_linear(unpackUnorm4x8(p.color).rgb);
-    }
-    return frame.u.base_color.rgb;
 }
 
 // Two-sided Blinn-Phong in view space with every light of the frame.

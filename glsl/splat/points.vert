@@ -1,19 +1,17 @@
 #version 460
-// Fixed-size points (002 §5.2 method 1): one vertex per point, pulled from the point buffer.
-#include "common.glsl"
-
-layout(std430, set = 0, binding = BINDING_POINTS) readonly buffer Points { GpuPoint points[]; };
+// Fixed-size points (002 §5.2 method 1): one vertex per point, pulled from the point streams.
+#include "streams.glsl"
 
 layout(location = 0) out vec3 v_albedo;
 layout(location = 1) out vec3 v_normal;
 layout(location = 2) out vec3 v_view_pos;
 
 void main() {
-    GpuPoint p = points[gl_VertexIndex];
-    vec4 view_pos = frame.u.view * vec4(point_position(p), 1.0);
+    uint i = uint(gl_VertexIndex);
+    vec4 view_pos = frame.u.view * vec4(stream_position(i), 1.0);
     gl_Position = frame.u.proj * view_pos;
     gl_PointSize = frame.u.params.x;
-    v_albedo = point_albedo(p);
-    v_normal = mat3(frame.u.view) * oct_decode(p.normal_oct);
+    v_albedo = stream_albedo(i);
+    v_normal = mat3(frame.u.view) * stream_normal(i);
     v_view_pos = view_pos.xyz;
 }

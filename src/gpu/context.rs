@@ -262,6 +262,9 @@ impl Context {
         }
         instance.get_physical_device_features2(physical_device, &mut q);
         let core_q = q.features;
+        if v12_q.buffer_device_address == 0 {
+            bail!("the device lacks bufferDeviceAddress (Vulkan 1.2): point streams need it");
+        }
         if v13_q.dynamic_rendering == 0 || v13_q.synchronization2 == 0 {
             bail!("the device lacks dynamic rendering or synchronization2 (Vulkan 1.3)");
         }
@@ -276,7 +279,8 @@ impl Context {
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default()
             .host_query_reset(v12_q.host_query_reset != 0)
             .shader_buffer_int64_atomics(v12_q.shader_buffer_int64_atomics != 0)
-            .scalar_block_layout(v12_q.scalar_block_layout != 0);
+            .scalar_block_layout(v12_q.scalar_block_layout != 0)
+            .buffer_device_address(true);
         let mut v13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true)
@@ -323,7 +327,7 @@ impl Context {
             device: device.clone(),
             physical_device,
             debug_settings: Default::default(),
-            buffer_device_address: false,
+            buffer_device_address: true,
             allocation_sizes: Default::default(),
         })
         .map_err(|e| anyhow!("gpu-allocator: {e}"))?;

@@ -11,16 +11,30 @@ pub mod spec {
 
 include!(concat!(env!("OUT_DIR"), "/constants.rs"));
 
-/// One point on the GPU (24 bytes).
+/// Bounds and point range of one batch (`GpuBatch` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuPoint {
-    pub x: f32,
-    pub y: f32,
-    pub z: f32,
-    pub normal_oct: u32,
-    pub radius_kind: u32,
-    pub color: u32,
+pub struct GpuBatch {
+    pub min_x: f32,
+    pub min_y: f32,
+    pub min_z: f32,
+    pub first: u32,
+    pub max_x: f32,
+    pub max_y: f32,
+    pub max_z: f32,
+    pub count: u32,
+}
+
+/// Device addresses of one segment's streams (`GpuSegment` in GLSL), as (lo, hi) pairs.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuSegment {
+    pub position_coarse: [u32; 4],
+    pub medium_fine: [u32; 4],
+    pub normal_radius: [u32; 4],
+    pub color_first: [u32; 4],
+    pub scalars01: [u32; 4],
+    pub scalars23: [u32; 4],
 }
 
 /// One light, resolved to view space on the CPU.
@@ -44,7 +58,11 @@ pub struct FrameUniforms {
     pub flags: u32,
     pub light_count: u32,
     pub point_count: u32,
+    pub segment_points: u32,
+    pub batch_count: u32,
     pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
 
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
@@ -98,13 +116,23 @@ pub type Mirror = (&'static str, Vec<(&'static str, usize)>, usize);
 /// Every Rust mirror.
 pub fn mirrors() -> Vec<Mirror> {
     vec![
-        mirror!(GpuPoint {
-            x,
-            y,
-            z,
-            normal_oct,
-            radius_kind,
-            color
+        mirror!(GpuBatch {
+            min_x,
+            min_y,
+            min_z,
+            first,
+            max_x,
+            max_y,
+            max_z,
+            count
+        }),
+        mirror!(GpuSegment {
+            position_coarse,
+            medium_fine,
+            normal_radius,
+            color_first,
+            scalars01,
+            scalars23
         }),
         mirror!(GpuLight {
             position,
@@ -120,7 +148,11 @@ pub fn mirrors() -> Vec<Mirror> {
             flags,
             light_count,
             point_count,
-            pad0
+            segment_points,
+            batch_count,
+            pad0,
+            pad1,
+            pad2
         }),
     ]
 }
@@ -155,7 +187,8 @@ mod tests {
     #[test]
     fn frame_block_places_lights_after_the_uniforms() {
         assert_eq!(std::mem::offset_of!(FrameBlock, lights), 256);
-        assert_eq!(std::mem::size_of::<GpuPoint>(), 24);
+        assert_eq!(std::mem::size_of::<GpuBatch>(), 32);
+        assert_eq!(std::mem::size_of::<GpuSegment>(), 96);
         assert_eq!(TARGET_NORMAL, 2);
     }
 }

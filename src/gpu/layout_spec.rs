@@ -23,12 +23,17 @@ const fn f(ty: &'static str, name: &'static str) -> FieldSpec {
 pub const CONSTANTS: &[(&str, u32)] = &[
     // Descriptor bindings (set 0, push descriptors).
     ("BINDING_FRAME", 0),
-    ("BINDING_POINTS", 1),
     ("BINDING_INDICES", 2),
     ("BINDING_INPUT0", 3),
     ("BINDING_INPUT1", 4),
     ("BINDING_INPUT2", 5),
     ("BINDING_OUTPUT0", 6),
+    // Point streams: the segment table (device addresses of every stream) and batch bounds.
+    ("BINDING_SEGMENTS", 7),
+    ("BINDING_BATCHES", 8),
+    // Compute rasterizer: the 64-bit visibility buffer and the high-quality accumulators.
+    ("BINDING_VISIBILITY", 9),
+    ("BINDING_ACCUM", 10),
     // Frame output render targets (MRT locations).
     ("TARGET_COLOR", 0),
     ("TARGET_DEPTH", 1),
@@ -43,22 +48,48 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("FLAG_HAS_NORMALS", 2),
     // Workgroup sizes.
     ("RESOLVE_GROUP", 8),
+    ("RASTER_GROUP", 128),
+    // Points per batch (Schuetz et al. 2021: 10,240 points, 80 per thread of a 128-wide group).
+    ("BATCH_POINTS", 10240),
+    // Bits per axis of each quantized position word (Schuetz et al. 2022: 3 x 10 bits).
+    ("QUANT_BITS", 10),
+    // Most scalar attribute streams uploaded per cloud.
+    ("MAX_SCALAR_STREAMS", 4),
 ];
 
 /// Structs shared between GLSL and Rust.
 pub const STRUCTS: &[StructSpec] = &[
-    // One point as stored on the GPU: 24 bytes. Position f32, octahedral normal (2 x snorm16),
-    // radius as f16 in the low half of `radius_kind` (high half: primitive kind, 0 = point),
-    // color RGBA8 (sRGB).
+    // Bounds of one batch of Morton-ordered points and where its points are. 32 bytes.
     StructSpec {
-        name: "GpuPoint",
+        name: "GpuBatch",
         fields: &[
-            f("float", "x"),
-            f("float", "y"),
-            f("float", "z"),
-            f("uint", "normal_oct"),
-            f("uint", "radius_kind"),
-            f("uint", "color"),
+            f("float", "min_x"),
+            f("float", "min_y"),
+            f("float", "min_z"),
+            // Index of the batch's first point (global over all segments).
+            f("uint", "first"),
+            f("float", "max_x"),
+            f("float", "max_y"),
+            f("float", "max_z"),
+            f("uint", "count"),
+        ],
+    },
+    // One segment of the point streams: device addresses (lo, hi) of each stream's buffer.
+    // Segments hold whole batches and stay below the device's buffer limits.
+    StructSpec {
+        name: "GpuSegment",
+        fields: &[
+            // xy: f32 xyz positions (12 B/point), zw: coarse quantized words (4 B/point).
+            f("uvec4", "position_coarse"),
+            // xy: medium quantized words, zw: fine quantized words (4 B/point each).
+            f("uvec4", "medium_fine"),
+            // xy: octahedral normals (4 B/point), zw: f16 radii packed in pairs (2 B/point).
+            f("uvec4", "normal_radius"),
+            // xy: RGBA8 colors (4 B/point), z: first point of the segment, w: scalar streams.
+            f("uvec4", "color_first"),
+            // Addresses of up to MAX_SCALAR_STREAMS f32 scalar streams (lo, hi pairs).
+            f("uvec4", "scalars01"),
+            f("uvec4", "scalars23"),
         ],
     },
     StructSpec {
@@ -84,7 +115,12 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "flags"),
             f("uint", "light_count"),
             f("uint", "point_count"),
+            // Points per stream segment (every segment but the last is full).
+            f("uint", "segment_points"),
+            f("uint", "batch_count"),
             f("uint", "pad0"),
+            f("uint", "pad1"),
+            f("uint", "pad2"),
         ],
     },
 ];

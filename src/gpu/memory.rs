@@ -71,6 +71,21 @@ impl Buffer {
             .ok_or_else(|| anyhow!("buffer is not host visible"))
     }
 
+    /// Mutable host-visible bytes of a CpuToGpu buffer the GPU is not using.
+    pub fn mapped_mut(&mut self) -> Result<&mut [u8]> {
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .ok_or_else(|| anyhow!("buffer is not host visible"))
+    }
+
+    /// The buffer's device address (created with `SHADER_DEVICE_ADDRESS` usage).
+    pub fn device_address(&self) -> u64 {
+        let info = vk::BufferDeviceAddressInfo::default().buffer(self.raw);
+        // SAFETY: the buffer is live and bound to memory allocated with the device-address flag.
+        unsafe { self.ctx.device.get_buffer_device_address(&info) }
+    }
+
     /// Writes `data` at the start of a host-visible buffer. The caller guarantees the GPU is
     /// not using the buffer (its last frame's fence was waited on).
     pub fn write(&self, data: &[u8]) -> Result<()> {

@@ -5,6 +5,7 @@ pub mod layout;
 pub mod memory;
 pub mod pipeline;
 pub mod profiler;
+pub mod upload;
 
 pub use context::{Capabilities, Context, ContextOptions};
 pub use memory::{Buffer, Image, ImageDesc};

@@ -8,7 +8,7 @@ use ash::vk;
 
 use super::{BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
-    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0, BINDING_POINTS,
+    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0, BINDING_SEGMENTS,
     RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
@@ -48,7 +48,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             bindings: &[
                 Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, gfx),
                 Binding::new(
-                    BINDING_POINTS,
+                    BINDING_SEGMENTS,
                     vk::DescriptorType::STORAGE_BUFFER,
                     vk::ShaderStageFlags::VERTEX,
                 ),
@@ -101,12 +101,12 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         ),
     );
-    let (frame, points, t) = (b.frame, b.points, b.targets);
+    let (frame, segments, t) = (b.frame, b.segments, b.targets);
     let index_count = b.scene.index_count;
     b.graph
         .pass("mesh.raster")
         .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(points, Access::StorageRead(Stages::Vertex))
+        .buffer(segments, Access::StorageRead(Stages::Vertex))
         .buffer(indices, Access::IndexRead)
         .color(hi_color, Load::Clear([0.0; 4]))
         .color(hi_depth, Load::Clear([0.0; 4]))
@@ -117,7 +117,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
                 &raster,
                 &[
                     Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_POINTS, points),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
                 ],
             );
             ctx.draw_indexed(indices, index_count);

@@ -13,6 +13,7 @@ use ash::vk;
 
 use crate::gpu::{Buffer, Context};
 use crate::graph::{BufferId, GraphBuilder, ImageId};
+use crate::streams::GpuStreams;
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
@@ -139,7 +140,7 @@ impl MethodConfig {
 
 /// The scene on the GPU.
 pub struct GpuScene {
-    pub points: Arc<Buffer>,
+    pub streams: GpuStreams,
     pub indices: Option<Arc<Buffer>>,
     pub point_count: u32,
     pub index_count: u32,
@@ -160,7 +161,10 @@ pub struct BuildContext<'a> {
     pub config: &'a MethodConfig,
     pub scene: &'a GpuScene,
     pub frame: BufferId,
-    pub points: BufferId,
+    /// The segment table (`GpuSegment`, device addresses of every stream).
+    pub segments: BufferId,
+    /// The batch table (`GpuBatch`).
+    pub batches: BufferId,
     pub indices: Option<BufferId>,
     pub targets: Targets,
     pub width: u32,

@@ -8,7 +8,7 @@ use ash::vk;
 use super::{
     BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
-use crate::gpu::layout::{BINDING_FRAME, BINDING_POINTS};
+use crate::gpu::layout::{BINDING_FRAME, BINDING_SEGMENTS};
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::Descriptor;
 use crate::graph::{Access, Load, Stages};
@@ -36,7 +36,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             bindings: &[
                 Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
                 Binding::new(
-                    BINDING_POINTS,
+                    BINDING_SEGMENTS,
                     vk::DescriptorType::STORAGE_BUFFER,
                     vk::ShaderStageFlags::VERTEX,
                 ),
@@ -61,12 +61,12 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         },
     );
-    let (frame, points, t) = (b.frame, b.points, b.targets);
+    let (frame, segments, t) = (b.frame, b.segments, b.targets);
     let count = b.scene.point_count;
     b.graph
         .pass("points.project")
         .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(points, Access::StorageRead(Stages::Vertex))
+        .buffer(segments, Access::StorageRead(Stages::Vertex))
         .color(t.color, Load::Clear([0.0; 4]))
         .color(t.depth, Load::Clear([0.0; 4]))
         .color(t.normal, Load::Clear([0.0; 4]))
@@ -76,7 +76,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
                 &pipeline,
                 &[
                     Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_POINTS, points),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
                 ],
             );
             ctx.draw(count, 1);

@@ -1,10 +1,8 @@
-//! Packing a `Cloud` into the compact GPU point layout (24 bytes per point), and mesh vertex
-//! normals for inputs with faces.
+//! Octahedral normal encoding (the normal stream's format) and mesh vertex normals for inputs
+//! with faces.
 
 use glam::{Vec2, Vec3};
 
-use super::cloud::Cloud;
-use crate::gpu::layout::GpuPoint;
 
 /// Octahedral encoding of a unit normal into two snorm16 values.
 pub fn oct_encode(n: Vec3) -> u32 {
@@ -34,26 +32,6 @@ pub fn oct_decode(packed: u32) -> Vec3 {
         n.y = xy.y;
     }
     n.normalize_or(Vec3::Z)
-}
-
-/// Packs every point. Missing normals become +z, missing radii 0, missing colors white.
-pub fn pack(cloud: &Cloud) -> Vec<GpuPoint> {
-    (0..cloud.len())
-        .map(|i| {
-            let p = cloud.positions[i];
-            let normal = cloud.normals.as_ref().map_or(Vec3::Z, |n| n[i]);
-            let radius = cloud.radii.as_ref().map_or(0.0, |r| r[i]);
-            let color = cloud.colors.as_ref().map_or([255; 4], |c| c[i]);
-            GpuPoint {
-                x: p.x,
-                y: p.y,
-                z: p.z,
-                normal_oct: oct_encode(normal),
-                radius_kind: half::f16::from_f32(radius).to_bits() as u32,
-                color: u32::from_le_bytes(color),
-            }
-        })
-        .collect()
 }
 
 /// Area-weighted vertex normals of a triangle mesh (vertices used by no face get +z).
@@ -92,20 +70,6 @@ mod tests {
             assert!(d.dot(n.normalize()) > 0.99999, "{n} -> {d}");
         }
         assert_eq!(oct_decode(oct_encode(Vec3::ZERO)), Vec3::Z);
-    }
-
-    #[test]
-    fn packs_radius_as_half_and_color_as_rgba8() {
-        let cloud = Cloud {
-            positions: vec![Vec3::new(1.0, 2.0, 3.0)],
-            radii: Some(vec![0.25]),
-            colors: Some(vec![[10, 20, 30, 255]]),
-            ..Default::default()
-        };
-        let p = pack(&cloud)[0];
-        assert_eq!((p.x, p.y, p.z), (1.0, 2.0, 3.0));
-        assert_eq!(half::f16::from_bits(p.radius_kind as u16).to_f32(), 0.25);
-        assert_eq!(p.color.to_le_bytes(), [10, 20, 30, 255]);
     }
 
     #[test]

@@ -1,0 +1,493 @@
+//! Point streams: the layout every method reads points from.
+//!
+//! A cloud is sorted into Morton order and cut into batches of `BATCH_POINTS` points, each with
+//! its bounding box. Every attribute lives in its own stream so a pass reads only what it needs
+//! (Schütz, Kerbl, Wimmer 2021): f32 positions (12 B), three quantized position words
+//! (Schütz et al. 2022: 10 bits per axis each, relative to the batch's box, so a distant batch
+//! reads 4 bytes per point, a nearer one 8 and a close one 12), octahedral normals (4 B), f16
+//! radii (2 B), RGBA8 colors (4 B, only when the cloud has colors) and up to
+//! `MAX_SCALAR_STREAMS` f32 scalar attributes. Streams are split into segments of whole batches
+//! that each fit the device's buffer limits; shaders reach them through buffer device addresses
+//! kept in a segment table (`upload.rs`).
+//!
+//! This module is pure CPU: ordering, batching and encoding, unit-tested without a device.
+
+pub mod upload;
+
+use std::ops::Range;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::gpu::layout::{GpuBatch, BATCH_POINTS, MAX_SCALAR_STREAMS, QUANT_BITS};
+use crate::scene::pack::oct_encode;
+use crate::scene::Cloud;
+
+pub use upload::{GpuStreams, UploadOptions};
+
+/// Bits of a full quantized coordinate (three words of `QUANT_BITS`).
+pub const QUANT_FULL_BITS: u32 = 3 * QUANT_BITS;
+
+/// One per-point stream and its element size in bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stream {
+    /// f32 x, y, z.
+    Position,
+    /// Top `QUANT_BITS` of each axis, relative to the batch box.
+    Coarse,
+    /// The next `QUANT_BITS`.
+    Medium,
+    /// The last `QUANT_BITS`.
+    Fine,
+    /// Octahedral normal, 2 × snorm16.
+    Normal,
+    /// f16 splat radius (two per 32-bit word).
+    Radius,
+    /// RGBA8 sRGB color.
+    Color,
+    /// The k-th scalar attribute as f32.
+    Scalar(usize),
+}
+
+impl Stream {
+    /// Bytes per point.
+    pub fn bytes_per_point(self) -> u64 {
+        match self {
+            Stream::Position => 12,
+            Stream::Radius => 2,
+            _ => 4,
+        }
+    }
+
+    /// Name used in reports (`surfel info`).
+    pub fn name(self) -> String {
+        match self {
+            Stream::Position => "position f32".into(),
+            Stream::Coarse => "position q10 (coarse)".into(),
+            Stream::Medium => "position q10 (medium)".into(),
+            Stream::Fine => "position q10 (fine)".into(),
+            Stream::Normal => "normal oct16".into(),
+            Stream::Radius => "radius f16".into(),
+            Stream::Color => "color rgba8".into(),
+            Stream::Scalar(k) => format!("scalar {k} f32"),
+        }
+    }
+}
+
+/// How a cloud maps onto streams: Morton order, batches and segments.
+#[derive(Clone, Debug)]
+pub struct StreamLayout {
+    /// Stream position → index in the cloud.
+    pub order: Vec<u32>,
+    /// Batch bounds in stream order (`first` is the global stream index of its first point).
+    pub batches: Vec<GpuBatch>,
+    /// Points per segment (a multiple of `BATCH_POINTS`); the last segment may hold fewer.
+    pub segment_points: u32,
+    /// Streams present, in upload order.
+    pub streams: Vec<Stream>,
+}
+
+impl StreamLayout {
+    /// Orders `cloud` along a Morton curve over its bounding box (ties by index) and cuts it
+    /// into batches; `segment_points` is rounded down to whole batches (at least one).
+    pub fn new(cloud: &Cloud, segment_points: u64) -> Result<Self, String> {
+        let n = cloud.len();
+        if n as u64 > u64::from(u32::MAX) {
+            return Err(format!(
+                "{n} points: at most {} fit 32-bit point indices",
+                u32::MAX
+            ));
+        }
+        let batch = u64::from(BATCH_POINTS);
+        let segment_points = ((segment_points / batch).max(1) * batch).min(1 << 31) as u32;
+        let order = morton_order(&cloud.positions);
+        let batches = order
+            .par_chunks(BATCH_POINTS as usize)
+            .enumerate()
+            .map(|(b, idx)| {
+                let first = cloud.positions[idx[0] as usize];
+                let (lo, hi) = idx.iter().fold((first, first), |(lo, hi), &i| {
+                    let p = cloud.positions[i as usize];
+                    (lo.min(p), hi.max(p))
+                });
+                GpuBatch {
+                    min_x: lo.x,
+                    min_y: lo.y,
+                    min_z: lo.z,
+                    first: (b as u64 * batch) as u32,
+                    max_x: hi.x,
+                    max_y: hi.y,
+                    max_z: hi.z,
+                    count: idx.len() as u32,
+                }
+            })
+            .collect();
+        let streams = Self::streams_for(cloud);
+        Ok(Self {
+            order,
+            batches,
+            segment_points,
+            streams,
+        })
+    }
+
+    /// The streams a cloud needs: positions (f32 and quantized), normals, radii, colors when
+    /// it has them, and its first `MAX_SCALAR_STREAMS` scalars.
+    pub fn streams_for(cloud: &Cloud) -> Vec<Stream> {
+        let mut streams = vec![
+            Stream::Position,
+            Stream::Coarse,
+            Stream::Medium,
+            Stream::Fine,
+            Stream::Normal,
+            Stream::Radius,
+        ];
+        if cloud.colors.is_some() {
+            streams.push(Stream::Color);
+        }
+        streams.extend(
+            (0..cloud.scalars.len().min(MAX_SCALAR_STREAMS as usize)).map(Stream::Scalar),
+        );
+        streams
+    }
+
+    pub fn len(&self) -> u64 {
+        self.order.len() as u64
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// Stream index ranges of the segments.
+    pub fn segments(&self) -> Vec<Range<u64>> {
+        let step = u64::from(self.segment_points);
+        (0..self.len().div_ceil(step))
+            .map(|s| s * step..((s + 1) * step).min(self.len()))
+            .collect()
+    }
+
+    /// Bytes of one stream over `points` points.
+    pub fn stream_bytes(stream: Stream, points: u64) -> u64 {
+        match stream {
+            // Radii are packed in pairs: round up to whole words.
+            Stream::Radius => points.div_ceil(2) * 4,
+            s => points * s.bytes_per_point(),
+        }
+    }
+
+    /// GPU bytes of every stream (whole cloud), plus the batch table.
+    pub fn gpu_bytes(&self) -> Vec<(Stream, u64)> {
+        self.streams
+            .iter()
+            .map(|&s| (s, Self::stream_bytes(s, self.len())))
+            .collect()
+    }
+
+    /// Cloud index → stream index (for remapping triangle indices).
+    pub fn inverse(&self) -> Vec<u32> {
+        let mut inv = vec![0u32; self.order.len()];
+        for (s, &c) in self.order.iter().enumerate() {
+            inv[c as usize] = s as u32;
+        }
+        inv
+    }
+
+    /// Encodes stream `stream` for stream indices `range` (an even start, so radius pairs stay
+    /// aligned) into `out`, which must be `stream_bytes(stream, range.len())` long.
+    pub fn encode(&self, cloud: &Cloud, stream: Stream, range: Range<u64>, out: &mut [u8]) {
+        debug_assert_eq!(
+            out.len() as u64,
+            Self::stream_bytes(stream, range.end - range.start)
+        );
+        let ids = &self.order[range.start as usize..range.end as usize];
+        let chunk = 4096;
+        match stream {
+            Stream::Position => {
+                out.par_chunks_mut(chunk * 12)
+                    .zip(ids.par_chunks(chunk))
+                    .for_each(|(o, ids)| {
+                        for (o, &i) in o.chunks_exact_mut(12).zip(ids) {
+                            let p = cloud.positions[i as usize];
+                            o.copy_from_slice(bytemuck::bytes_of(&p.to_array()));
+                        }
+                    });
+            }
+            Stream::Coarse | Stream::Medium | Stream::Fine => {
+                let word = match stream {
+                    Stream::Coarse => 0,
+                    Stream::Medium => 1,
+                    _ => 2,
+                };
+                out.par_chunks_mut(chunk * 4)
+                    .zip(ids.par_chunks(chunk))
+                    .enumerate()
+                    .for_each(|(c, (o, ids))| {
+                        let start = range.start + (c * chunk) as u64;
+                        for (k, (o, &i)) in o.chunks_exact_mut(4).zip(ids).enumerate() {
+                            let b = &self.batches[((start + k as u64) / u64::from(BATCH_POINTS))
+                                as usize];
+                            let q = quantize(cloud.positions[i as usize], b);
+                            o.copy_from_slice(&quant_word(q, word).to_le_bytes());
+                        }
+                    });
+            }
+            Stream::Normal => {
+                let normals = cloud.normals.as_deref();
+                encode_words(out, ids, chunk, |i| {
+                    oct_encode(normals.map_or(Vec3::Z, |n| n[i]))
+                });
+            }
+            Stream::Color => {
+                let colors = cloud.colors.as_deref();
+                encode_words(out, ids, chunk, |i| {
+                    u32::from_le_bytes(colors.map_or([255; 4], |c| c[i]))
+                });
+            }
+            Stream::Scalar(k) => {
+                let values = &cloud.scalars[k].values;
+                encode_words(out, ids, chunk, |i| values[i].to_bits());
+            }
+            Stream::Radius => {
+                let radii = cloud.radii.as_deref();
+                let half = |i: Option<&u32>| {
+                    i.map_or(0, |&i| {
+                        half::f16::from_f32(radii.map_or(0.0, |r| r[i as usize])).to_bits() as u32
+                    })
+                };
+                out.par_chunks_mut(chunk * 4)
+                    .zip(ids.par_chunks(chunk * 2))
+                    .for_each(|(o, ids)| {
+                        for (k, o) in o.chunks_exact_mut(4).enumerate() {
+                            let w = half(ids.get(2 * k)) | (half(ids.get(2 * k + 1)) << 16);
+                            o.copy_from_slice(&w.to_le_bytes());
+                        }
+                    });
+            }
+        }
+    }
+}
+
+fn encode_words(out: &mut [u8], ids: &[u32], chunk: usize, f: impl Fn(usize) -> u32 + Sync) {
+    out.par_chunks_mut(chunk * 4)
+        .zip(ids.par_chunks(chunk))
+        .for_each(|(o, ids)| {
+            for (o, &i) in o.chunks_exact_mut(4).zip(ids) {
+                o.copy_from_slice(&f(i as usize).to_le_bytes());
+            }
+        });
+}
+
+/// Spreads the low 21 bits of `v` to every third bit.
+fn spread3(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// 63-bit Morton code of `p` on a 2^21 grid over the box `lo..lo + 1/scale`.
+pub fn morton(p: Vec3, lo: Vec3, scale: Vec3) -> u64 {
+    let max = ((1u32 << 21) - 1) as f32;
+    let q = ((p - lo) * scale * max).clamp(Vec3::ZERO, Vec3::splat(max));
+    spread3(q.x as u64) | (spread3(q.y as u64) << 1) | (spread3(q.z as u64) << 2)
+}
+
+/// Indices of `positions` sorted by Morton code over their bounding box (ties by index).
+pub fn morton_order(positions: &[Vec3]) -> Vec<u32> {
+    let Some(&first) = positions.first() else {
+        return Vec::new();
+    };
+    let (lo, hi) = positions
+        .par_iter()
+        .fold(
+            || (first, first),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+        .reduce(|| (first, first), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    let extent = hi - lo;
+    let scale = Vec3::select(extent.cmpgt(Vec3::ZERO), extent.recip(), Vec3::ZERO);
+    let mut keyed: Vec<(u64, u32)> = positions
+        .par_iter()
+        .enumerate()
+        .map(|(i, &p)| (morton(p, lo, scale), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// `p` quantized to `QUANT_FULL_BITS` per axis relative to the batch box.
+pub fn quantize(p: Vec3, b: &GpuBatch) -> [u32; 3] {
+    let lo = [b.min_x, b.min_y, b.min_z];
+    let hi = [b.max_x, b.max_y, b.max_z];
+    let cells = (1u64 << QUANT_FULL_BITS) as f64;
+    let p = p.to_array();
+    std::array::from_fn(|a| {
+        let extent = f64::from(hi[a]) - f64::from(lo[a]);
+        if extent <= 0.0 {
+            return 0;
+        }
+        let t = (f64::from(p[a]) - f64::from(lo[a])) / extent * cells;
+        t.clamp(0.0, cells - 1.0) as u32
+    })
+}
+
+/// Word `word` (0 coarse, 1 medium, 2 fine) of a quantized position: `QUANT_BITS` of each
+/// axis, x in the low bits.
+pub fn quant_word(q: [u32; 3], word: u32) -> u32 {
+    let shift = QUANT_BITS * (2 - word);
+    let mask = (1 << QUANT_BITS) - 1;
+    q.iter()
+        .enumerate()
+        .fold(0, |w, (a, &v)| w | (((v >> shift) & mask) << (QUANT_BITS * a as u32)))
+}
+
+/// Decodes the first `words` words (1..=3) of a quantized position to the centre of its
+/// cell (mirrors `dequantize` in glsl/common/streams.glsl).
+pub fn dequantize(w: [u32; 3], words: u32, b: &GpuBatch) -> Vec3 {
+    let mask = (1 << QUANT_BITS) - 1;
+    let lo = Vec3::new(b.min_x, b.min_y, b.min_z);
+    let extent = Vec3::new(b.max_x, b.max_y, b.max_z) - lo;
+    let bits = QUANT_BITS * words;
+    let q = Vec3::from_array(std::array::from_fn(|a| {
+        let v = (0..words).fold(0u32, |v, k| {
+            (v << QUANT_BITS) | ((w[k as usize] >> (QUANT_BITS * a as u32)) & mask)
+        });
+        v as f32 + 0.5
+    }));
+    lo + extent * q / (1u64 << bits) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix64;
+
+    fn random_cloud(n: usize, seed: u64) -> Cloud {
+        let mut rng = SplitMix64::new(seed);
+        Cloud {
+            positions: (0..n)
+                .map(|_| {
+                    let mut f = || rng.next_f64() as f32;
+                    Vec3::new(f(), f() * 3.0, f() - 7.0)
+                })
+                .collect(),
+            radii: Some((0..n).map(|i| i as f32 * 1e-3).collect()),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn morton_codes_interleave_axes() {
+        assert_eq!(spread3(0b111), 0b1001001);
+        let lo = Vec3::ZERO;
+        let s = Vec3::ONE;
+        assert_eq!(morton(Vec3::ZERO, lo, s), 0);
+        let max = (1u64 << 63) - 1;
+        assert_eq!(morton(Vec3::ONE, lo, s), max);
+        // x is the lowest bit of each triple, then y, then z.
+        let one = 1.0 / ((1u32 << 21) - 1) as f32;
+        assert_eq!(morton(Vec3::new(one, 0.0, 0.0), lo, s), 1);
+        assert_eq!(morton(Vec3::new(0.0, one, 0.0), lo, s), 2);
+        assert_eq!(morton(Vec3::new(0.0, 0.0, one), lo, s), 4);
+    }
+
+    #[test]
+    fn order_is_a_permutation_and_batches_bound_their_points() {
+        let cloud = random_cloud(25_000, 7);
+        let layout = StreamLayout::new(&cloud, 20_480).unwrap();
+        let mut seen = layout.order.clone();
+        seen.sort_unstable();
+        assert!(seen.iter().enumerate().all(|(i, &v)| i as u32 == v));
+        assert_eq!(layout.batches.len(), 3);
+        assert_eq!(
+            layout.batches.iter().map(|b| b.count).collect::<Vec<_>>(),
+            [10_240, 10_240, 4_520]
+        );
+        for (k, b) in layout.batches.iter().enumerate() {
+            assert_eq!(b.first, k as u32 * BATCH_POINTS);
+            for &i in &layout.order[b.first as usize..(b.first + b.count) as usize] {
+                let p = cloud.positions[i as usize];
+                assert!(p.x >= b.min_x && p.y >= b.min_y && p.z >= b.min_z);
+                assert!(p.x <= b.max_x && p.y <= b.max_y && p.z <= b.max_z);
+            }
+        }
+        // Morton batches are compact: far smaller than the whole cloud's box.
+        let volume = |b: &GpuBatch| (b.max_x - b.min_x) * (b.max_y - b.min_y) * (b.max_z - b.min_z);
+        assert!(volume(&layout.batches[0]) < 0.6 * 3.0);
+        assert_eq!(layout.segments(), vec![0..20_480, 20_480..25_000]);
+        let inv = layout.inverse();
+        assert!(layout
+            .order
+            .iter()
+            .enumerate()
+            .all(|(s, &c)| inv[c as usize] == s as u32));
+    }
+
+    #[test]
+    fn segments_are_whole_batches() {
+        let cloud = random_cloud(100, 1);
+        let layout = StreamLayout::new(&cloud, 5).unwrap();
+        assert_eq!(layout.segment_points, BATCH_POINTS);
+        assert_eq!(layout.segments(), vec![0..100]);
+        let empty = StreamLayout::new(&Cloud::default(), 1 << 30).unwrap();
+        assert!(empty.is_empty() && empty.batches.is_empty() && empty.segments().is_empty());
+    }
+
+    #[test]
+    fn quantized_words_refine_to_the_cell_size() {
+        let cloud = random_cloud(5_000, 3);
+        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        let b = layout.batches[0];
+        let extent = Vec3::new(b.max_x - b.min_x, b.max_y - b.min_y, b.max_z - b.min_z);
+        let mut words = vec![[0u32; 3]; 5_000];
+        for (w, stream) in [Stream::Coarse, Stream::Medium, Stream::Fine]
+            .into_iter()
+            .enumerate()
+        {
+            let mut out = vec![0u8; 20_000];
+            layout.encode(&cloud, stream, 0..5_000, &mut out);
+            for (k, c) in out.chunks_exact(4).enumerate() {
+                words[k][w] = u32::from_le_bytes(c.try_into().unwrap());
+            }
+        }
+        for (k, w) in words.iter().enumerate() {
+            let p = cloud.positions[layout.order[k] as usize];
+            for level in 1..=3u32 {
+                let cell = extent / (1u64 << (QUANT_BITS * level)) as f32;
+                let err = (dequantize(*w, level, &b) - p).abs();
+                // Half a cell, plus f32 rounding of the reconstruction.
+                let bound = cell * 0.5 + extent * 1e-6;
+                assert!(err.cmple(bound).all(), "level {level}: {err} > {bound}");
+            }
+        }
+    }
+
+    #[test]
+    fn streams_encode_attributes_in_stream_order() {
+        let mut cloud = random_cloud(7, 9);
+        cloud.colors = Some((0..7).map(|i| [i as u8, 0, 0, 255]).collect());
+        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        assert!(layout.streams.contains(&Stream::Color));
+        let mut pos = vec![0u8; 7 * 12];
+        layout.encode(&cloud, Stream::Position, 0..7, &mut pos);
+        let floats: &[f32] = bytemuck::cast_slice(&pos);
+        let mut colors = vec![0u8; 28];
+        layout.encode(&cloud, Stream::Color, 0..7, &mut colors);
+        let mut radii = vec![0u8; StreamLayout::stream_bytes(Stream::Radius, 7) as usize];
+        assert_eq!(radii.len(), 16);
+        layout.encode(&cloud, Stream::Radius, 0..7, &mut radii);
+        let halves: &[u16] = bytemuck::cast_slice(&radii);
+        for (s, &c) in layout.order.iter().enumerate() {
+            let p = cloud.positions[c as usize];
+            assert_eq!(&floats[3 * s..3 * s + 3], &p.to_array());
+            assert_eq!(colors[4 * s], c as u8);
+            let r = half::f16::from_bits(halves[s]).to_f32();
+            assert!((r - c as f32 * 1e-3).abs() < 1e-5);
+        }
+        assert_eq!(halves[7], 0, "the padding half is zero");
+    }
+}
