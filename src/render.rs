@@ -146,6 +146,9 @@ impl Renderer {
         if width == 0 || height == 0 || width > MAX_EDGE || height > MAX_EDGE {
             bail!("image size {width}x{height} must be within 1..={MAX_EDGE} per edge");
         }
+        if let Some(why) = config.method.unsupported(&ctx.caps) {
+            bail!(why);
+        }
         if config.method.needs_faces && scene.indices.is_none() {
             bail!(
                 "method '{}' needs an input with triangle faces",

@@ -46,6 +46,7 @@ pub struct Capabilities {
     pub geometry_shader: bool,
     pub mesh_shader: bool,
     pub task_shader: bool,
+    /// shaderInt64 and shaderBufferInt64Atomics.
     pub buffer_int64_atomics: bool,
     pub large_points: bool,
     pub point_size_range: [f32; 2],
@@ -601,7 +602,7 @@ unsafe fn capabilities(
         geometry_shader: core.geometry_shader != 0,
         mesh_shader: mesh.is_some_and(|m| m.mesh_shader != 0),
         task_shader: mesh.is_some_and(|m| m.task_shader != 0),
-        buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0,
+        buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0 && core.shader_int64 != 0,
         large_points: core.large_points != 0,
         point_size_range: limits.point_size_range,
         timestamps: families[family as usize].timestamp_valid_bits > 0,

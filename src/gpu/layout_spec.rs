@@ -27,13 +27,14 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("BINDING_INPUT0", 3),
     ("BINDING_INPUT1", 4),
     ("BINDING_INPUT2", 5),
+    // Outputs take three consecutive bindings (color, depth, normal).
     ("BINDING_OUTPUT0", 6),
     // Point streams: the segment table (device addresses of every stream) and batch bounds.
-    ("BINDING_SEGMENTS", 7),
-    ("BINDING_BATCHES", 8),
+    ("BINDING_SEGMENTS", 10),
+    ("BINDING_BATCHES", 11),
     // Compute rasterizer: the 64-bit visibility buffer and the high-quality accumulators.
-    ("BINDING_VISIBILITY", 9),
-    ("BINDING_ACCUM", 10),
+    ("BINDING_VISIBILITY", 12),
+    ("BINDING_ACCUM", 13),
     // Frame output render targets (MRT locations).
     ("TARGET_COLOR", 0),
     ("TARGET_DEPTH", 1),

@@ -274,13 +274,36 @@ impl Pipeline {
 
     /// A compute pipeline from one `.comp` shader.
     pub fn compute(ctx: &Arc<Context>, shader: &str, bindings: &[Binding]) -> Result<Self> {
+        Self::compute_specialized(ctx, shader, bindings, &[])
+    }
+
+    /// A compute pipeline whose `layout(constant_id = id)` constants take `values`
+    /// (`(id, value)`; bools are 0 or 1): shader variants without copying files.
+    pub fn compute_specialized(
+        ctx: &Arc<Context>,
+        shader: &str,
+        bindings: &[Binding],
+        values: &[(u32, u32)],
+    ) -> Result<Self> {
         let stages = vk::ShaderStageFlags::COMPUTE;
         let (set_layout, layout) = layouts(ctx, bindings, stages)?;
         let modules = Modules::load(ctx, &[shader])?;
+        let entries: Vec<_> = (0..values.len())
+            .map(|k| vk::SpecializationMapEntry {
+                constant_id: values[k].0,
+                offset: 4 * k as u32,
+                size: 4,
+            })
+            .collect();
+        let data: Vec<u8> = values.iter().flat_map(|v| v.1.to_le_bytes()).collect();
+        let specialization = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(&data);
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(stages)
             .module(modules.modules[0])
-            .name(c"main");
+            .name(c"main")
+            .specialization_info(&specialization);
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout);

@@ -25,6 +25,7 @@ pub const INFO: MethodInfo = MethodInfo {
         doc: "supersampling factor per axis",
     }],
     needs_faces: true,
+    features: &[],
     build,
 };
 

@@ -2,6 +2,7 @@
 //! render graph, writing the standard frame targets (color, linear depth, normal). Adding a
 //! method to the viewer, the headless renderer and the benchmark sweeps needs only an entry here.
 
+pub mod compute;
 mod mesh;
 mod points;
 
@@ -11,7 +12,7 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::{Buffer, Context};
+use crate::gpu::{Buffer, Capabilities, Context};
 use crate::graph::{BufferId, GraphBuilder, ImageId};
 use crate::streams::GpuStreams;
 
@@ -41,11 +42,69 @@ pub struct MethodInfo {
     pub params: &'static [ParamSpec],
     /// Renders triangle faces (ground truth) rather than points.
     pub needs_faces: bool,
+    /// Device features the method cannot run without.
+    pub features: &'static [Feature],
     pub build: fn(&mut BuildContext<'_>) -> Result<()>,
 }
 
+/// A device feature a method may need.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Feature {
+    /// 64-bit integers and 64-bit atomics on storage buffers (`shaderInt64`,
+    /// `shaderBufferInt64Atomics`).
+    Int64Atomics,
+    /// Mesh and task shaders (`VK_EXT_mesh_shader`).
+    MeshShader,
+    /// Geometry shaders.
+    GeometryShader,
+}
+
+impl Feature {
+    /// Whether a device with `caps` has the feature.
+    pub fn supported(self, caps: &Capabilities) -> bool {
+        match self {
+            Feature::Int64Atomics => caps.buffer_int64_atomics,
+            Feature::MeshShader => caps.mesh_shader && caps.task_shader,
+            Feature::GeometryShader => caps.geometry_shader,
+        }
+    }
+
+    pub fn describe(self) -> &'static str {
+        match self {
+            Feature::Int64Atomics => "64-bit buffer atomics (shaderInt64, shaderBufferInt64Atomics)",
+            Feature::MeshShader => "mesh and task shaders (VK_EXT_mesh_shader)",
+            Feature::GeometryShader => "geometry shaders",
+        }
+    }
+}
+
+impl MethodInfo {
+    /// Why the method cannot run on a device with `caps`, or `None` when it can.
+    pub fn unsupported(&self, caps: &Capabilities) -> Option<String> {
+        let missing: Vec<_> = self
+            .features
+            .iter()
+            .filter(|f| !f.supported(caps))
+            .map(|f| f.describe())
+            .collect();
+        (!missing.is_empty()).then(|| {
+            format!(
+                "method '{}' needs {}, which the device '{}' lacks",
+                self.name,
+                missing.join(" and "),
+                caps.device_name
+            )
+        })
+    }
+}
+
 /// Every method, in the order the viewer cycles through them.
-pub static METHODS: &[MethodInfo] = &[points::INFO, mesh::INFO];
+pub static METHODS: &[MethodInfo] = &[
+    points::INFO,
+    compute::COMPUTE,
+    compute::COMPUTE_HQ,
+    mesh::INFO,
+];
 
 /// Looks a method up by name.
 pub fn find(name: &str) -> Result<&'static MethodInfo> {

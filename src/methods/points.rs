@@ -24,6 +24,7 @@ pub const INFO: MethodInfo = MethodInfo {
         doc: "point size in pixels",
     }],
     needs_faces: false,
+    features: &[],
     build,
 };
 

@@ -1,0 +1,182 @@
+//! The compute rasterizer on lavapipe under validation and synchronization validation:
+//! `compute` reproduces the hardware point pipeline's `points:size=1` image, stream segments
+//! and quantized positions leave it unchanged, and `compute-hq` blends the front surface.
+
+mod common;
+
+use std::path::Path;
+
+use glam::Vec3;
+use surfel::eval::Frame;
+use surfel::methods::MethodConfig;
+use surfel::render::{upload_with, Extras, Renderer, View};
+use surfel::scene::{pack, Camera, Cloud, Light};
+use surfel::streams::UploadOptions;
+
+fn render_with(cloud: &Cloud, method: &str, size: u32, options: UploadOptions) -> Frame {
+    let ctx = common::context();
+    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
+    let config = MethodConfig::parse(method).expect("method");
+    let mut r = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        size,
+        size,
+        Extras {
+            readback: true,
+            present: None,
+        },
+    )
+    .expect("renderer");
+    let view = View {
+        camera: Camera::framing(info.centre, info.radius),
+        lights: vec![Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    r.render(&view, false).expect("frame 1");
+    let frame = r.render(&view, true).expect("frame 2").expect("readback");
+    drop(r);
+    common::assert_clean(&ctx);
+    frame
+}
+
+fn render(cloud: &Cloud, method: &str, size: u32) -> Frame {
+    render_with(cloud, method, size, UploadOptions::default())
+}
+
+fn bunny() -> Cloud {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/stanford/bun_zipper.ply");
+    let mut cloud = surfel::scene::load(&path).expect("bunny");
+    let faces = cloud.faces.take().expect("faces");
+    cloud.normals = Some(pack::vertex_normals(&cloud.positions, &faces));
+    cloud
+}
+
+/// Pixels whose coverage differs, and the largest relative depth difference where both cover.
+fn compare(a: &Frame, b: &Frame) -> (usize, f32) {
+    let mut coverage = 0;
+    let mut depth = 0f32;
+    for i in 0..a.pixels() {
+        match (a.covered(i), b.covered(i)) {
+            (true, true) => depth = depth.max((a.depth[i] - b.depth[i]).abs() / a.depth[i]),
+            (false, false) => {}
+            _ => coverage += 1,
+        }
+    }
+    (coverage, depth)
+}
+
+#[test]
+fn compute_matches_hardware_points_on_the_bunny() {
+    let cloud = bunny();
+    let points = render(&cloud, "points:size=1", 256);
+    let compute = render(&cloud, "compute:quantized=0", 256);
+    let covered = (0..points.pixels()).filter(|&i| points.covered(i)).count();
+    assert!(covered > 10_000, "bunny covers {covered} px");
+    let (coverage, depth) = compare(&points, &compute);
+    // Same pixels; ties between points in one pixel go to the lower index in both.
+    assert_eq!(coverage, 0, "coverage differs in {coverage} of {covered} px");
+    assert!(depth < 1e-5, "relative depth differs by {depth}");
+    let color_diff = (0..points.pixels())
+        .filter(|&i| points.covered(i))
+        .filter(|&i| {
+            (0..3).any(|c| points.color[i][c].abs_diff(compute.color[i][c]) > 1)
+        })
+        .count();
+    assert_eq!(color_diff, 0, "{color_diff} px shaded differently");
+}
+
+#[test]
+fn segments_and_quantized_positions_leave_the_image_unchanged() {
+    let cloud = bunny();
+    let whole = render(&cloud, "compute:quantized=0", 192);
+    // One batch per segment, uploaded in tiny chunks: 4 segments, many staging round trips.
+    let split = render_with(
+        &cloud,
+        "compute:quantized=0",
+        192,
+        UploadOptions {
+            segment_points: Some(1),
+            chunk_bytes: 64 << 10,
+        },
+    );
+    assert_eq!(whole.color, split.color);
+    assert_eq!(whole.depth, split.depth);
+    // Quantized positions move a point by at most half a cell, a pixel at most for batches
+    // read at 4 bytes per point: nearly every pixel keeps its coverage.
+    let quantized = render(&cloud, "compute", 192);
+    let covered = (0..whole.pixels()).filter(|&i| whole.covered(i)).count();
+    let (coverage, _) = compare(&whole, &quantized);
+    assert!(
+        coverage * 50 < covered,
+        "quantization changed coverage of {coverage} of {covered} px"
+    );
+}
+
+/// `n` × `n` points of one color on a unit square at height `z`, facing +z.
+fn grid(n: usize, color: [u8; 4], z: f32) -> Cloud {
+    let t = |k: usize| -0.5 + (k as f32 + 0.5) / n as f32;
+    let positions: Vec<Vec3> = (0..n * n)
+        .map(|k| Vec3::new(t(k % n), t(k / n), z))
+        .collect();
+    Cloud {
+        normals: Some(vec![Vec3::Z; positions.len()]),
+        colors: Some(vec![color; positions.len()]),
+        positions,
+        ..Default::default()
+    }
+}
+
+fn merge(a: Cloud, b: Cloud) -> Cloud {
+    let cat = |x: Option<Vec<[u8; 4]>>, y: Option<Vec<[u8; 4]>>| Some([x?, y?].concat());
+    Cloud {
+        normals: Some([a.normals.unwrap(), b.normals.unwrap()].concat()),
+        colors: cat(a.colors, b.colors),
+        positions: [a.positions, b.positions].concat(),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn high_quality_blends_the_front_surface_only() {
+    // Two coincident dense layers, red and blue, and a green layer far behind them.
+    let red = grid(200, [255, 0, 0, 255], 0.0);
+    let blue = grid(200, [0, 0, 255, 255], 0.0);
+    let green = grid(200, [0, 255, 0, 255], -0.5);
+    let cloud = merge(merge(red, blue), green);
+    let nearest = render(&cloud, "compute", 64);
+    let blended = render(&cloud, "compute-hq:tolerance=0.01", 64);
+    let centre = 32 * 64 + 32;
+    let [r, g, b, a] = nearest.color[centre];
+    assert_eq!(a, 255);
+    // Nearest point: the lowest index wins the tie, a red point (the white specular highlight
+    // adds equally to every channel).
+    assert!(r > b + 100 && g == b, "nearest {:?}", nearest.color[centre]);
+    let [r, g, b, _] = blended.color[centre];
+    // Blended: red and blue contribute equally, green (behind the tolerance) not at all.
+    assert!(r.abs_diff(b) < 24, "equal weights: {:?}", blended.color[centre]);
+    assert!(r.min(b) > g + 40, "no green: {:?}", blended.color[centre]);
+    assert!((blended.depth[centre] - nearest.depth[centre]).abs() < 1e-4);
+    let n = blended.normal.as_ref().unwrap()[centre];
+    assert!(n[2] > 0.99, "normal {n:?} faces the camera");
+    // Same coverage: blending never adds or removes pixels.
+    assert_eq!(compare(&nearest, &blended).0, 0);
+}
+
+#[test]
+fn methods_state_the_features_they_need() {
+    let ctx = common::context();
+    let mut caps = ctx.caps.clone();
+    let compute = surfel::methods::find("compute").unwrap();
+    assert_eq!(compute.unsupported(&caps), None);
+    caps.buffer_int64_atomics = false;
+    let why = compute.unsupported(&caps).expect("unsupported");
+    assert!(
+        why.contains("'compute' needs 64-bit buffer atomics") && why.contains(&caps.device_name),
+        "{why}"
+    );
+    assert_eq!(surfel::methods::find("points").unwrap().unsupported(&caps), None);
+}
