@@ -219,9 +219,12 @@ impl Viewer {
             .scene
             .as_ref()
             .is_some_and(|(s, _)| s.indices.is_some());
+        let caps = self.ctx.as_ref().map(|c| c.caps.clone());
         for _ in 0..METHODS.len() {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
-            if !METHODS[self.method].needs_faces || has_faces {
+            let m = &METHODS[self.method];
+            let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
+            if supported && (!m.needs_faces || has_faces) {
                 break;
             }
         }

@@ -260,6 +260,10 @@ pub fn run(
         if config.method.needs_faces && scene.gpu.indices.is_none() {
             continue;
         }
+        if let Some(why) = config.method.unsupported(&ctx.caps) {
+            eprintln!("skipped: {why}");
+            continue;
+        }
         let spacing = point_spacing(&scene.cloud, scene.info.radius / 100.0);
         let camera = job_camera(job, &original.info, spacing);
         let lights = job_lights(job.lights, original.info.radius);
