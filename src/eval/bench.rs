@@ -18,11 +18,10 @@ use super::metrics;
 use super::results::{PassTiming, Record, Results};
 use super::stress;
 use super::Frame;
-use crate::cli::{load_prepared, InputArgs};
 use crate::gpu::Context;
 use crate::methods::{GpuScene, MethodConfig};
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::{lights, sample, Camera, Cloud, Light, Pose};
+use crate::scene::{lights, load_prepared, sample, Camera, Cloud, Light, LoadOptions, Pose};
 
 /// Frames of the slow orbit used for the temporal-flicker metric, and the step between them.
 const FLICKER_FRAMES: usize = 4;
@@ -218,11 +217,8 @@ pub fn run(
     let jobs = config.jobs();
     for (i, job) in jobs.iter().enumerate() {
         if let Entry::Vacant(slot) = models.entry(job.model.path.clone()) {
-            let input = InputArgs {
-                k: crate::scene::preprocess::DEFAULT_K,
-                cache: false,
-            };
-            slot.insert(load_gpu(ctx, load_prepared(&job.model.path, &input)?)?);
+            let cloud = load_prepared(&job.model.path, &LoadOptions::default())?;
+            slot.insert(load_gpu(ctx, cloud)?);
         }
         let original = &models[&job.model.path];
         // The scene the method renders: the model, a resampled copy, or a stressed copy.
