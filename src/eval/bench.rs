@@ -203,6 +203,7 @@ pub fn run(
     out_dir: &Path,
     log: bool,
 ) -> Result<BenchOutput> {
+    config.check_models()?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("{}: cannot create", out_dir.display()))?;
     let mut results = Results {
@@ -217,7 +218,8 @@ pub fn run(
     let jobs = config.jobs();
     for (i, job) in jobs.iter().enumerate() {
         if let Entry::Vacant(slot) = models.entry(job.model.path.clone()) {
-            let cloud = load_prepared(&job.model.path, &LoadOptions::default())?;
+            let cloud = load_prepared(&job.model.path, &LoadOptions::default())
+                .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
             slot.insert(load_gpu(ctx, cloud)?);
         }
         let original = &models[&job.model.path];
