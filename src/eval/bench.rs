@@ -15,7 +15,7 @@ use glam::Vec3;
 
 use super::config::{BenchConfig, Job, PoseSpec, StressKind};
 use super::metrics;
-use super::results::{PassTiming, Record, Results};
+use super::results::{PassTiming, Record, Results, REFERENCE_METHOD};
 use super::stress;
 use super::Frame;
 use crate::gpu::Context;
@@ -324,7 +324,7 @@ pub fn run(
                     },
                     ..job.clone()
                 };
-                let gt = MethodConfig::parse("mesh")?;
+                let gt = MethodConfig::parse(REFERENCE_METHOD)?;
                 slot.insert(run_method(ctx, original, &gt, &gt_job, &views)?.frames);
             }
             let truth = &truths[&key];
