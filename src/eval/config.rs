@@ -55,11 +55,11 @@ pub enum ConfigError {
     /// A value is out of range or inconsistent; `key` is its path in the file.
     #[error("{key}: {message}")]
     Invalid { key: String, message: String },
-    /// The sweep file `path` failed to parse or validate (the `source()` says how).
-    #[error("{path}")]
+    /// The sweep file `path` failed to parse or validate.
+    #[error("{path}: {error}")]
     InFile {
         path: PathBuf,
-        source: Box<ConfigError>,
+        error: Box<ConfigError>,
     },
     /// A model file of the sweep cannot be read.
     #[error(
@@ -553,7 +553,7 @@ impl BenchConfig {
         Self::parse_from(&text, SweepOrigin::File(path.to_path_buf())).map_err(|e| {
             ConfigError::InFile {
                 path: path.to_path_buf(),
-                source: Box::new(e),
+                error: Box::new(e),
             }
         })
     }
@@ -985,6 +985,24 @@ values = [1.0, 0.1]
         let kinds: Vec<_> = full.stress.iter().map(|s| s.kind).collect();
         assert_eq!(kinds, StressKind::ALL.to_vec());
         assert!(full.jobs().len() > jobs.len());
+    }
+
+    #[test]
+    fn relative_model_paths_resolve_against_the_sweep_file() {
+        let text = "resolutions = [\"8x8\"]\n[[models]]\npath = \"../data/a.ply\"\n\
+                    [[models]]\npath = \"/abs/b.ply\"\n[[methods]]\nname = \"points\"\n";
+        let origin = SweepOrigin::File(PathBuf::from("sweeps/s.toml"));
+        let c = BenchConfig::parse_from(text, origin.clone()).unwrap();
+        assert_eq!(c.models[0].path, Path::new("sweeps/../data/a.ply"));
+        assert_eq!(c.models[1].path, Path::new("/abs/b.ply"));
+        let e = c.check_models().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "sweep file sweeps/s.toml, models[0].path: sweeps/../data/a.ply: cannot read the \
+             model (relative paths resolve against sweeps)"
+        );
+        let text_only = BenchConfig::parse(text).unwrap();
+        assert_eq!(text_only.models[0].path, Path::new("../data/a.ply"));
     }
 
     #[test]
