@@ -11,9 +11,9 @@ use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{upload, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose};
-use crate::scene::preprocess::{self, PreprocessOptions};
+use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
-use crate::scene::{pack, Cloud, Light};
+use crate::scene::{load_prepared, Light, LoadOptions};
 
 /// surfel: a Vulkan point-cloud renderer.
 #[derive(Parser, Debug)]
@@ -75,6 +75,16 @@ pub struct InputArgs {
     /// Reuse/store computed normals and radii in FILE.surfel-cache.
     #[arg(long)]
     pub cache: bool,
+}
+
+impl InputArgs {
+    /// The loading options these flags select.
+    pub fn options(&self) -> LoadOptions {
+        LoadOptions {
+            k: self.k,
+            cache: self.cache,
+        }
+    }
 }
 
 /// Camera and light options.
@@ -220,37 +230,6 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// Loads `path` and completes what the methods need: normals (from faces for meshes, else PCA
-/// over k-NN) and radii (k-NN), optionally cached next to the input.
-pub fn load_prepared(path: &Path, input: &InputArgs) -> Result<Cloud> {
-    let mut cloud = crate::scene::load(path)?;
-    if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
-        cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
-    }
-    let options = PreprocessOptions {
-        k: input.k.max(1),
-        ..Default::default()
-    };
-    if cloud.normals.is_some() && cloud.radii.is_some() {
-        return Ok(cloud);
-    }
-    if input.cache {
-        if let Some((normals, radii)) = preprocess::load_cache(path, &options, cloud.len()) {
-            cloud.normals.get_or_insert(normals);
-            cloud.radii.get_or_insert(radii);
-            return Ok(cloud);
-        }
-    }
-    preprocess::preprocess(&mut cloud, &options);
-    if input.cache {
-        if let (Some(n), Some(r)) = (&cloud.normals, &cloud.radii) {
-            preprocess::save_cache(path, &options, n, r)
-                .with_context(|| format!("{}: cannot write the cache", path.display()))?;
-        }
-    }
-    Ok(cloud)
-}
-
 /// The pose and lights from the camera options (scene file first, flags override).
 pub fn view_settings(cam: &CameraArgs) -> Result<(Pose, Vec<Light>)> {
     let file = match &cam.scene {
@@ -307,7 +286,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = parse_size(&a.size)?;
     let (pose, lights) = view_settings(&a.camera)?;
-    let cloud = load_prepared(&file, &a.input)?;
+    let cloud = load_prepared(&file, &a.input.options())?;
     let ctx = context(a.validation)?;
     let (scene, info) = upload(&ctx, &cloud)?;
     let mut renderer = Renderer::new(
@@ -395,7 +374,7 @@ fn view(a: ViewArgs) -> Result<()> {
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = parse_size(&a.size)?;
     let (pose, lights) = view_settings(&a.camera)?;
-    let cloud = load_prepared(&a.file, &a.input)?;
+    let cloud = load_prepared(&a.file, &a.input.options())?;
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     crate::app::run(
         cloud,
@@ -413,7 +392,7 @@ fn view(a: ViewArgs) -> Result<()> {
 }
 
 fn info(a: InfoArgs) -> Result<()> {
-    let cloud = load_prepared(&a.file, &a.input)?;
+    let cloud = load_prepared(&a.file, &a.input.options())?;
     println!("file              {}", a.file.display());
     println!("points            {}", cloud.len());
     println!("records in file   {}", cloud.stats.records);

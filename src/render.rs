@@ -9,7 +9,7 @@ use bytemuck::Zeroable;
 use glam::{Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
-use crate::eval::Frame;
+use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, FLAG_HAS_NORMALS, FLAG_USE_COLOR};
 use crate::gpu::{Buffer, Context, ImageDesc, ScopeStats};
 use crate::graph::{Access, CompiledGraph, GraphBuilder, ImageId};

@@ -12,8 +12,14 @@ fn data(rel: &str) -> PathBuf {
 }
 
 fn surfel(args: &[&str]) -> Output {
+    surfel_in(Path::new(env!("CARGO_MANIFEST_DIR")), args)
+}
+
+/// Runs the binary with `dir` as its current directory.
+fn surfel_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_surfel"))
         .args(args)
+        .current_dir(dir)
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .expect("run surfel")
@@ -179,16 +185,17 @@ fn viewer_runs_under_xvfb() {
 }
 
 #[test]
-fn bench_quick_and_report_run_from_the_command_line() {
-    let out = tmp("bench");
-    let o = surfel(&[
-        "bench",
-        "--quick",
-        "--validation",
-        "--out",
-        out.to_str().expect("utf8"),
-    ]);
+fn bench_quick_runs_outside_the_repository_and_report_reads_it() {
+    // The built-in sweep's model paths must not depend on the current directory.
+    let cwd = tmp("elsewhere");
+    std::fs::create_dir_all(&cwd).expect("temp dir");
+    assert!(!cwd.join("../shared/data").exists());
+    let o = surfel_in(
+        &cwd,
+        &["bench", "--quick", "--validation", "--out", "bench"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
+    let out = cwd.join("bench");
     for f in [
         "results.json",
         "results.csv",
@@ -213,4 +220,52 @@ fn bench_quick_and_report_run_from_the_command_line() {
     let o = surfel(&["report", tmp("missing.json").to_str().expect("utf8")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("missing.json"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_sweep_with_a_missing_model_names_the_model_file_and_the_sweep() {
+    let dir = tmp("sweeps");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let sweep = dir.join("missing_model.toml");
+    std::fs::write(
+        &sweep,
+        "resolutions = [\"8x8\"]\n[[models]]\npath = \"models/gone.ply\"\n[[methods]]\nname = \"points\"\n",
+    )
+    .expect("write");
+    let o = surfel_in(
+        &std::env::temp_dir(),
+        &[
+            "bench",
+            sweep.to_str().expect("utf8"),
+            "--out",
+            tmp("missing_out").to_str().expect("utf8"),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    // Relative to the sweep's directory, not to the current one.
+    let resolved = dir.join("models/gone.ply");
+    assert!(
+        e.contains(&format!("sweep file {}", sweep.display()))
+            && e.contains("models[0].path")
+            && e.contains(&resolved.display().to_string()),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_missing_file_reports_the_os_error_once() {
+    let missing = tmp("no_such_model.ply");
+    let os_error = std::fs::read(&missing).expect_err("missing").to_string();
+    let sweep = tmp("no_such_sweep.toml");
+    for args in [
+        vec!["info", missing.to_str().expect("utf8"), "--no-device"],
+        vec!["bench", sweep.to_str().expect("utf8")],
+    ] {
+        let o = surfel(&args);
+        assert_eq!(o.status.code(), Some(1));
+        let e = stderr(&o);
+        assert_eq!(e.matches(&os_error).count(), 1, "{os_error:?} in {e}");
+        assert!(e.contains(args[1]), "{e}");
+    }
 }

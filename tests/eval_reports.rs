@@ -100,6 +100,14 @@ fn synthetic() -> Results {
             records.push(record(m, 100_000, (64, 64), Some(("grazing", v, hole))));
         }
     }
+    // The ground truth scored against itself: named in the report, never ranked or plotted.
+    let mut truth = record(0, 100_000, (128, 128), None);
+    truth.method = "mesh".into();
+    truth.params.clear();
+    truth.frame_ms_median = 40.0;
+    truth.scores.psnr = Some(100.0);
+    truth.scores.ssim = Some(1.0);
+    records.push(truth);
     // A model with a single record: its charts are skipped, not failed.
     let mut lone = record(0, 500, (32, 32), None);
     lone.model = "lone".into();
@@ -240,6 +248,7 @@ fn report_lists_methods_pareto_set_and_stability() {
         .map(|l| l.split('|').nth(1).unwrap().trim())
         .collect();
     assert_eq!(pareto, [label(0), label(1), label(3)]);
+    assert!(md.contains("Reference (not ranked): `mesh`, 40.000 ms."));
 
     let stability = md.split("## Stability under stress").nth(1).unwrap();
     assert!(stability.contains(&format!("| {} | breaks at 85 | breaks at 0.25 |", label(0))));

@@ -15,14 +15,13 @@ use glam::Vec3;
 
 use super::config::{BenchConfig, Job, PoseSpec, StressKind};
 use super::metrics;
-use super::results::{PassTiming, Record, Results};
+use super::results::{PassTiming, Record, Results, REFERENCE_METHOD};
 use super::stress;
 use super::Frame;
-use crate::cli::{load_prepared, InputArgs};
 use crate::gpu::Context;
 use crate::methods::{GpuScene, MethodConfig};
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::{lights, sample, Camera, Cloud, Light, Pose};
+use crate::scene::{lights, load_prepared, sample, Camera, Cloud, Light, LoadOptions, Pose};
 
 /// Frames of the slow orbit used for the temporal-flicker metric, and the step between them.
 const FLICKER_FRAMES: usize = 4;
@@ -204,6 +203,7 @@ pub fn run(
     out_dir: &Path,
     log: bool,
 ) -> Result<BenchOutput> {
+    config.check_models()?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("{}: cannot create", out_dir.display()))?;
     let mut results = Results {
@@ -218,11 +218,9 @@ pub fn run(
     let jobs = config.jobs();
     for (i, job) in jobs.iter().enumerate() {
         if let Entry::Vacant(slot) = models.entry(job.model.path.clone()) {
-            let input = InputArgs {
-                k: crate::scene::preprocess::DEFAULT_K,
-                cache: false,
-            };
-            slot.insert(load_gpu(ctx, load_prepared(&job.model.path, &input)?)?);
+            let cloud = load_prepared(&job.model.path, &LoadOptions::default())
+                .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
+            slot.insert(load_gpu(ctx, cloud)?);
         }
         let original = &models[&job.model.path];
         // The scene the method renders: the model, a resampled copy, or a stressed copy.
@@ -330,7 +328,7 @@ pub fn run(
                     },
                     ..job.clone()
                 };
-                let gt = MethodConfig::parse("mesh")?;
+                let gt = MethodConfig::parse(REFERENCE_METHOD)?;
                 slot.insert(run_method(ctx, original, &gt, &gt_job, &views)?.frames);
             }
             let truth = &truths[&key];

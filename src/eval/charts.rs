@@ -4,7 +4,10 @@
 //! charts; the rest are the "baseline"):
 //! - speed vs accuracy and per-pass times, per model: the baseline records at the model's
 //!   largest resolution and, within it, its largest point count, averaged per method
-//!   configuration ([`Record::label`]) over poses and light counts;
+//!   configuration ([`Record::label`]) over poses and light counts. The ground truth
+//!   ([`Record::is_reference`]) is left off the speed-vs-accuracy axes and named in the legend
+//!   with its time; the time axis is logarithmic when the times span more than
+//!   [`LOG_TIME_RATIO`];
 //! - time vs points: the baseline records at the resolution with the most distinct point
 //!   counts, averaged per (label, points) across models;
 //! - time vs resolution, per model: the baseline records at the point count with the most
@@ -28,6 +31,10 @@ use super::results::{pareto_front, stability, MetricFn, Record, Results};
 
 /// Pixel size of every chart.
 pub const CHART_SIZE: (u32, u32) = (1024, 720);
+
+/// A speed-vs-accuracy chart puts time on a log axis when the slowest plotted time is more
+/// than this many times the fastest.
+pub const LOG_TIME_RATIO: f64 = 10.0;
 
 /// DejaVu Sans (Bitstream Vera license, see `assets/fonts/LICENSE`), used for PNG text.
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -139,17 +146,84 @@ fn compact(v: f64) -> String {
     format!("{text}{suffix}")
 }
 
+/// Label of a position `v` on a log10 axis: the value it stands for, to two significant
+/// digits (10k, 16k, 100k).
+fn log_label(v: f64) -> String {
+    let step = 10f64.powf(v.floor() - 1.0);
+    compact((10f64.powf(v) / step).round() * step)
+}
+
+/// Labels to ask for on an x axis spanning `x0..x1`: about one per decade on a log axis.
+fn log_label_count(log: bool, x0: f64, x1: f64) -> usize {
+    if log {
+        (x1 - x0).ceil() as usize + 1
+    } else {
+        10
+    }
+}
+
 fn mean(values: &[f64]) -> Option<f64> {
     let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
     (!finite.is_empty()).then(|| finite.iter().sum::<f64>() / finite.len() as f64)
+}
+
+/// The axes of a speed-vs-accuracy chart.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpeedAxes {
+    /// Time range in plot coordinates: `log10(ms)` when `log_time`, else ms.
+    pub x: (f64, f64),
+    /// Accuracy range.
+    pub y: (f64, f64),
+    /// Time is plotted as `log10(ms)`.
+    pub log_time: bool,
+}
+
+impl SpeedAxes {
+    /// Axes fitting `points` (`(label, ms, accuracy)`, as from [`speed_accuracy`], which
+    /// leaves out the reference): padded ranges of the finite values, with time on a log axis
+    /// when every time is positive and the slowest is more than [`LOG_TIME_RATIO`] times the
+    /// fastest.
+    pub fn fit(points: &[(String, f64, f64)]) -> Self {
+        let times = || points.iter().map(|p| p.1).filter(|t| t.is_finite());
+        let fastest = times().fold(f64::INFINITY, f64::min);
+        let slowest = times().fold(f64::NEG_INFINITY, f64::max);
+        let log_time = fastest > 0.0 && slowest > LOG_TIME_RATIO * fastest;
+        let mut axes = SpeedAxes {
+            x: (0.0, 1.0),
+            y: padded_range(points.iter().map(|p| p.2)),
+            log_time,
+        };
+        axes.x = padded_range(times().map(|t| axes.x_of(t)));
+        axes
+    }
+
+    /// Plot x of a time in ms.
+    pub fn x_of(&self, ms: f64) -> f64 {
+        if self.log_time {
+            ms.log10()
+        } else {
+            ms
+        }
+    }
+
+    /// The time axis' description, saying when it is logarithmic.
+    pub fn x_desc(&self) -> &'static str {
+        if self.log_time {
+            "GPU time per frame (ms, log scale)"
+        } else {
+            "GPU time per frame (ms)"
+        }
+    }
 }
 
 /// Labelled scatter of (time, accuracy) with its Pareto front as a step line.
 struct ParetoChart {
     caption: String,
     y_desc: String,
-    /// `(label, ms, accuracy)`.
+    /// `(label, ms, accuracy)`, without the reference.
     points: Vec<(String, f64, f64)>,
+    /// `(label, ms)` of the reference configurations, named in the legend, not plotted.
+    references: Vec<(String, f64)>,
 }
 
 impl Chart for ParetoChart {
@@ -162,20 +236,29 @@ impl Chart for ParetoChart {
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE)?;
-        let (x0, x1) = padded_range(self.points.iter().map(|p| p.1));
-        let (y0, y1) = padded_range(self.points.iter().map(|p| p.2));
+        let axes = SpeedAxes::fit(&self.points);
+        let ((x0, x1), (y0, y1)) = (axes.x, axes.y);
         let mut chart = ChartBuilder::on(root)
             .caption(&self.caption, ("sans-serif", 22))
             .margin(20)
             .x_label_area_size(45)
             .y_label_area_size(60)
             .build_cartesian_2d(x0..x1, y0..y1)?;
+        let x_fmt = |v: &f64| {
+            if axes.log_time {
+                log_label(*v)
+            } else {
+                compact(*v)
+            }
+        };
         chart
             .configure_mesh()
-            .x_desc("GPU time per frame (ms)")
+            .x_labels(log_label_count(axes.log_time, x0, x1))
+            .x_label_formatter(&x_fmt)
+            .x_desc(axes.x_desc())
             .y_desc(self.y_desc.as_str())
             .draw()?;
-        let xy: Vec<(f64, f64)> = self.points.iter().map(|p| (p.1, p.2)).collect();
+        let xy: Vec<(f64, f64)> = self.points.iter().map(|p| (axes.x_of(p.1), p.2)).collect();
         let front = pareto_front(&xy);
         let mut step = Vec::new();
         for (k, &i) in front.iter().enumerate() {
@@ -196,13 +279,19 @@ impl Chart for ParetoChart {
                 .iter()
                 .map(|&i| Circle::new(xy[i], 9, RED.stroke_width(2))),
         )?;
-        for (k, (label, ms, acc)) in self.points.iter().enumerate() {
+        for (k, ((label, ..), &at)) in self.points.iter().zip(&xy).enumerate() {
             let color = Palette99::pick(k).to_rgba();
             chart.draw_series(std::iter::once(
-                EmptyElement::at((*ms, *acc))
+                EmptyElement::at(at)
                     + Circle::new((0, 0), 5, color.filled())
                     + Text::new(label.clone(), (8, -14), ("sans-serif", 14)),
             ))?;
+        }
+        for (label, ms) in &self.references {
+            chart
+                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+                .label(format!("reference (not plotted): {label}, {ms:.1} ms"))
+                .legend(|(x, y)| Cross::new((x + 10, y), 5, BLACK.stroke_width(2)));
         }
         draw_legend(&mut chart, SeriesLabelPosition::LowerRight)
     }
@@ -330,24 +419,10 @@ impl Chart for LineChart {
             .y_label_area_size(60)
             .build_cartesian_2d(x0..x1, y0..y1)?;
         let log_x = self.log_x;
-        let x_fmt = move |v: &f64| {
-            if log_x {
-                // Two significant digits: 10k, 16k, 100k.
-                let step = 10f64.powf(v.floor() - 1.0);
-                compact((10f64.powf(*v) / step).round() * step)
-            } else {
-                compact(*v)
-            }
-        };
-        // On a log axis ask for about one label per decade.
-        let x_labels = if log_x {
-            (x1 - x0).ceil() as usize + 1
-        } else {
-            10
-        };
+        let x_fmt = move |v: &f64| if log_x { log_label(*v) } else { compact(*v) };
         chart
             .configure_mesh()
-            .x_labels(x_labels)
+            .x_labels(log_label_count(log_x, x0, x1))
             .x_desc(self.x_desc.as_str())
             .y_desc(self.y_desc.as_str())
             .x_label_formatter(&x_fmt)
@@ -426,17 +501,39 @@ fn by_label<'a>(records: &[&'a Record]) -> Vec<(String, Vec<&'a Record>)> {
     out
 }
 
-/// `(label, mean frame ms, mean metric)` per label, skipping labels without the metric.
+/// `(label, mean frame ms, mean metric)` per label, skipping labels without a finite metric
+/// and the reference ([`Record::is_reference`]), whose accuracy is its own.
 pub fn speed_accuracy(
     records: &[&Record],
     metric: impl Fn(&Record) -> Option<f64>,
 ) -> Vec<(String, f64, f64)> {
-    by_label(records)
+    let measured: Vec<&Record> = records
+        .iter()
+        .copied()
+        .filter(|r| !r.is_reference())
+        .collect();
+    by_label(&measured)
         .into_iter()
         .filter_map(|(label, group)| {
             let ms: Vec<f64> = group.iter().map(|r| r.frame_ms_median).collect();
             let acc: Vec<f64> = group.iter().filter_map(|r| metric(r)).collect();
             Some((label, mean(&ms)?, mean(&acc)?))
+        })
+        .collect()
+}
+
+/// `(label, mean frame ms)` per configuration of the reference among `records`.
+pub fn reference_times(records: &[&Record]) -> Vec<(String, f64)> {
+    let references: Vec<&Record> = records
+        .iter()
+        .copied()
+        .filter(|r| r.is_reference())
+        .collect();
+    by_label(&references)
+        .into_iter()
+        .filter_map(|(label, group)| {
+            let ms: Vec<f64> = group.iter().map(|r| r.frame_ms_median).collect();
+            Some((label, mean(&ms)?))
         })
         .collect()
 }
@@ -510,6 +607,7 @@ pub fn write_charts_by_model(
                 caption: format!("{model} {res}: {desc} vs GPU time, {device}"),
                 y_desc: desc.to_string(),
                 points: speed_accuracy(&head, metric),
+                references: reference_times(&head),
             };
             written.extend(tag(write_both(
                 &chart,
@@ -695,7 +793,102 @@ fn write_stress_charts(
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
     use super::*;
+    use crate::eval::metrics::{Scores, PSNR_CAP_DB};
+    use crate::eval::results::REFERENCE_METHOD;
+
+    fn record(method: &str, size: &str, ms: f64, psnr: f64) -> Record {
+        let params = if size.is_empty() {
+            BTreeMap::new()
+        } else {
+            BTreeMap::from([("size".to_string(), size.to_string())])
+        };
+        Record {
+            model: "bunny".into(),
+            points: 1000,
+            method: method.into(),
+            params,
+            width: 64,
+            height: 64,
+            pose: "default".into(),
+            lights: 1,
+            stress: None,
+            stress_value: None,
+            device: "GPU".into(),
+            driver: "1.0".into(),
+            passes: Vec::new(),
+            frame_ms_median: ms,
+            frame_ms_spread: 0.1,
+            points_per_second: 1000.0 / (ms / 1000.0),
+            scores: Scores {
+                psnr: Some(psnr),
+                ..Scores::default()
+            },
+        }
+    }
+
+    fn axes_of(records: &[Record]) -> (Vec<(String, f64, f64)>, SpeedAxes) {
+        let refs: Vec<&Record> = records.iter().collect();
+        let points = speed_accuracy(&refs, |r| r.scores.psnr);
+        let axes = SpeedAxes::fit(&points);
+        (points, axes)
+    }
+
+    #[test]
+    fn speed_axes_leave_out_the_reference_and_infinite_scores() {
+        let records = [
+            record("points", "1", 2.0, 20.0),
+            record("points", "2", 3.0, 25.0),
+            record(REFERENCE_METHOD, "", 170.0, PSNR_CAP_DB),
+            record("splat", "", 4.0, f64::INFINITY),
+        ];
+        let (points, axes) = axes_of(&records);
+        let labels: Vec<&str> = points.iter().map(|p| p.0.as_str()).collect();
+        assert_eq!(labels, ["points(size=1)", "points(size=2)"]);
+        // The axes fit the two measured methods only: 2..3 ms and 20..25 dB, padded by 5 %.
+        assert!(!axes.log_time);
+        assert!((axes.x.0 - 1.95).abs() < 1e-9 && (axes.x.1 - 3.05).abs() < 1e-9);
+        assert!((axes.y.0 - 19.75).abs() < 1e-9 && (axes.y.1 - 25.25).abs() < 1e-9);
+        assert_eq!(axes.x_desc(), "GPU time per frame (ms)");
+        let refs: Vec<&Record> = records.iter().collect();
+        assert_eq!(
+            reference_times(&refs),
+            [(REFERENCE_METHOD.to_string(), 170.0)]
+        );
+    }
+
+    #[test]
+    fn speed_axes_switch_to_log_time_beyond_ten_times() {
+        let (_, axes) = axes_of(&[
+            record("points", "1", 1.0, 20.0),
+            record("points", "8", 50.0, 30.0),
+        ]);
+        assert!(axes.log_time);
+        let span = 50f64.log10();
+        assert!((axes.x.0 + 0.05 * span).abs() < 1e-9);
+        assert!((axes.x.1 - 1.05 * span).abs() < 1e-9);
+        assert!((axes.x_of(100.0) - 2.0).abs() < 1e-12);
+        assert!(axes.x_desc().contains("log scale"));
+        let (_, axes) = axes_of(&[
+            record("points", "1", 1.0, 20.0),
+            record("points", "8", 9.0, 30.0),
+        ]);
+        assert!(!axes.log_time);
+        let (_, axes) = axes_of(&[
+            record("points", "1", 0.0, 20.0),
+            record("points", "8", 50.0, 30.0),
+        ]);
+        assert!(!axes.log_time, "a zero time cannot go on a log axis");
+    }
+
+    #[test]
+    fn log_labels_show_the_value() {
+        assert_eq!(log_label(0.0), "1");
+        assert_eq!(log_label(2.0), "100");
+        assert_eq!(log_label(1.2), "16");
+    }
 
     #[test]
     fn compact_numbers_and_slugs() {

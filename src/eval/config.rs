@@ -9,7 +9,7 @@
 //! measured = 20                           # frames timed (>= 1)
 //!
 //! [[models]]
-//! path = "data/bunny.obj"
+//! path = "data/bunny.obj"                 # relative to the sweep file's directory
 //! name = "bunny"                          # optional, defaults to the file stem
 //! points = [10000, 100000]                # optional: also resample the mesh to N points
 //!
@@ -39,21 +39,88 @@ use serde::{Deserialize, Serialize};
 /// The sweep `surfel bench --quick` runs (`benches/sweeps/quick.toml`).
 const QUICK_TOML: &str = include_str!("../../benches/sweeps/quick.toml");
 
-/// A sweep file that failed to load or validate.
+/// A sweep file that failed to load or validate. Where an error has a `source()`, the message
+/// leaves it out, so a report that prints the chain shows each cause once.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("{path}: cannot read the sweep file")]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
     /// The text is not valid TOML for the schema.
     #[error("invalid sweep file: {0}")]
-    Parse(#[from] toml::de::Error),
+    Parse(toml::de::Error),
     /// A value is out of range or inconsistent; `key` is its path in the file.
     #[error("{key}: {message}")]
     Invalid { key: String, message: String },
+    /// The sweep file `path` failed to parse or validate.
+    #[error("{path}: {error}")]
+    InFile {
+        path: PathBuf,
+        error: Box<ConfigError>,
+    },
+    /// A model file of the sweep cannot be read.
+    #[error(
+        "{origin}, {key}: {path}: cannot read the model (relative paths resolve against {})",
+        .origin.base_dir().display()
+    )]
+    Model {
+        origin: SweepOrigin,
+        key: String,
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// Where a sweep came from, which decides what its relative model paths are relative to.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SweepOrigin {
+    /// A sweep file: relative paths resolve against the file's directory.
+    File(PathBuf),
+    /// The built-in quick sweep: relative paths resolve against `dir`, the directory of
+    /// `benches/sweeps/quick.toml` in the source tree the binary was built from (see
+    /// [`quick_sweep_dir`]).
+    Quick { dir: PathBuf },
+    /// Sweep text given directly: relative paths resolve against the current directory.
+    Text,
+}
+
+impl SweepOrigin {
+    /// The directory relative model paths resolve against (empty: the current directory).
+    pub fn base_dir(&self) -> &Path {
+        match self {
+            SweepOrigin::File(path) => path.parent().unwrap_or(Path::new("")),
+            SweepOrigin::Quick { dir } => dir,
+            SweepOrigin::Text => Path::new(""),
+        }
+    }
+}
+
+impl fmt::Display for SweepOrigin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SweepOrigin::File(path) => write!(f, "sweep file {}", path.display()),
+            SweepOrigin::Quick { .. } => {
+                f.write_str("built-in sweep --quick (benches/sweeps/quick.toml)")
+            }
+            SweepOrigin::Text => f.write_str("sweep text"),
+        }
+    }
+}
+
+/// The directory the `--quick` sweep's relative paths resolve against: `benches/sweeps` of the
+/// source tree at build time (`CARGO_MANIFEST_DIR`), so the sweep runs from any directory; when
+/// that tree no longer exists (a binary copied elsewhere), `benches/sweeps` under the current
+/// directory, as when run from a checkout's root.
+pub fn quick_sweep_dir() -> PathBuf {
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/sweeps");
+    if built.is_dir() {
+        built
+    } else {
+        PathBuf::from("benches/sweeps")
+    }
 }
 
 fn invalid(key: impl Into<String>, message: impl Into<String>) -> ConfigError {
@@ -184,6 +251,7 @@ impl FromStr for StressKind {
 pub struct ModelSpec {
     /// Short name used in results (the file stem unless given).
     pub name: String,
+    /// The model file, resolved against the sweep's [`SweepOrigin::base_dir`].
     pub path: PathBuf,
     /// Point counts to resample the mesh to for the time-vs-points sweep (may be empty).
     pub points: Vec<u64>,
@@ -270,6 +338,10 @@ pub struct StressSweep {
 /// A validated sweep.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BenchConfig {
+    /// Where the sweep came from (for messages).
+    pub origin: SweepOrigin,
+    /// Model paths are resolved: relative paths in the sweep are joined to
+    /// [`SweepOrigin::base_dir`].
     pub models: Vec<ModelSpec>,
     pub methods: Vec<MethodSpec>,
     /// `(width, height)` pairs, in file order.
@@ -472,18 +544,30 @@ fn convert_pose(i: usize, raw: RawPose) -> Result<NamedPose, ConfigError> {
 }
 
 impl BenchConfig {
-    /// Reads and validates a sweep file.
+    /// Reads and validates a sweep file; relative model paths resolve against its directory.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::parse(&text)
+        Self::parse_from(&text, SweepOrigin::File(path.to_path_buf())).map_err(|e| {
+            ConfigError::InFile {
+                path: path.to_path_buf(),
+                error: Box::new(e),
+            }
+        })
     }
 
-    /// Parses and validates sweep TOML.
+    /// Parses and validates sweep TOML; relative model paths stay relative to the current
+    /// directory.
     pub fn parse(text: &str) -> Result<Self, ConfigError> {
-        let raw: RawConfig = toml::from_str(text)?;
+        Self::parse_from(text, SweepOrigin::Text)
+    }
+
+    /// Parses and validates sweep TOML from `origin`, resolving relative model paths against
+    /// [`SweepOrigin::base_dir`].
+    pub fn parse_from(text: &str, origin: SweepOrigin) -> Result<Self, ConfigError> {
+        let raw: RawConfig = toml::from_str(text).map_err(ConfigError::Parse)?;
         if raw.models.is_empty() {
             return Err(invalid("models", "at least one model is required"));
         }
@@ -512,7 +596,7 @@ impl BenchConfig {
             }
             models.push(ModelSpec {
                 name,
-                path: m.path,
+                path: origin.base_dir().join(m.path),
                 points: m.points,
             });
         }
@@ -601,6 +685,7 @@ impl BenchConfig {
             });
         }
         Ok(BenchConfig {
+            origin,
             models,
             methods,
             resolutions,
@@ -611,11 +696,33 @@ impl BenchConfig {
         })
     }
 
+    /// Checks that every model file can be read, so a missing file fails the sweep before any
+    /// rendering; the error names the sweep, the model's key and the resolved path.
+    pub fn check_models(&self) -> Result<(), ConfigError> {
+        for (i, m) in self.models.iter().enumerate() {
+            if let Err(source) = std::fs::File::open(&m.path) {
+                return Err(ConfigError::Model {
+                    origin: self.origin.clone(),
+                    key: format!("models[{i}].path"),
+                    path: m.path.clone(),
+                    source,
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// The tiny sweep for CI (`benches/sweeps/quick.toml`, embedded at build time): the bunny
     /// and two resampled copies, `points` at two sizes and the `mesh` ground truth, 64x64 and
     /// 128x128, 1 warm-up and 3 measured frames, subsample, grazing and magnification stresses.
+    /// Relative model paths resolve against [`quick_sweep_dir`].
     pub fn quick() -> Result<Self, ConfigError> {
-        Self::parse(QUICK_TOML)
+        Self::parse_from(
+            QUICK_TOML,
+            SweepOrigin::Quick {
+                dir: quick_sweep_dir(),
+            },
+        )
     }
 
     /// Expands the sweep into jobs, in this order:
@@ -863,11 +970,39 @@ values = [1.0, 0.1]
             .all(|j| j.frames.measured == 3 && j.width <= 128));
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/sweeps");
         let quick = BenchConfig::load(&dir.join("quick.toml")).unwrap();
-        assert_eq!(quick, q);
+        assert_eq!(quick.models, q.models);
+        assert_eq!(quick.jobs(), jobs);
+        // Both resolve against the file's directory, wherever the process runs.
+        assert!(q.models[0].path.starts_with(&dir), "{:?}", q.models[0].path);
+        q.check_models().unwrap();
+        for name in ["lavapipe.toml", "full.toml"] {
+            BenchConfig::load(&dir.join(name))
+                .unwrap()
+                .check_models()
+                .unwrap();
+        }
         let full = BenchConfig::load(&dir.join("full.toml")).unwrap();
         let kinds: Vec<_> = full.stress.iter().map(|s| s.kind).collect();
         assert_eq!(kinds, StressKind::ALL.to_vec());
         assert!(full.jobs().len() > jobs.len());
+    }
+
+    #[test]
+    fn relative_model_paths_resolve_against_the_sweep_file() {
+        let text = "resolutions = [\"8x8\"]\n[[models]]\npath = \"../data/a.ply\"\n\
+                    [[models]]\npath = \"/abs/b.ply\"\n[[methods]]\nname = \"points\"\n";
+        let origin = SweepOrigin::File(PathBuf::from("sweeps/s.toml"));
+        let c = BenchConfig::parse_from(text, origin.clone()).unwrap();
+        assert_eq!(c.models[0].path, Path::new("sweeps/../data/a.ply"));
+        assert_eq!(c.models[1].path, Path::new("/abs/b.ply"));
+        let e = c.check_models().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "sweep file sweeps/s.toml, models[0].path: sweeps/../data/a.ply: cannot read the \
+             model (relative paths resolve against sweeps)"
+        );
+        let text_only = BenchConfig::parse(text).unwrap();
+        assert_eq!(text_only.models[0].path, Path::new("../data/a.ply"));
     }
 
     #[test]

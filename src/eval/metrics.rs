@@ -13,7 +13,7 @@ use image::RgbaImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::frame::Frame;
+use crate::frame::Frame;
 
 /// The PSNR reported for identical images (whose true PSNR is infinite). Capping keeps the
 /// value finite, so it survives JSON (which has no infinity) and plots on a linear axis.

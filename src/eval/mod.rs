@@ -1,12 +1,12 @@
-//! Evaluation: frames, metrics, sweeps, stress transforms, results, charts and reports.
+//! Evaluation: metrics, sweeps, stress transforms, results, charts and reports. [`Frame`], what
+//! the metrics compare, lives in [`crate::frame`] (the renderer produces it) and is re-exported.
 
 pub mod bench;
 pub mod charts;
 pub mod config;
-pub mod frame;
 pub mod metrics;
 pub mod report;
 pub mod results;
 pub mod stress;
 
-pub use frame::Frame;
+pub use crate::frame::Frame;

@@ -7,7 +7,9 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::charts::{headline_records, models, speed_accuracy, write_charts_by_model};
+use super::charts::{
+    headline_records, models, reference_times, speed_accuracy, write_charts_by_model,
+};
 use super::metrics::{BREAK_HOLE_RATIO, PSNR_CAP_DB};
 use super::results::{pareto_front, stability, MetricFn, Record, Results};
 
@@ -246,6 +248,9 @@ fn pareto_section(md: &mut String, results: &Results, model: &str) {
             let _ = writeln!(md, "| {} | {ms:.3} | {} |", cell(label), fmt(Some(*acc)));
         }
         let _ = writeln!(md);
+        for (label, ms) in reference_times(&head) {
+            let _ = writeln!(md, "Reference (not ranked): `{label}`, {ms:.3} ms.\n");
+        }
     }
 }
 

@@ -15,6 +15,9 @@ use super::metrics::{Scores, BREAK_HOLE_RATIO};
 /// Extracts one metric from a record (`None` when it was not computed).
 pub type MetricFn = fn(&Record) -> Option<f64>;
 
+/// The method `surfel bench` renders as the ground truth every method is scored against.
+pub const REFERENCE_METHOD: &str = "mesh";
+
 /// (model, stress kind, label) to (value bits to (value, worst hole ratio)).
 type StressGroups = BTreeMap<(String, String, String), BTreeMap<u64, (f64, f64)>>;
 
@@ -72,6 +75,13 @@ impl Record {
             .map(|(k, v)| format!("{k}={v}"))
             .collect();
         format!("{}({})", self.method, params.join(", "))
+    }
+
+    /// True for records of the ground-truth method ([`REFERENCE_METHOD`], any parameters):
+    /// they score the reference against itself, not a method against it, so the
+    /// speed-vs-accuracy charts and Pareto sets leave them out.
+    pub fn is_reference(&self) -> bool {
+        self.method == REFERENCE_METHOD
     }
 
     /// Pixels per frame.

@@ -24,11 +24,13 @@ impl fmt::Display for Location {
 }
 
 /// A failure to load a scene file. The message always starts with the file name, then the
-/// location when known, then what was expected and what was found.
+/// location when known, then what was expected and what was found (for [`LoadError::Io`], the
+/// cause is the `source()`).
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
-    /// The file could not be read.
-    #[error("{file}: cannot read file: {source}")]
+    /// The file could not be read. The operating system's reason is the error's `source()`
+    /// (not repeated in this message, so a report that prints the chain shows it once).
+    #[error("{file}: cannot read file")]
     Io {
         /// The file, as given by the caller.
         file: String,

@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod cloud;
 pub mod error;
+pub mod input;
 pub mod las;
 pub mod lights;
 pub mod obj;
@@ -21,6 +22,7 @@ use std::path::Path;
 pub use camera::{Camera, Pose};
 pub use cloud::{Cloud, LoadStats, Scalar};
 pub use error::{LoadError, Location};
+pub use input::{load_prepared, LoadOptions};
 pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):
