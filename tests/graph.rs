@@ -162,7 +162,7 @@ fn compute_results_are_handed_to_indirect_draws_and_vertex_shaders() {
     let find = |pass: usize, name: surfel::graph::BufferId| {
         b[pass]
             .iter()
-            .find(|x| x.target == BarrierTarget::Buffer(name))
+            .find(|x| matches!(x.target, BarrierTarget::Buffer { id, .. } if id == name))
             .map(|x| x.transition)
     };
     let t = find(1, args).expect("indirect barrier");

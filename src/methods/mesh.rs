@@ -61,6 +61,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             depth_compare: vk::CompareOp::GREATER,
             topology: vk::PrimitiveTopology::TRIANGLE_LIST,
             cull: vk::CullModeFlags::NONE,
+            specialization: &[],
         },
     )?);
     let comp = vk::ShaderStageFlags::COMPUTE;
