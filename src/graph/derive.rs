@@ -102,7 +102,7 @@ fn next_frame_state(s: SubState, carry: Carry) -> SubState {
 }
 
 /// Segment boundaries of every buffer: segment `i` is `cuts[i]..cuts[i + 1]` (the last one
-/// ends at `u64::MAX`, i.e. the end of the buffer).
+/// ends at `u64::MAX`, i.e. the end of the buffer). Cuts lie inside the buffer.
 fn buffer_cuts(builder: &GraphBuilder) -> Vec<Vec<u64>> {
     let mut cuts = vec![vec![0u64]; builder.buffers.len()];
     for pass in &builder.passes {
@@ -114,8 +114,9 @@ fn buffer_cuts(builder: &GraphBuilder) -> Vec<Vec<u64>> {
             }
         }
     }
-    for c in &mut cuts {
-        c.retain(|&x| x != u64::MAX);
+    for (c, res) in cuts.iter_mut().zip(&builder.buffers) {
+        let size = res.size();
+        c.retain(|&x| x < size);
         c.sort_unstable();
         c.dedup();
     }

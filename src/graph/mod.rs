@@ -113,6 +113,15 @@ pub(crate) struct BufferRes {
     pub initial: Option<Access>,
 }
 
+impl BufferRes {
+    pub fn size(&self) -> u64 {
+        match &self.source {
+            BufferSource::Transient { size, .. } => *size,
+            BufferSource::Imported(b) => b.size,
+        }
+    }
+}
+
 /// Bytes `offset..offset + size` of a buffer; `size == vk::WHOLE_SIZE` reaches its end.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct BufferRange {

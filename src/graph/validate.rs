@@ -81,10 +81,7 @@ pub(crate) fn validate(builder: &GraphBuilder) -> Result<()> {
                             res.name
                         );
                     }
-                    let size = match &res.source {
-                        BufferSource::Transient { size, .. } => *size,
-                        BufferSource::Imported(b) => b.size,
-                    };
+                    let size = res.size();
                     if range.size == 0 || (range.end() != u64::MAX && range.end() > size) {
                         bail!(
                             "pass '{}': range {range} of buffer '{}' (has {size} bytes)",
@@ -124,9 +121,20 @@ pub(crate) fn validate(builder: &GraphBuilder) -> Result<()> {
 impl GraphBuilder {
     /// Removes passes whose results nothing uses and returns their names. A pass is kept when
     /// it is on demand, presents or hands data to the host, writes a resource that outlives
-    /// the frame (imported, history, external), or writes something a kept pass reads (an
-    /// attachment loaded with `Load::Load` is read too).
+    /// the frame (imported, history, external), is the last to use an imported image (its
+    /// access sets the layout the image's owner finds), or writes something a kept pass reads
+    /// (an attachment loaded with `Load::Load` is read too).
     pub fn cull(&mut self) -> Vec<String> {
+        let mut last_import_use = vec![None; self.images.len()];
+        for (i, pass) in self.passes.iter().enumerate() {
+            for (sub, _) in &pass.uses {
+                if let Subresource::Image { id, .. } = *sub {
+                    if matches!(self.images[id.0 as usize].source, ImageSource::Imported(_)) {
+                        last_import_use[id.0 as usize] = Some(i);
+                    }
+                }
+            }
+        }
         let persistent_image =
             |id: ImageId| !matches!(self.images[id.0 as usize].source, ImageSource::Transient(_));
         let persistent_buffer = |id: BufferId| {
@@ -148,6 +156,7 @@ impl GraphBuilder {
         for (i, pass) in self.passes.iter().enumerate().rev() {
             let effect = pass.on_demand
                 || pass.uses.is_empty()
+                || last_import_use.contains(&Some(i))
                 || pass.uses.iter().any(|(sub, access)| {
                     let writes = access.info().writes;
                     matches!(access, Access::Present | Access::HostRead)
