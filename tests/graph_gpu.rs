@@ -14,7 +14,8 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use surfel::gpu::{Binding, Buffer, Context, GraphicsDesc, Image, ImageDesc, Pipeline};
 use surfel::graph::{
-    Access, BarrierTarget, BufferRange, CompiledGraph, Descriptor, GraphBuilder, Load, Stages,
+    Access, BarrierTarget, BufferRange, CompiledGraph, Descriptor, GraphBuilder, Load, Sampler,
+    Stages,
 };
 
 /// Records and submits `graph` once per entry of `readback` (whether on-demand passes run),
@@ -524,6 +525,101 @@ fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
         "{message}"
     );
     ctx.free_command_buffer(cmd);
+    drop(graph);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn mip_range_views_with_a_linear_sampler_see_only_their_levels() {
+    let ctx = common::context();
+    let comp = vk::ShaderStageFlags::COMPUTE;
+    let sample = Arc::new(
+        Pipeline::compute(
+            &ctx,
+            "test/sample_mips.comp",
+            &[
+                Binding::new(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, comp),
+                Binding::new(1, vk::DescriptorType::STORAGE_BUFFER, comp),
+            ],
+        )
+        .expect("pipeline"),
+    );
+    let host = host_buffer(&ctx, "texels", 48);
+    let mut g = GraphBuilder::new();
+    let image = g.image(
+        "levels",
+        ImageDesc {
+            format: vk::Format::R8G8B8A8_UNORM,
+            width: 8,
+            height: 8,
+            mip_levels: 4,
+            usage: vk::ImageUsageFlags::empty(),
+        },
+    );
+    let texels = g.buffer("texels", 48, vk::BufferUsageFlags::empty());
+    let host_id = g.import_buffer("texels.host", host.clone());
+    g.pass("clear levels")
+        .image(image, Access::TransferDst)
+        .record(move |ctx| {
+            for level in 0..4 {
+                ctx.clear(image, level, frame_color(level).0);
+            }
+        });
+    g.pass("sample")
+        .image_mips(image, 1, 2, Access::Sampled(Stages::Compute))
+        .buffer(texels, Access::StorageWrite(Stages::Compute))
+        .record(move |ctx| {
+            ctx.bind(
+                &sample,
+                &[
+                    Descriptor::SampledMips {
+                        binding: 0,
+                        image,
+                        base: 1,
+                        count: 2,
+                        sampler: Sampler::Linear,
+                    },
+                    Descriptor::Buffer(1, texels),
+                ],
+            );
+            ctx.dispatch(1, 1, 1);
+        });
+    g.copy_buffer(
+        "download",
+        texels,
+        host_id,
+        &[vk::BufferCopy {
+            src_offset: 0,
+            dst_offset: 0,
+            size: 48,
+        }],
+    );
+    g.pass("host")
+        .buffer(host_id, Access::HostRead)
+        .record(|_| {});
+    let mut graph = g.compile(&ctx).expect("compile");
+    run_frames(&ctx, &mut graph, &[false; 2], |f| {
+        let red: Vec<f32> = host
+            .mapped()
+            .expect("mapped")
+            .chunks_exact(16)
+            .map(|t| f32::from_ne_bytes([t[0], t[1], t[2], t[3]]))
+            .collect();
+        let level = |l: u32| frame_color(l).0[0];
+        assert!(
+            (red[0] - level(1)).abs() < 1e-4,
+            "frame {f}: lod 0 is mip 1, got {red:?}"
+        );
+        assert!(
+            (red[1] - level(2)).abs() < 1e-4,
+            "frame {f}: lod 1 is mip 2, got {red:?}"
+        );
+        let between = (level(1) + level(2)) / 2.0;
+        assert!(
+            (red[2] - between).abs() < 1.5 / 255.0,
+            "frame {f}: linear filtering between mips 1 and 2, got {red:?}"
+        );
+    });
     drop(graph);
     common::assert_clean(&ctx);
 }
