@@ -7,11 +7,20 @@
 //! A pass reads like a small function:
 //! ```ignore
 //! g.pass("project")
-//!     .read(points, Access::StorageRead(Stages::Vertex))
+//!     .buffer(points, Access::StorageRead(Stages::Vertex))
+//!     .buffer_range(args, BufferRange::new(0, 16), Access::IndirectRead)
 //!     .color(color, Load::Clear([0.0; 4]))
-//!     .depth(depth, 0.0)
-//!     .record(move |ctx| ctx.draw(&pipeline, count));
+//!     .depth(depth, Load::Clear([0.0; 4]))
+//!     .record(move |ctx| {
+//!         ctx.bind(&pipeline, &[Descriptor::Buffer(BINDING_POINTS, points)]);
+//!         ctx.draw_indirect(args, 0, 1, 16);
+//!     });
 //! ```
+//!
+//! Stages: `validate.rs` (declarations) and culling, `derive.rs` (barriers per pass for the
+//! first and the steady-state frame, on top of the pure state machine in `sync.rs`),
+//! `compile.rs` (allocation with derived usage flags, views, samplers) and `record.rs`
+//! (recording; `PassContext` checks every command against the pass's declarations).
 
 mod compile;
 mod derive;
