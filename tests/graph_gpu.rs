@@ -623,3 +623,91 @@ fn mip_range_views_with_a_linear_sampler_see_only_their_levels() {
     drop(graph);
     common::assert_clean(&ctx);
 }
+
+#[test]
+fn indirect_draws_read_their_arguments_and_count_from_buffers() {
+    let ctx = common::context();
+    if !ctx.caps.draw_indirect_count {
+        eprintln!(
+            "note: {} lacks drawIndirectCount; test skipped",
+            ctx.caps.device_name
+        );
+        return;
+    }
+    let format = vk::Format::R8G8B8A8_UNORM;
+    let pipeline = Arc::new(
+        Pipeline::graphics(
+            &ctx,
+            &GraphicsDesc {
+                shaders: &["test/quad.vert", "test/flat.frag"],
+                color_formats: &[format],
+                ..Default::default()
+            },
+        )
+        .expect("pipeline"),
+    );
+    let host = host_buffer(&ctx, "pixels", 8 * 8 * 4);
+    let mut g = GraphBuilder::new();
+    let target = g.image(
+        "target",
+        ImageDesc {
+            format,
+            width: 8,
+            height: 8,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::empty(),
+        },
+    );
+    let args = g.buffer("args", 32, vk::BufferUsageFlags::empty());
+    let count = g.buffer("count", 4, vk::BufferUsageFlags::empty());
+    let host_id = g.import_buffer("pixels", host.clone());
+    // Draw 0: the right half (first vertex 6); draw 1: the left half (first vertex 0).
+    let commands: Vec<u8> = [6u32, 1, 6, 0, 6, 1, 0, 0]
+        .iter()
+        .flat_map(|w| w.to_ne_bytes())
+        .collect();
+    g.update_buffer("args", args, 0, &commands);
+    g.update_buffer("count", count, 0, &1u32.to_ne_bytes());
+    let color = |c: [f32; 4]| -> Vec<u8> { c.iter().flat_map(|x| x.to_ne_bytes()).collect() };
+    let (red, blue) = (color([1.0, 0.0, 0.0, 1.0]), color([0.0, 0.0, 1.0, 1.0]));
+    let p = pipeline.clone();
+    g.pass("left")
+        .buffer_range(args, BufferRange::new(16, 16), Access::IndirectRead)
+        .color(target, Load::Clear([0.0; 4]))
+        .record(move |ctx| {
+            ctx.bind(&p, &[]);
+            ctx.push(&p, &red);
+            ctx.draw_indirect(args, 16, 1, 16);
+        });
+    // Up to two draws, but the count buffer says one: the left half stays red.
+    g.pass("counted")
+        .buffer(args, Access::IndirectRead)
+        .buffer(count, Access::IndirectRead)
+        .color(target, Load::Load)
+        .record(move |ctx| {
+            ctx.bind(&pipeline, &[]);
+            ctx.push(&pipeline, &blue);
+            ctx.draw_indirect_count(args, 0, count, 0, 2, 16);
+        });
+    g.pass("download")
+        .image(target, Access::TransferSrc)
+        .buffer(host_id, Access::TransferDst)
+        .record(move |ctx| ctx.copy_image_to_buffer(target, 0, host_id));
+    g.pass("host")
+        .buffer(host_id, Access::HostRead)
+        .record(|_| {});
+    let mut graph = g.compile(&ctx).expect("compile");
+    run_frames(&ctx, &mut graph, &[false; 2], |f| {
+        let pixels = host.mapped().expect("mapped");
+        for (i, px) in pixels.chunks(4).enumerate() {
+            let expected: [u8; 4] = if i % 8 < 4 {
+                [255, 0, 0, 255]
+            } else {
+                [0, 0, 255, 255]
+            };
+            assert_eq!(px, expected, "frame {f}, pixel ({}, {})", i % 8, i / 8);
+        }
+    });
+    drop(graph);
+    common::assert_clean(&ctx);
+}

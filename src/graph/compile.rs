@@ -58,7 +58,7 @@ pub struct CompiledGraph {
 }
 
 /// The optional stages `ctx`'s device has enabled.
-pub fn stage_support(ctx: &Context) -> StageSupport {
+fn stage_support(ctx: &Context) -> StageSupport {
     StageSupport {
         geometry: ctx.caps.geometry_shader,
         task: ctx.caps.task_shader,

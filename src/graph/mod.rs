@@ -169,11 +169,6 @@ impl BufferRange {
             self.offset.saturating_add(self.size)
         }
     }
-
-    /// Whether every byte of `inner` lies in `self`.
-    pub fn contains(self, inner: BufferRange) -> bool {
-        self.offset <= inner.offset && inner.end() <= self.end()
-    }
 }
 
 impl fmt::Display for BufferRange {

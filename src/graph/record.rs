@@ -223,7 +223,7 @@ fn is_storage(a: Access) -> bool {
 
 /// Whether `uses` declares every byte of `range` of `buffer` (of `size` bytes) with an access
 /// `ok` accepts.
-pub(crate) fn buffer_declared(
+fn buffer_declared(
     uses: &[(Subresource, Access)],
     buffer: BufferId,
     size: u64,
@@ -253,7 +253,7 @@ pub(crate) fn buffer_declared(
 
 /// Whether `uses` declares every level of `base..base + count` of `image` with an access `ok`
 /// accepts.
-pub(crate) fn mips_declared(
+fn mips_declared(
     uses: &[(Subresource, Access)],
     image: ImageId,
     base: u32,
