@@ -102,21 +102,10 @@ pub struct AccessInfo {
 }
 
 impl AccessInfo {
-    /// Nothing: the neutral element of `merge`.
-    pub const NONE: AccessInfo = AccessInfo {
-        stages: vk::PipelineStageFlags2::NONE,
-        access: vk::AccessFlags2::NONE,
-        layout: vk::ImageLayout::UNDEFINED,
-        writes: false,
-    };
-
     /// One state for several accesses of a pass to the same subresource: the union of stages
     /// and accesses, writing if any writes. `None` when two image accesses need different
     /// layouts (`is_image`); buffers ignore layouts.
     pub fn merge(self, other: AccessInfo, is_image: bool) -> Option<AccessInfo> {
-        if self == AccessInfo::NONE {
-            return Some(other);
-        }
         if is_image && self.layout != other.layout {
             return None;
         }
@@ -430,6 +419,69 @@ mod tests {
         let w = apply(&mut s, Access::StorageWrite(Stages::Compute), true).expect("WAR");
         assert_eq!(w.src_stages, S::FRAGMENT_SHADER);
         assert_eq!(w.src_access, vk::AccessFlags2::NONE);
+    }
+
+    #[test]
+    fn stage_masks_follow_the_supported_stages() {
+        let none = StageSupport {
+            geometry: false,
+            task: false,
+            mesh: false,
+        };
+        let mesh_read = Access::StorageRead(Stages::Mesh);
+        assert_eq!(
+            mesh_read.info().stages,
+            S::TASK_SHADER_EXT | S::MESH_SHADER_EXT
+        );
+        assert_eq!(
+            mesh_read
+                .info_for(StageSupport {
+                    task: false,
+                    ..StageSupport::ALL
+                })
+                .stages,
+            S::MESH_SHADER_EXT
+        );
+        assert_eq!(
+            Access::Sampled(Stages::Graphics).info_for(none).stages,
+            S::VERTEX_SHADER | S::FRAGMENT_SHADER
+        );
+    }
+
+    #[test]
+    fn merged_accesses_union_stages_and_reject_two_layouts() {
+        let indirect = Access::IndirectRead.info();
+        let storage = Access::StorageWrite(Stages::Compute).info();
+        let both = indirect
+            .merge(storage, false)
+            .expect("buffers ignore layouts");
+        assert_eq!(both.stages, S::DRAW_INDIRECT | S::COMPUTE_SHADER);
+        assert!(both.writes);
+        let sampled = Access::Sampled(Stages::Fragment).info();
+        assert_eq!(sampled.merge(storage, true), None);
+        assert_eq!(
+            storage
+                .merge(Access::StorageRead(Stages::Fragment).info(), true)
+                .map(|m| m.layout),
+            Some(vk::ImageLayout::GENERAL)
+        );
+    }
+
+    #[test]
+    fn a_merged_frame_end_waits_on_both_variants() {
+        // Variant A: a compute write nothing read. Variant B: a transfer write the host read.
+        let mut a = SubState::UNDEFINED;
+        apply(&mut a, Access::StorageWrite(Stages::Compute), false);
+        let mut b = a;
+        apply(&mut b, Access::TransferDst, false);
+        apply(&mut b, Access::HostRead, false);
+        let mut merged = a.merge(b);
+        let t = apply(&mut merged, Access::StorageWrite(Stages::Compute), false).expect("WAW");
+        assert_eq!(t.src_stages, S::COMPUTE_SHADER | S::ALL_TRANSFER | S::HOST);
+        assert_eq!(
+            t.src_access,
+            vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::TRANSFER_WRITE
+        );
     }
 
     #[test]
