@@ -78,13 +78,14 @@ fn compute_matches_hardware_points_on_the_bunny() {
     assert!(covered > 10_000, "bunny covers {covered} px");
     let (coverage, depth) = compare(&points, &compute);
     // Same pixels; ties between points in one pixel go to the lower index in both.
-    assert_eq!(coverage, 0, "coverage differs in {coverage} of {covered} px");
+    assert_eq!(
+        coverage, 0,
+        "coverage differs in {coverage} of {covered} px"
+    );
     assert!(depth < 1e-5, "relative depth differs by {depth}");
     let color_diff = (0..points.pixels())
         .filter(|&i| points.covered(i))
-        .filter(|&i| {
-            (0..3).any(|c| points.color[i][c].abs_diff(compute.color[i][c]) > 1)
-        })
+        .filter(|&i| (0..3).any(|c| points.color[i][c].abs_diff(compute.color[i][c]) > 1))
         .count();
     assert_eq!(color_diff, 0, "{color_diff} px shaded differently");
 }
@@ -157,7 +158,11 @@ fn high_quality_blends_the_front_surface_only() {
     assert!(r > b + 100 && g == b, "nearest {:?}", nearest.color[centre]);
     let [r, g, b, _] = blended.color[centre];
     // Blended: red and blue contribute equally, green (behind the tolerance) not at all.
-    assert!(r.abs_diff(b) < 24, "equal weights: {:?}", blended.color[centre]);
+    assert!(
+        r.abs_diff(b) < 24,
+        "equal weights: {:?}",
+        blended.color[centre]
+    );
     assert!(r.min(b) > g + 40, "no green: {:?}", blended.color[centre]);
     assert!((blended.depth[centre] - nearest.depth[centre]).abs() < 1e-4);
     let n = blended.normal.as_ref().unwrap()[centre];
@@ -178,5 +183,8 @@ fn methods_state_the_features_they_need() {
         why.contains("'compute' needs 64-bit buffer atomics") && why.contains(&caps.device_name),
         "{why}"
     );
-    assert_eq!(surfel::methods::find("points").unwrap().unsupported(&caps), None);
+    assert_eq!(
+        surfel::methods::find("points").unwrap().unsupported(&caps),
+        None
+    );
 }

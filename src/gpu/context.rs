@@ -3,12 +3,15 @@
 
 use std::ffi::{c_void, CStr};
 use std::fmt;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Mutex;
 
 use anyhow::{anyhow, bail, Context as _, Result};
 use ash::{ext, khr, vk};
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use super::pipeline_cache;
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -48,6 +51,12 @@ pub struct Capabilities {
     pub task_shader: bool,
     /// shaderInt64 and shaderBufferInt64Atomics.
     pub buffer_int64_atomics: bool,
+    /// `multiDrawIndirect`: indirect draws with a draw count above 1.
+    pub multi_draw_indirect: bool,
+    /// `drawIndirectCount`: `PassContext::draw_indirect_count`.
+    pub draw_indirect_count: bool,
+    /// `shaderDrawParameters`: `gl_DrawID`/`gl_BaseInstance` in vertex shaders.
+    pub shader_draw_parameters: bool,
     pub large_points: bool,
     pub point_size_range: [f32; 2],
     pub timestamps: bool,
@@ -79,6 +88,13 @@ impl fmt::Display for Capabilities {
             yes(self.task_shader)
         )?;
         writeln!(f, "int64 atomics     {}", yes(self.buffer_int64_atomics))?;
+        writeln!(
+            f,
+            "indirect draws    multi {}, count {}, draw parameters {}",
+            yes(self.multi_draw_indirect),
+            yes(self.draw_indirect_count),
+            yes(self.shader_draw_parameters)
+        )?;
         writeln!(
             f,
             "large points      {} (size {}..{} px)",
@@ -130,6 +146,9 @@ pub struct Context {
     pub debug_utils: Option<ext::debug_utils::Device>,
     pub mesh_shader: Option<ext::mesh_shader::Device>,
     pub swapchain_ext: Option<khr::swapchain::Device>,
+    /// Used by every pipeline creation; saved to `pipeline_cache_path` on drop.
+    pub pipeline_cache: vk::PipelineCache,
+    pipeline_cache_path: Option<PathBuf>,
     messenger: Option<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     counters: Box<DebugCounters>,
     pub validation: bool,
@@ -253,9 +272,11 @@ impl Context {
 
         // Query what is supported, then enable what we use.
         let mut mesh_q = vk::PhysicalDeviceMeshShaderFeaturesEXT::default();
+        let mut v11_q = vk::PhysicalDeviceVulkan11Features::default();
         let mut v12_q = vk::PhysicalDeviceVulkan12Features::default();
         let mut v13_q = vk::PhysicalDeviceVulkan13Features::default();
         let mut q = vk::PhysicalDeviceFeatures2::default()
+            .push_next(&mut v11_q)
             .push_next(&mut v12_q)
             .push_next(&mut v13_q);
         if has_mesh {
@@ -276,8 +297,12 @@ impl Context {
             .shader_int64(core_q.shader_int64 != 0)
             .fragment_stores_and_atomics(core_q.fragment_stores_and_atomics != 0)
             .vertex_pipeline_stores_and_atomics(core_q.vertex_pipeline_stores_and_atomics != 0)
-            .independent_blend(core_q.independent_blend != 0);
+            .independent_blend(core_q.independent_blend != 0)
+            .multi_draw_indirect(core_q.multi_draw_indirect != 0);
+        let mut v11 = vk::PhysicalDeviceVulkan11Features::default()
+            .shader_draw_parameters(v11_q.shader_draw_parameters != 0);
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default()
+            .draw_indirect_count(v12_q.draw_indirect_count != 0)
             .host_query_reset(v12_q.host_query_reset != 0)
             .shader_buffer_int64_atomics(v12_q.shader_buffer_int64_atomics != 0)
             .scalar_block_layout(v12_q.scalar_block_layout != 0)
@@ -291,6 +316,7 @@ impl Context {
             .task_shader(mesh_q.task_shader != 0);
         let mut features = vk::PhysicalDeviceFeatures2::default()
             .features(core)
+            .push_next(&mut v11)
             .push_next(&mut v12)
             .push_next(&mut v13);
         let mut dev_exts = vec![khr::push_descriptor::NAME.as_ptr()];
@@ -319,9 +345,22 @@ impl Context {
             physical_device,
             queue_family,
             &core_q,
+            &v11_q,
             &v12_q,
             has_mesh.then_some(&mesh_q),
         );
+
+        let props = instance.get_physical_device_properties(physical_device);
+        let pipeline_cache_path = pipeline_cache::path(&props);
+        let initial = pipeline_cache::load(pipeline_cache_path.as_ref(), &props);
+        let create_cache = |data: &[u8]| {
+            device.create_pipeline_cache(
+                &vk::PipelineCacheCreateInfo::default().initial_data(data),
+                None,
+            )
+        };
+        // A payload the driver rejects despite a matching header is dropped, not fatal.
+        let pipeline_cache = create_cache(&initial).or_else(|_| create_cache(&[]))?;
 
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: instance.clone(),
@@ -349,6 +388,8 @@ impl Context {
             mesh_shader: (has_mesh && mesh_q.mesh_shader != 0)
                 .then(|| ext::mesh_shader::Device::new(&instance, &device)),
             swapchain_ext: has_swapchain.then(|| khr::swapchain::Device::new(&instance, &device)),
+            pipeline_cache,
+            pipeline_cache_path,
             entry,
             instance,
             physical_device,
@@ -499,6 +540,18 @@ impl Drop for Context {
         // hold an Arc<Context>), so destroying the device and instance here is valid.
         unsafe {
             let _ = self.device.device_wait_idle();
+            if let Some(path) = &self.pipeline_cache_path {
+                if let Ok(data) = self.device.get_pipeline_cache_data(self.pipeline_cache) {
+                    if let Err(e) = pipeline_cache::save(path, &data) {
+                        eprintln!(
+                            "warning: cannot save the pipeline cache {}: {e}",
+                            path.display()
+                        );
+                    }
+                }
+            }
+            self.device
+                .destroy_pipeline_cache(self.pipeline_cache, None);
             self.device.destroy_command_pool(self.command_pool, None);
             if let Ok(fence) = self.submit_fence.lock() {
                 self.device.destroy_fence(*fence, None);
@@ -562,6 +615,7 @@ unsafe fn capabilities(
     pd: vk::PhysicalDevice,
     family: u32,
     core: &vk::PhysicalDeviceFeatures,
+    v11: &vk::PhysicalDeviceVulkan11Features<'_>,
     v12: &vk::PhysicalDeviceVulkan12Features<'_>,
     mesh: Option<&vk::PhysicalDeviceMeshShaderFeaturesEXT<'_>>,
 ) -> Capabilities {
@@ -603,6 +657,9 @@ unsafe fn capabilities(
         mesh_shader: mesh.is_some_and(|m| m.mesh_shader != 0),
         task_shader: mesh.is_some_and(|m| m.task_shader != 0),
         buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0 && core.shader_int64 != 0,
+        multi_draw_indirect: core.multi_draw_indirect != 0,
+        draw_indirect_count: v12.draw_indirect_count != 0,
+        shader_draw_parameters: v11.shader_draw_parameters != 0,
         large_points: core.large_points != 0,
         point_size_range: limits.point_size_range,
         timestamps: families[family as usize].timestamp_valid_bits > 0,

@@ -14,6 +14,7 @@ pub struct Buffer {
     ctx: Arc<Context>,
     pub raw: vk::Buffer,
     pub size: u64,
+    pub usage: vk::BufferUsageFlags,
     allocation: Option<Allocation>,
 }
 
@@ -58,6 +59,7 @@ impl Buffer {
                 ctx: ctx.clone(),
                 raw,
                 size,
+                usage,
                 allocation: Some(allocation),
             })
         }

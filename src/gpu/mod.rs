@@ -4,6 +4,7 @@ pub mod context;
 pub mod layout;
 pub mod memory;
 pub mod pipeline;
+pub mod pipeline_cache;
 pub mod profiler;
 pub mod upload;
 

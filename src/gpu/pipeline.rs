@@ -1,5 +1,6 @@
 //! Shader modules (embedded SPIR-V), push-descriptor layouts, graphics pipelines with dynamic
-//! rendering, compute pipelines and mesh-shader pipelines.
+//! rendering, compute pipelines and mesh-shader pipelines, with specialization constants and
+//! the context's pipeline cache.
 
 use std::sync::Arc;
 
@@ -139,6 +140,38 @@ impl Drop for Modules<'_> {
     }
 }
 
+/// Specialization constants `(constant_id, value)` as Vulkan map entries and their data.
+struct Specialization {
+    entries: Vec<vk::SpecializationMapEntry>,
+    data: Vec<u8>,
+}
+
+impl Specialization {
+    fn new(constants: &[(u32, u32)]) -> Self {
+        Self {
+            entries: constants
+                .iter()
+                .enumerate()
+                .map(|(i, (id, _))| vk::SpecializationMapEntry {
+                    constant_id: *id,
+                    offset: (i * 4) as u32,
+                    size: 4,
+                })
+                .collect(),
+            data: constants
+                .iter()
+                .flat_map(|(_, v)| v.to_ne_bytes())
+                .collect(),
+        }
+    }
+
+    fn info(&self) -> vk::SpecializationInfo<'_> {
+        vk::SpecializationInfo::default()
+            .map_entries(&self.entries)
+            .data(&self.data)
+    }
+}
+
 fn stage_of(path: &str) -> Result<vk::ShaderStageFlags> {
     let ext = path.rsplit('.').next().unwrap_or("");
     Ok(match ext {
@@ -176,6 +209,28 @@ pub struct GraphicsDesc<'a> {
     pub depth_compare: vk::CompareOp,
     pub topology: vk::PrimitiveTopology,
     pub cull: vk::CullModeFlags,
+    /// Specialization constants `(constant_id, value)` for every stage (GLSL
+    /// `layout(constant_id = N) const uint X = default;`); ids a stage lacks are ignored.
+    pub specialization: &'a [(u32, u32)],
+}
+
+impl Default for GraphicsDesc<'_> {
+    /// No shaders or attachments; no depth; triangles, no culling, no specialization.
+    fn default() -> Self {
+        Self {
+            shaders: &[],
+            bindings: &[],
+            color_formats: &[],
+            blends: &[],
+            depth_format: None,
+            depth_test: false,
+            depth_write: false,
+            depth_compare: vk::CompareOp::ALWAYS,
+            topology: vk::PrimitiveTopology::TRIANGLE_LIST,
+            cull: vk::CullModeFlags::NONE,
+            specialization: &[],
+        }
+    }
 }
 
 impl Pipeline {
@@ -187,6 +242,8 @@ impl Pipeline {
         }
         let (set_layout, layout) = layouts(ctx, desc.bindings, stages)?;
         let modules = Modules::load(ctx, desc.shaders)?;
+        let specialization = Specialization::new(desc.specialization);
+        let spec_info = specialization.info();
         let stage_infos = desc
             .shaders
             .iter()
@@ -195,7 +252,8 @@ impl Pipeline {
                 Ok(vk::PipelineShaderStageCreateInfo::default()
                     .stage(stage_of(p)?)
                     .module(*m)
-                    .name(c"main"))
+                    .name(c"main")
+                    .specialization_info(&spec_info))
             })
             .collect::<Result<Vec<_>>>()?;
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
@@ -259,7 +317,7 @@ impl Pipeline {
         // SAFETY: every referenced state lives until this call returns.
         let raw = unsafe {
             ctx.device
-                .create_graphics_pipelines(vk::PipelineCache::null(), &[info], None)
+                .create_graphics_pipelines(ctx.pipeline_cache, &[info], None)
                 .map_err(|(_, e)| anyhow!("creating pipeline {:?}: {e}", desc.shaders))?[0]
         };
         Ok(Self {
@@ -277,40 +335,31 @@ impl Pipeline {
         Self::compute_specialized(ctx, shader, bindings, &[])
     }
 
-    /// A compute pipeline whose `layout(constant_id = id)` constants take `values`
-    /// (`(id, value)`; bools are 0 or 1): shader variants without copying files.
+    /// A compute pipeline with specialization constants `(constant_id, value)` (shader
+    /// variants, e.g. workgroup sizes or modes, without copying the shader).
     pub fn compute_specialized(
         ctx: &Arc<Context>,
         shader: &str,
         bindings: &[Binding],
-        values: &[(u32, u32)],
+        specialization: &[(u32, u32)],
     ) -> Result<Self> {
         let stages = vk::ShaderStageFlags::COMPUTE;
         let (set_layout, layout) = layouts(ctx, bindings, stages)?;
         let modules = Modules::load(ctx, &[shader])?;
-        let entries: Vec<_> = (0..values.len())
-            .map(|k| vk::SpecializationMapEntry {
-                constant_id: values[k].0,
-                offset: 4 * k as u32,
-                size: 4,
-            })
-            .collect();
-        let data: Vec<u8> = values.iter().flat_map(|v| v.1.to_le_bytes()).collect();
-        let specialization = vk::SpecializationInfo::default()
-            .map_entries(&entries)
-            .data(&data);
+        let specialization = Specialization::new(specialization);
+        let spec_info = specialization.info();
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(stages)
             .module(modules.modules[0])
             .name(c"main")
-            .specialization_info(&specialization);
+            .specialization_info(&spec_info);
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout);
         // SAFETY: valid create info.
         let raw = unsafe {
             ctx.device
-                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
+                .create_compute_pipelines(ctx.pipeline_cache, &[info], None)
                 .map_err(|(_, e)| anyhow!("creating compute pipeline {shader}: {e}"))?[0]
         };
         Ok(Self {

@@ -91,7 +91,11 @@ impl Uploader {
 
     /// Lets `fill` write the next chunk (at most `chunk()` bytes), then submits `copies` out
     /// of it without waiting; the chunk is reused two calls later.
-    pub fn upload(&mut self, fill: impl FnOnce(&mut [u8]) -> Result<()>, copies: &[CopyRegion]) -> Result<()> {
+    pub fn upload(
+        &mut self,
+        fill: impl FnOnce(&mut [u8]) -> Result<()>,
+        copies: &[CopyRegion],
+    ) -> Result<()> {
         let slot = self.next;
         self.next = (self.next + 1) % self.slots.len();
         self.wait(slot)?;

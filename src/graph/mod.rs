@@ -7,23 +7,38 @@
 //! A pass reads like a small function:
 //! ```ignore
 //! g.pass("project")
-//!     .read(points, Access::StorageRead(Stages::Vertex))
+//!     .buffer(points, Access::StorageRead(Stages::Vertex))
+//!     .buffer_range(args, BufferRange::new(0, 16), Access::IndirectRead)
 //!     .color(color, Load::Clear([0.0; 4]))
-//!     .depth(depth, 0.0)
-//!     .record(move |ctx| ctx.draw(&pipeline, count));
+//!     .depth(depth, Load::Clear([0.0; 4]))
+//!     .record(move |ctx| {
+//!         ctx.bind(&pipeline, &[Descriptor::Buffer(BINDING_POINTS, points)]);
+//!         ctx.draw_indirect(args, 0, 1, 16);
+//!     });
 //! ```
+//!
+//! Stages: `validate.rs` (declarations) and culling, `derive.rs` (barriers per pass for the
+//! first and the steady-state frame, on top of the pure state machine in `sync.rs`),
+//! `compile.rs` (allocation with derived usage flags, views, samplers) and `record.rs`
+//! (recording; `PassContext` checks every command against the pass's declarations).
 
-mod exec;
+mod compile;
+mod derive;
+mod record;
 pub mod sync;
+mod validate;
 
+use std::fmt;
 use std::sync::Arc;
 
 use ash::vk;
 
 use crate::gpu::{Buffer, Image, ImageDesc};
 
-pub use exec::{Barrier, BarrierTarget, CompiledGraph, Descriptor, PassContext};
-pub use sync::{Access, Stages};
+pub use compile::CompiledGraph;
+pub use derive::{Barrier, BarrierTarget};
+pub use record::{Descriptor, PassContext, Sampler};
+pub use sync::{Access, StageSupport, Stages};
 
 /// Handle to an image of the graph.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -87,6 +102,8 @@ pub enum BufferSource {
 pub(crate) struct ImageRes {
     pub name: String,
     pub source: ImageSource,
+    /// The access an imported image was last used with before the graph's first frame.
+    pub initial: Option<Access>,
 }
 
 impl ImageRes {
@@ -101,18 +118,76 @@ impl ImageRes {
 pub(crate) struct BufferRes {
     pub name: String,
     pub source: BufferSource,
+    /// The access an imported buffer was last used with before the graph's first frame.
+    pub initial: Option<Access>,
+}
+
+impl BufferRes {
+    pub fn size(&self) -> u64 {
+        match &self.source {
+            BufferSource::Transient { size, .. } => *size,
+            BufferSource::Imported(b) => b.size,
+        }
+    }
+}
+
+/// Bytes `offset..offset + size` of a buffer; `size == vk::WHOLE_SIZE` reaches its end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct BufferRange {
+    pub offset: u64,
+    pub size: u64,
+}
+
+impl BufferRange {
+    /// The whole buffer.
+    pub const WHOLE: BufferRange = BufferRange {
+        offset: 0,
+        size: vk::WHOLE_SIZE,
+    };
+
+    pub fn new(offset: u64, size: u64) -> Self {
+        Self { offset, size }
+    }
+
+    /// `start..end`, where `end == u64::MAX` means the end of the buffer.
+    pub(crate) fn span(start: u64, end: u64) -> Self {
+        Self {
+            offset: start,
+            size: if end == u64::MAX {
+                vk::WHOLE_SIZE
+            } else {
+                end - start
+            },
+        }
+    }
+
+    /// One past the last byte (`u64::MAX`: the end of the buffer).
+    pub fn end(self) -> u64 {
+        if self.size == vk::WHOLE_SIZE {
+            u64::MAX
+        } else {
+            self.offset.saturating_add(self.size)
+        }
+    }
+}
+
+impl fmt::Display for BufferRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.size == vk::WHOLE_SIZE {
+            write!(f, "{}..", self.offset)
+        } else {
+            write!(f, "{}..{}", self.offset, self.end())
+        }
+    }
 }
 
 /// Which part of a resource an access touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Subresource {
     /// Mip levels `base..base + count` of an image.
-    Image {
-        id: ImageId,
-        base: u32,
-        count: u32,
-    },
-    Buffer(BufferId),
+    Image { id: ImageId, base: u32, count: u32 },
+    /// A range of a buffer.
+    Buffer(BufferId, BufferRange),
 }
 
 /// How a color attachment starts.
@@ -160,6 +235,7 @@ impl GraphBuilder {
         self.images.push(ImageRes {
             name: name.into(),
             source,
+            initial: None,
         });
         ImageId(self.images.len() as u32 - 1)
     }
@@ -179,6 +255,15 @@ impl GraphBuilder {
         self.add_image(name, ImageSource::Imported(image))
     }
 
+    /// An image owned outside the graph whose contents are valid and which was last used
+    /// with `initial` (in that access's layout): the first frame's barriers start from there
+    /// instead of UNDEFINED, so the contents are kept.
+    pub fn import_image_with(&mut self, name: &str, image: Arc<Image>, initial: Access) -> ImageId {
+        let id = self.import_image(name, image);
+        self.images[id.0 as usize].initial = Some(initial);
+        id
+    }
+
     /// An image bound per frame with `CompiledGraph::bind_external` (swapchain images).
     pub fn external_image(&mut self, name: &str, desc: ImageDesc) -> ImageId {
         self.add_image(name, ImageSource::External(desc))
@@ -192,22 +277,83 @@ impl GraphBuilder {
         }
     }
 
-    /// A transient buffer.
-    pub fn buffer(&mut self, name: &str, size: u64, usage: vk::BufferUsageFlags) -> BufferId {
+    fn add_buffer(
+        &mut self,
+        name: &str,
+        source: BufferSource,
+        initial: Option<Access>,
+    ) -> BufferId {
         self.buffers.push(BufferRes {
             name: name.into(),
-            source: BufferSource::Transient { size, usage },
+            source,
+            initial,
         });
         BufferId(self.buffers.len() as u32 - 1)
     }
 
+    /// A transient buffer. `usage` is extended by the usages its declared accesses need.
+    pub fn buffer(&mut self, name: &str, size: u64, usage: vk::BufferUsageFlags) -> BufferId {
+        self.add_buffer(name, BufferSource::Transient { size, usage }, None)
+    }
+
     /// A buffer owned outside the graph (point data, per-frame uniforms, readback targets).
     pub fn import_buffer(&mut self, name: &str, buffer: Arc<Buffer>) -> BufferId {
-        self.buffers.push(BufferRes {
-            name: name.into(),
-            source: BufferSource::Imported(buffer),
-        });
-        BufferId(self.buffers.len() as u32 - 1)
+        self.add_buffer(name, BufferSource::Imported(buffer), None)
+    }
+
+    /// An imported buffer last used with `initial` before the graph's first frame (e.g.
+    /// `TransferDst` after an upload): the first frame waits on that use.
+    pub fn import_buffer_with(
+        &mut self,
+        name: &str,
+        buffer: Arc<Buffer>,
+        initial: Access,
+    ) -> BufferId {
+        self.add_buffer(name, BufferSource::Imported(buffer), Some(initial))
+    }
+
+    /// A pass that fills `range` of `buffer` with the 32-bit `value` (`vkCmdFillBuffer`;
+    /// offset and size multiples of 4, or a size of `vk::WHOLE_SIZE`).
+    pub fn fill_buffer(&mut self, name: &str, buffer: BufferId, range: BufferRange, value: u32) {
+        self.pass(name)
+            .buffer_range(buffer, range, Access::TransferDst)
+            .record(move |ctx| ctx.fill_buffer(buffer, range, value));
+    }
+
+    /// A pass that copies `regions` from `src` to `dst` (`vkCmdCopyBuffer`).
+    pub fn copy_buffer(
+        &mut self,
+        name: &str,
+        src: BufferId,
+        dst: BufferId,
+        regions: &[vk::BufferCopy],
+    ) {
+        let mut pass = self.pass(name);
+        for r in regions {
+            pass = pass
+                .buffer_range(
+                    src,
+                    BufferRange::new(r.src_offset, r.size),
+                    Access::TransferSrc,
+                )
+                .buffer_range(
+                    dst,
+                    BufferRange::new(r.dst_offset, r.size),
+                    Access::TransferDst,
+                );
+        }
+        let regions = regions.to_vec();
+        pass.record(move |ctx| ctx.copy_buffer(src, dst, &regions));
+    }
+
+    /// A pass that writes `bytes` (at most 65536, a multiple of 4) into `buffer` at `offset`
+    /// from the command buffer (`vkCmdUpdateBuffer`).
+    pub fn update_buffer(&mut self, name: &str, buffer: BufferId, offset: u64, bytes: &[u8]) {
+        let range = BufferRange::new(offset, bytes.len() as u64);
+        let bytes = bytes.to_vec();
+        self.pass(name)
+            .buffer_range(buffer, range, Access::TransferDst)
+            .record(move |ctx| ctx.update_buffer(buffer, offset, &bytes));
     }
 
     /// Description of a declared image.
@@ -295,9 +441,17 @@ impl PassBuilder<'_> {
         self
     }
 
-    /// Any access to a buffer.
-    pub fn buffer(mut self, id: BufferId, access: Access) -> Self {
-        self.decl().uses.push((Subresource::Buffer(id), access));
+    /// Any access to a whole buffer.
+    pub fn buffer(self, id: BufferId, access: Access) -> Self {
+        self.buffer_range(id, BufferRange::WHOLE, access)
+    }
+
+    /// Any access to a range of a buffer. Several accesses of one pass to one buffer (or
+    /// overlapping ranges) are merged into one state.
+    pub fn buffer_range(mut self, id: BufferId, range: BufferRange, access: Access) -> Self {
+        self.decl()
+            .uses
+            .push((Subresource::Buffer(id, range), access));
         self
     }
 

@@ -39,22 +39,53 @@ pub enum Stages {
     Vertex,
     Fragment,
     Compute,
-    /// Vertex, task, mesh, geometry and fragment (a whole graphics pipeline).
+    /// Task and mesh shaders.
+    Mesh,
+    /// Vertex, task, mesh, geometry and fragment (a whole graphics pipeline), limited to the
+    /// stages the device supports.
     Graphics,
 }
 
+/// Optional shader stages the device has enabled; stage masks only name supported stages
+/// (the validation layers reject e.g. `MESH_SHADER_EXT` without the mesh-shader feature).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct StageSupport {
+    pub geometry: bool,
+    pub task: bool,
+    pub mesh: bool,
+}
+
+impl StageSupport {
+    /// Every optional stage (the default for device-free derivation).
+    pub const ALL: StageSupport = StageSupport {
+        geometry: true,
+        task: true,
+        mesh: true,
+    };
+}
+
+impl Default for StageSupport {
+    fn default() -> Self {
+        Self::ALL
+    }
+}
+
 impl Stages {
-    fn flags(self) -> vk::PipelineStageFlags2 {
+    fn flags(self, support: StageSupport) -> vk::PipelineStageFlags2 {
+        use vk::PipelineStageFlags2 as S;
+        let optional = |on: bool, stage: S| if on { stage } else { S::NONE };
+        let mesh =
+            optional(support.task, S::TASK_SHADER_EXT) | optional(support.mesh, S::MESH_SHADER_EXT);
         match self {
-            Stages::Vertex => vk::PipelineStageFlags2::VERTEX_SHADER,
-            Stages::Fragment => vk::PipelineStageFlags2::FRAGMENT_SHADER,
-            Stages::Compute => vk::PipelineStageFlags2::COMPUTE_SHADER,
+            Stages::Vertex => S::VERTEX_SHADER,
+            Stages::Fragment => S::FRAGMENT_SHADER,
+            Stages::Compute => S::COMPUTE_SHADER,
+            Stages::Mesh => mesh,
             Stages::Graphics => {
-                vk::PipelineStageFlags2::VERTEX_SHADER
-                    | vk::PipelineStageFlags2::GEOMETRY_SHADER
-                    | vk::PipelineStageFlags2::TASK_SHADER_EXT
-                    | vk::PipelineStageFlags2::MESH_SHADER_EXT
-                    | vk::PipelineStageFlags2::FRAGMENT_SHADER
+                S::VERTEX_SHADER
+                    | optional(support.geometry, S::GEOMETRY_SHADER)
+                    | mesh
+                    | S::FRAGMENT_SHADER
             }
         }
     }
@@ -70,9 +101,31 @@ pub struct AccessInfo {
     pub writes: bool,
 }
 
+impl AccessInfo {
+    /// One state for several accesses of a pass to the same subresource: the union of stages
+    /// and accesses, writing if any writes. `None` when two image accesses need different
+    /// layouts (`is_image`); buffers ignore layouts.
+    pub fn merge(self, other: AccessInfo, is_image: bool) -> Option<AccessInfo> {
+        if is_image && self.layout != other.layout {
+            return None;
+        }
+        Some(AccessInfo {
+            stages: self.stages | other.stages,
+            access: self.access | other.access,
+            layout: self.layout,
+            writes: self.writes || other.writes,
+        })
+    }
+}
+
 impl Access {
-    /// Stage/access/layout of this access (`depth` selects depth-aspect layouts).
+    /// Stage/access/layout of this access with every optional stage supported.
     pub fn info(self) -> AccessInfo {
+        self.info_for(StageSupport::ALL)
+    }
+
+    /// Stage/access/layout of this access on a device with `support`.
+    pub fn info_for(self, support: StageSupport) -> AccessInfo {
         use vk::AccessFlags2 as A;
         use vk::ImageLayout as L;
         use vk::PipelineStageFlags2 as S;
@@ -90,21 +143,23 @@ impl Access {
                 true,
             ),
             Access::Sampled(s) => (
-                s.flags(),
+                s.flags(support),
                 A::SHADER_SAMPLED_READ,
                 L::SHADER_READ_ONLY_OPTIMAL,
                 false,
             ),
-            Access::StorageRead(s) => (s.flags(), A::SHADER_STORAGE_READ, L::GENERAL, false),
-            Access::StorageWrite(s) => (s.flags(), A::SHADER_STORAGE_WRITE, L::GENERAL, true),
+            Access::StorageRead(s) => (s.flags(support), A::SHADER_STORAGE_READ, L::GENERAL, false),
+            Access::StorageWrite(s) => {
+                (s.flags(support), A::SHADER_STORAGE_WRITE, L::GENERAL, true)
+            }
             Access::StorageReadWrite(s) => (
-                s.flags(),
+                s.flags(support),
                 A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE,
                 L::GENERAL,
                 true,
             ),
             Access::UniformRead(s) => (
-                s.flags(),
+                s.flags(support),
                 A::SHADER_STORAGE_READ | A::UNIFORM_READ,
                 L::UNDEFINED,
                 false,
@@ -138,15 +193,70 @@ impl Access {
             writes,
         }
     }
+
+    /// Whether this access can apply to images (`Some(true)`), buffers (`Some(false)`) or both
+    /// (`None`).
+    pub fn on_image(self) -> Option<bool> {
+        match self {
+            Access::ColorAttachment
+            | Access::DepthAttachment
+            | Access::Sampled(_)
+            | Access::Present => Some(true),
+            Access::UniformRead(_)
+            | Access::IndexRead
+            | Access::IndirectRead
+            | Access::HostRead => Some(false),
+            Access::StorageRead(_)
+            | Access::StorageWrite(_)
+            | Access::StorageReadWrite(_)
+            | Access::TransferSrc
+            | Access::TransferDst => None,
+        }
+    }
+
+    /// The image usage this access needs.
+    pub fn image_usage(self) -> vk::ImageUsageFlags {
+        use vk::ImageUsageFlags as U;
+        match self {
+            Access::ColorAttachment => U::COLOR_ATTACHMENT,
+            Access::DepthAttachment => U::DEPTH_STENCIL_ATTACHMENT,
+            Access::Sampled(_) => U::SAMPLED,
+            Access::StorageRead(_) | Access::StorageWrite(_) | Access::StorageReadWrite(_) => {
+                U::STORAGE
+            }
+            Access::TransferSrc => U::TRANSFER_SRC,
+            Access::TransferDst => U::TRANSFER_DST,
+            _ => U::empty(),
+        }
+    }
+
+    /// The buffer usages this access can work with (any one of them suffices; a buffer the
+    /// graph allocates gets all of them).
+    pub fn buffer_usage(self) -> vk::BufferUsageFlags {
+        use vk::BufferUsageFlags as U;
+        match self {
+            Access::StorageRead(_) | Access::StorageWrite(_) | Access::StorageReadWrite(_) => {
+                U::STORAGE_BUFFER
+            }
+            Access::UniformRead(_) => U::UNIFORM_BUFFER | U::STORAGE_BUFFER,
+            Access::IndexRead => U::INDEX_BUFFER,
+            Access::IndirectRead => U::INDIRECT_BUFFER,
+            Access::TransferSrc => U::TRANSFER_SRC,
+            Access::TransferDst => U::TRANSFER_DST,
+            _ => U::empty(),
+        }
+    }
 }
 
-/// What happened to one subresource (an image mip level or a whole buffer) so far.
+/// What happened to one subresource (an image mip level or a buffer range) so far.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SubState {
     pub layout: vk::ImageLayout,
     /// Stages and accesses of the last write (empty if none yet).
     pub write_stages: vk::PipelineStageFlags2,
     pub write_access: vk::AccessFlags2,
+    /// The last write may not have been read yet: a later write waits on it too.
+    pub unread: bool,
     /// Stages that read since the last write (for write-after-read hazards).
     pub read_stages: vk::PipelineStageFlags2,
     /// Stages/accesses the last write has already been made visible to.
@@ -160,10 +270,38 @@ impl SubState {
         layout: vk::ImageLayout::UNDEFINED,
         write_stages: vk::PipelineStageFlags2::NONE,
         write_access: vk::AccessFlags2::NONE,
+        unread: false,
         read_stages: vk::PipelineStageFlags2::NONE,
         visible_stages: vk::PipelineStageFlags2::NONE,
         visible_access: vk::AccessFlags2::NONE,
     };
+
+    /// The state after a use by `access` whose completion nothing has waited on yet (an
+    /// imported resource's initial state).
+    pub fn after(access: AccessInfo, is_image: bool) -> SubState {
+        let mut state = SubState::UNDEFINED;
+        apply_info(&mut state, access, is_image);
+        state
+    }
+
+    /// A state that covers both `self` and `other` (a frame that may or may not have run
+    /// its on-demand passes): waits on every stage either waits on, counts as visible only
+    /// what both made visible. Layouts must agree or the result is UNDEFINED (contents lost).
+    pub fn merge(self, other: SubState) -> SubState {
+        SubState {
+            layout: if self.layout == other.layout {
+                self.layout
+            } else {
+                vk::ImageLayout::UNDEFINED
+            },
+            write_stages: self.write_stages | other.write_stages,
+            write_access: self.write_access | other.write_access,
+            unread: self.unread || other.unread,
+            read_stages: self.read_stages | other.read_stages,
+            visible_stages: self.visible_stages & other.visible_stages,
+            visible_access: self.visible_access & other.visible_access,
+        }
+    }
 }
 
 /// One derived barrier for a subresource.
@@ -180,7 +318,11 @@ pub struct Transition {
 /// Applies `access` to a subresource in `state`; returns the barrier needed before it, if any.
 /// `is_image` decides whether layouts matter.
 pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Transition> {
-    let info = access.info();
+    apply_info(state, access.info(), is_image)
+}
+
+/// `apply` for a resolved (possibly merged) access.
+pub fn apply_info(state: &mut SubState, info: AccessInfo, is_image: bool) -> Option<Transition> {
     let new_layout = if is_image {
         info.layout
     } else {
@@ -191,9 +333,9 @@ pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Tra
     if info.writes || layout_change {
         // Write-after-read / layout transition: wait for the reads since the last write; they
         // were themselves ordered after that write (and it was made available then), so the
-        // execution dependency chains. With no reads since, wait for the write itself (WAW).
-        let (src_stages, src_access) = if state.read_stages.is_empty() {
-            (state.write_stages, state.write_access)
+        // execution dependency chains. A write nothing read yet is waited on itself (WAW).
+        let (src_stages, src_access) = if state.unread || state.read_stages.is_empty() {
+            (state.read_stages | state.write_stages, state.write_access)
         } else {
             (state.read_stages, vk::AccessFlags2::NONE)
         };
@@ -214,11 +356,13 @@ pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Tra
         if info.writes {
             state.write_stages = info.stages;
             state.write_access = info.access;
+            state.unread = true;
             state.read_stages = vk::PipelineStageFlags2::NONE;
             state.visible_stages = vk::PipelineStageFlags2::NONE;
             state.visible_access = vk::AccessFlags2::NONE;
         } else {
             // A transition to a read layout makes the earlier write visible to this read.
+            state.unread = false;
             state.read_stages = info.stages;
             state.visible_stages = info.stages;
             state.visible_access = info.access;
@@ -243,6 +387,7 @@ pub fn apply(state: &mut SubState, access: Access, is_image: bool) -> Option<Tra
         state.visible_access |= info.access;
     }
     state.read_stages |= info.stages;
+    state.unread = false;
     barrier
 }
 
@@ -274,6 +419,69 @@ mod tests {
         let w = apply(&mut s, Access::StorageWrite(Stages::Compute), true).expect("WAR");
         assert_eq!(w.src_stages, S::FRAGMENT_SHADER);
         assert_eq!(w.src_access, vk::AccessFlags2::NONE);
+    }
+
+    #[test]
+    fn stage_masks_follow_the_supported_stages() {
+        let none = StageSupport {
+            geometry: false,
+            task: false,
+            mesh: false,
+        };
+        let mesh_read = Access::StorageRead(Stages::Mesh);
+        assert_eq!(
+            mesh_read.info().stages,
+            S::TASK_SHADER_EXT | S::MESH_SHADER_EXT
+        );
+        assert_eq!(
+            mesh_read
+                .info_for(StageSupport {
+                    task: false,
+                    ..StageSupport::ALL
+                })
+                .stages,
+            S::MESH_SHADER_EXT
+        );
+        assert_eq!(
+            Access::Sampled(Stages::Graphics).info_for(none).stages,
+            S::VERTEX_SHADER | S::FRAGMENT_SHADER
+        );
+    }
+
+    #[test]
+    fn merged_accesses_union_stages_and_reject_two_layouts() {
+        let indirect = Access::IndirectRead.info();
+        let storage = Access::StorageWrite(Stages::Compute).info();
+        let both = indirect
+            .merge(storage, false)
+            .expect("buffers ignore layouts");
+        assert_eq!(both.stages, S::DRAW_INDIRECT | S::COMPUTE_SHADER);
+        assert!(both.writes);
+        let sampled = Access::Sampled(Stages::Fragment).info();
+        assert_eq!(sampled.merge(storage, true), None);
+        assert_eq!(
+            storage
+                .merge(Access::StorageRead(Stages::Fragment).info(), true)
+                .map(|m| m.layout),
+            Some(vk::ImageLayout::GENERAL)
+        );
+    }
+
+    #[test]
+    fn a_merged_frame_end_waits_on_both_variants() {
+        // Variant A: a compute write nothing read. Variant B: a transfer write the host read.
+        let mut a = SubState::UNDEFINED;
+        apply(&mut a, Access::StorageWrite(Stages::Compute), false);
+        let mut b = a;
+        apply(&mut b, Access::TransferDst, false);
+        apply(&mut b, Access::HostRead, false);
+        let mut merged = a.merge(b);
+        let t = apply(&mut merged, Access::StorageWrite(Stages::Compute), false).expect("WAW");
+        assert_eq!(t.src_stages, S::COMPUTE_SHADER | S::ALL_TRANSFER | S::HOST);
+        assert_eq!(
+            t.src_access,
+            vk::AccessFlags2::SHADER_STORAGE_WRITE | vk::AccessFlags2::TRANSFER_WRITE
+        );
     }
 
     #[test]

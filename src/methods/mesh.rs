@@ -8,8 +8,8 @@ use ash::vk;
 
 use super::{BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
-    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0, BINDING_SEGMENTS,
-    RESOLVE_GROUP,
+    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
+    BINDING_SEGMENTS, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{Access, Descriptor, Load, Stages};
@@ -62,6 +62,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             depth_compare: vk::CompareOp::GREATER,
             topology: vk::PrimitiveTopology::TRIANGLE_LIST,
             cull: vk::CullModeFlags::NONE,
+            specialization: &[],
         },
     )?);
     let comp = vk::ShaderStageFlags::COMPUTE;

@@ -71,7 +71,9 @@ impl Feature {
 
     pub fn describe(self) -> &'static str {
         match self {
-            Feature::Int64Atomics => "64-bit buffer atomics (shaderInt64, shaderBufferInt64Atomics)",
+            Feature::Int64Atomics => {
+                "64-bit buffer atomics (shaderInt64, shaderBufferInt64Atomics)"
+            }
             Feature::MeshShader => "mesh and task shaders (VK_EXT_mesh_shader)",
             Feature::GeometryShader => "geometry shaders",
         }

@@ -50,6 +50,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             depth_compare: vk::CompareOp::GREATER,
             topology: vk::PrimitiveTopology::POINT_LIST,
             cull: vk::CullModeFlags::NONE,
+            specialization: &[],
         },
     )?);
     let zbuffer = b.graph.image(

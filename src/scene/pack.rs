@@ -3,7 +3,6 @@
 
 use glam::{Vec2, Vec3};
 
-
 /// Octahedral encoding of a unit normal into two snorm16 values.
 pub fn oct_encode(n: Vec3) -> u32 {
     let n = n.normalize_or(Vec3::Z);

@@ -145,9 +145,8 @@ impl StreamLayout {
         if cloud.colors.is_some() {
             streams.push(Stream::Color);
         }
-        streams.extend(
-            (0..cloud.scalars.len().min(MAX_SCALAR_STREAMS as usize)).map(Stream::Scalar),
-        );
+        streams
+            .extend((0..cloud.scalars.len().min(MAX_SCALAR_STREAMS as usize)).map(Stream::Scalar));
         streams
     }
 
@@ -225,8 +224,8 @@ impl StreamLayout {
                     .for_each(|(c, (o, ids))| {
                         let start = range.start + (c * chunk) as u64;
                         for (k, (o, &i)) in o.chunks_exact_mut(4).zip(ids).enumerate() {
-                            let b = &self.batches[((start + k as u64) / u64::from(BATCH_POINTS))
-                                as usize];
+                            let b = &self.batches
+                                [((start + k as u64) / u64::from(BATCH_POINTS)) as usize];
                             let q = quantize(cloud.positions[i as usize], b);
                             o.copy_from_slice(&quant_word(q, word).to_le_bytes());
                         }
@@ -303,10 +302,7 @@ pub fn morton_order(positions: &[Vec3]) -> Vec<u32> {
     };
     let (lo, hi) = positions
         .par_iter()
-        .fold(
-            || (first, first),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        )
+        .fold(|| (first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)))
         .reduce(|| (first, first), |a, b| (a.0.min(b.0), a.1.max(b.1)));
     let extent = hi - lo;
     let scale = Vec3::select(extent.cmpgt(Vec3::ZERO), extent.recip(), Vec3::ZERO);
@@ -340,9 +336,9 @@ pub fn quantize(p: Vec3, b: &GpuBatch) -> [u32; 3] {
 pub fn quant_word(q: [u32; 3], word: u32) -> u32 {
     let shift = QUANT_BITS * (2 - word);
     let mask = (1 << QUANT_BITS) - 1;
-    q.iter()
-        .enumerate()
-        .fold(0, |w, (a, &v)| w | (((v >> shift) & mask) << (QUANT_BITS * a as u32)))
+    q.iter().enumerate().fold(0, |w, (a, &v)| {
+        w | (((v >> shift) & mask) << (QUANT_BITS * a as u32))
+    })
 }
 
 /// Decodes the first `words` words (1..=3) of a quantized position to the centre of its

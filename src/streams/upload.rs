@@ -73,11 +73,7 @@ pub fn upload(
     let usage = vk::BufferUsageFlags::STORAGE_BUFFER
         | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
         | vk::BufferUsageFlags::TRANSFER_DST;
-    let per_point: u64 = layout
-        .streams
-        .iter()
-        .map(|&s| s.bytes_per_point())
-        .sum();
+    let per_point: u64 = layout.streams.iter().map(|&s| s.bytes_per_point()).sum();
     // Whole radius pairs per chunk: an even number of points.
     let chunk_points = (options.chunk_bytes / per_point.max(1)) & !1;
     if chunk_points == 0 {

@@ -21,7 +21,7 @@ use crate::gpu::layout::{
     BINDING_VISIBILITY, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Pipeline};
-use crate::graph::{Access, BufferId, Descriptor, Stages};
+use crate::graph::{Access, BufferId, BufferRange, Descriptor, Stages};
 
 const QUANTIZED: ParamSpec = ParamSpec {
     name: "quantized",
@@ -96,7 +96,8 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
     } else {
         0.0
     };
-    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    // Usage flags follow from the declared accesses.
+    let usage = vk::BufferUsageFlags::empty();
     let visibility = b
         .graph
         .buffer(&format!("{prefix}.visibility"), pixels * 8, usage);
@@ -106,7 +107,6 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
     } else {
         visibility
     };
-    let hq = u32::from(high_quality);
     let bindings = [
         storage(BINDING_FRAME),
         storage(BINDING_SEGMENTS),
@@ -114,12 +114,6 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
         storage(BINDING_VISIBILITY),
         storage(BINDING_ACCUM),
     ];
-    let clear = Arc::new(Pipeline::compute_specialized(
-        b.ctx,
-        "compute/clear.comp",
-        &bindings,
-        &[(0, hq)],
-    )?);
     let raster = |mode: u32| {
         Pipeline::compute_specialized(
             b.ctx,
@@ -138,19 +132,21 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
         Descriptor::Buffer(BINDING_ACCUM, accum),
     ];
     let compute = Stages::Compute;
-    let mut pass = b
-        .graph
-        .pass(&format!("{prefix}.clear"))
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(visibility, Access::StorageWrite(compute));
+    // Empty pixels hold the largest key; the accumulators start at zero.
+    b.graph.fill_buffer(
+        &format!("{prefix}.clear"),
+        visibility,
+        BufferRange::WHOLE,
+        u32::MAX,
+    );
     if high_quality {
-        pass = pass.buffer(accum, Access::StorageWrite(compute));
+        b.graph.fill_buffer(
+            &format!("{prefix}.clear-accum"),
+            accum,
+            BufferRange::WHOLE,
+            0,
+        );
     }
-    let groups = u32::try_from(pixels.div_ceil(256))?;
-    pass.record(move |ctx| {
-        ctx.bind(&clear, &descriptors);
-        ctx.dispatch(groups, 1, 1);
-    });
     // One workgroup per batch, folded into 2D past the 65,535 groups every device allows.
     let batch_count = b.scene.streams.batch_count;
     let (gx, gy) = (batch_count.min(65_535), batch_count.div_ceil(65_535));
@@ -190,7 +186,11 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
 }
 
 fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
-    let prefix = if high_quality { "compute-hq" } else { "compute" };
+    let prefix = if high_quality {
+        "compute-hq"
+    } else {
+        "compute"
+    };
     let projection = project(b, prefix, high_quality)?;
     let resolve = Arc::new(Pipeline::compute_specialized(
         b.ctx,

@@ -1,0 +1,321 @@
+//! Compiling a `GraphBuilder`: culling, barrier derivation for the device's stages, usage
+//! flags of graph-owned resources derived from their accesses, allocation, mip-range views,
+//! samplers and timestamp scopes.
+
+use std::collections::HashMap;
+use std::ffi::CString;
+use std::sync::Arc;
+
+use anyhow::Result;
+use ash::vk;
+
+use super::derive::{derive, Barrier};
+use super::sync::StageSupport;
+use super::{
+    Access, BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, PassDecl, Subresource,
+};
+use crate::gpu::{Buffer, Context, Image, ImageDesc, Profiler};
+
+pub(super) enum ImageSlot {
+    Owned(Image),
+    Imported(Arc<Image>),
+    External {
+        desc: ImageDesc,
+        raw: vk::Image,
+        view: vk::ImageView,
+    },
+}
+
+pub(super) enum BufferSlot {
+    Owned(Buffer),
+    Imported(Arc<Buffer>),
+}
+
+pub(super) struct CompiledPass {
+    pub decl: PassDecl,
+    pub label: CString,
+    /// Barriers before the pass in the first frame.
+    pub first: Vec<Barrier>,
+    /// Barriers before the pass in every later frame.
+    pub steady: Vec<Barrier>,
+    /// Index of the pass's timestamp scope (regular passes only).
+    pub scope: Option<usize>,
+}
+
+/// An executable graph: resources allocated, barriers derived, scopes assigned.
+pub struct CompiledGraph {
+    pub(super) ctx: Arc<Context>,
+    pub(super) images: Vec<(String, ImageSlot)>,
+    pub(super) buffers: Vec<(String, BufferSlot)>,
+    pub(super) passes: Vec<CompiledPass>,
+    pub(super) profiler: Profiler,
+    /// Samplers by `Sampler as usize`.
+    pub(super) samplers: [vk::Sampler; 2],
+    /// Views of declared multi-level mip ranges `(image, base, count)` that are not the whole
+    /// chain (single levels and the whole chain have views on the image itself).
+    pub(super) range_views: HashMap<(ImageId, u32, u32), vk::ImageView>,
+    pub(super) first_frame: bool,
+}
+
+/// The optional stages `ctx`'s device has enabled.
+fn stage_support(ctx: &Context) -> StageSupport {
+    StageSupport {
+        geometry: ctx.caps.geometry_shader,
+        task: ctx.caps.task_shader,
+        mesh: ctx.caps.mesh_shader,
+    }
+}
+
+impl GraphBuilder {
+    /// The usage flags of every image and buffer: the declared ones plus those their accesses
+    /// need.
+    fn derived_usage(&self) -> (Vec<vk::ImageUsageFlags>, Vec<vk::BufferUsageFlags>) {
+        let mut images: Vec<_> = self.images.iter().map(|r| r.desc().usage).collect();
+        let mut buffers: Vec<_> = self
+            .buffers
+            .iter()
+            .map(|r| match &r.source {
+                BufferSource::Transient { usage, .. } => *usage,
+                BufferSource::Imported(b) => b.usage,
+            })
+            .collect();
+        for pass in &self.passes {
+            for (sub, access) in &pass.uses {
+                match *sub {
+                    Subresource::Image { id, .. } => {
+                        images[id.0 as usize] |= access.image_usage();
+                    }
+                    Subresource::Buffer(id, _) => {
+                        buffers[id.0 as usize] |= access.buffer_usage();
+                    }
+                }
+            }
+        }
+        (images, buffers)
+    }
+
+    /// Validates, culls unused passes, derives barriers for `ctx`'s device, allocates graph-owned
+    /// resources (their usage derived from their accesses), views and timestamp scopes.
+    pub fn compile(mut self, ctx: &Arc<Context>) -> Result<CompiledGraph> {
+        self.cull();
+        let barriers = derive(&self, stage_support(ctx))?;
+        let (image_usage, buffer_usage) = self.derived_usage();
+        let mut ranges: Vec<(ImageId, u32, u32)> = Vec::new();
+        for pass in &self.passes {
+            for (sub, access) in &pass.uses {
+                if let (Subresource::Image { id, base, count }, Access::Sampled(_)) = (*sub, access)
+                {
+                    let levels = self.desc(id).mip_levels;
+                    if count > 1 && count < levels && !ranges.contains(&(id, base, count)) {
+                        ranges.push((id, base, count));
+                    }
+                }
+            }
+        }
+        let images = self
+            .images
+            .into_iter()
+            .zip(image_usage)
+            .map(|(r, usage)| {
+                let slot = match r.source {
+                    ImageSource::Transient(d) | ImageSource::History(d) => {
+                        ImageSlot::Owned(Image::new(ctx, &r.name, ImageDesc { usage, ..d })?)
+                    }
+                    ImageSource::Imported(i) => ImageSlot::Imported(i),
+                    ImageSource::External(desc) => ImageSlot::External {
+                        desc,
+                        raw: vk::Image::null(),
+                        view: vk::ImageView::null(),
+                    },
+                };
+                Ok((r.name, slot))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let buffers = self
+            .buffers
+            .into_iter()
+            .zip(buffer_usage)
+            .map(|(r, usage)| {
+                let slot = match r.source {
+                    BufferSource::Transient { size, .. } => BufferSlot::Owned(Buffer::new(
+                        ctx,
+                        &r.name,
+                        size,
+                        usage,
+                        gpu_allocator::MemoryLocation::GpuOnly,
+                    )?),
+                    BufferSource::Imported(b) => BufferSlot::Imported(b),
+                };
+                Ok((r.name, slot))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut scope_names = Vec::new();
+        let passes = self
+            .passes
+            .into_iter()
+            .zip(barriers)
+            .map(|(decl, (first, steady))| {
+                let scope = (!decl.on_demand).then(|| {
+                    scope_names.push(decl.name.clone());
+                    scope_names.len() - 1
+                });
+                CompiledPass {
+                    label: CString::new(decl.name.replace('\0', " ")).unwrap_or_default(),
+                    decl,
+                    first,
+                    steady,
+                    scope,
+                }
+            })
+            .collect();
+        let mut graph = CompiledGraph {
+            ctx: ctx.clone(),
+            profiler: Profiler::new(ctx, scope_names)?,
+            images,
+            buffers,
+            passes,
+            samplers: [vk::Sampler::null(); 2],
+            range_views: HashMap::new(),
+            first_frame: true,
+        };
+        // Objects created below are destroyed by `graph`'s Drop, also on an early return.
+        for (i, (filter, mipmap)) in [
+            (vk::Filter::NEAREST, vk::SamplerMipmapMode::NEAREST),
+            (vk::Filter::LINEAR, vk::SamplerMipmapMode::LINEAR),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let info = vk::SamplerCreateInfo::default()
+                .mag_filter(filter)
+                .min_filter(filter)
+                .mipmap_mode(mipmap)
+                .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .max_lod(vk::LOD_CLAMP_NONE);
+            // SAFETY: valid create info; destroyed in Drop.
+            graph.samplers[i] = unsafe { ctx.device.create_sampler(&info, None)? };
+        }
+        for (id, base, count) in ranges {
+            let raw = graph.image_raw(id);
+            let desc = graph.image_desc(id);
+            let info = vk::ImageViewCreateInfo::default()
+                .image(raw)
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(desc.format)
+                .subresource_range(vk::ImageSubresourceRange {
+                    aspect_mask: desc.aspect(),
+                    base_mip_level: base,
+                    level_count: count,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                });
+            // SAFETY: the image is sampled (validated usage), the range lies within its mip
+            // chain (validated); destroyed in Drop.
+            let view = unsafe { ctx.device.create_image_view(&info, None)? };
+            graph.range_views.insert((id, base, count), view);
+        }
+        Ok(graph)
+    }
+}
+
+impl CompiledGraph {
+    fn image_slot(&self, id: ImageId) -> &ImageSlot {
+        &self.images[id.0 as usize].1
+    }
+
+    pub(super) fn image_raw(&self, id: ImageId) -> vk::Image {
+        match self.image_slot(id) {
+            ImageSlot::Owned(i) => i.raw,
+            ImageSlot::Imported(i) => i.raw,
+            ImageSlot::External { raw, .. } => *raw,
+        }
+    }
+
+    pub(super) fn image_desc(&self, id: ImageId) -> ImageDesc {
+        match self.image_slot(id) {
+            ImageSlot::Owned(i) => i.desc,
+            ImageSlot::Imported(i) => i.desc,
+            ImageSlot::External { desc, .. } => *desc,
+        }
+    }
+
+    /// The view of mip levels `base..base + count` of `id`: one level, the whole chain or a
+    /// range declared as sampled by some pass.
+    pub(super) fn view(&self, id: ImageId, base: u32, count: u32) -> vk::ImageView {
+        let levels = self.image_desc(id).mip_levels;
+        match self.image_slot(id) {
+            ImageSlot::External { view, .. } => Some(*view),
+            ImageSlot::Owned(i) => pick_view(i.view, &i.mip_views, levels, base, count),
+            ImageSlot::Imported(i) => pick_view(i.view, &i.mip_views, levels, base, count),
+        }
+        .or_else(|| self.range_views.get(&(id, base, count)).copied())
+        .unwrap_or_else(|| {
+            panic!(
+                "no view of mips {base}..{} of '{}': declare exactly that range as Sampled",
+                base + count,
+                self.images[id.0 as usize].0
+            )
+        })
+    }
+
+    pub(super) fn buffer_raw(&self, id: BufferId) -> (vk::Buffer, u64) {
+        match &self.buffers[id.0 as usize].1 {
+            BufferSlot::Owned(b) => (b.raw, b.size),
+            BufferSlot::Imported(b) => (b.raw, b.size),
+        }
+    }
+
+    /// Binds this frame's swapchain image (and its view) to an external image.
+    pub fn bind_external(&mut self, id: ImageId, image: vk::Image, image_view: vk::ImageView) {
+        if let ImageSlot::External { raw, view, .. } = &mut self.images[id.0 as usize].1 {
+            *raw = image;
+            *view = image_view;
+        }
+    }
+
+    /// The timestamp profiler (one scope per regular pass).
+    pub fn profiler(&mut self) -> &mut Profiler {
+        &mut self.profiler
+    }
+
+    /// Names of the timed passes in execution order.
+    pub fn pass_names(&self) -> Vec<String> {
+        self.passes
+            .iter()
+            .filter(|p| !p.decl.on_demand)
+            .map(|p| p.decl.name.clone())
+            .collect()
+    }
+}
+
+fn pick_view(
+    whole: vk::ImageView,
+    mips: &[vk::ImageView],
+    levels: u32,
+    base: u32,
+    count: u32,
+) -> Option<vk::ImageView> {
+    if count == 1 {
+        mips.get(base as usize).copied()
+    } else if base == 0 && count == levels && whole != vk::ImageView::null() {
+        Some(whole)
+    } else {
+        None
+    }
+}
+
+impl Drop for CompiledGraph {
+    fn drop(&mut self) {
+        // SAFETY: the owner waited for the frames using the graph; null handles are ignored.
+        unsafe {
+            for s in self.samplers {
+                self.ctx.device.destroy_sampler(s, None);
+            }
+            for (_, v) in self.range_views.drain() {
+                self.ctx.device.destroy_image_view(v, None);
+            }
+        }
+    }
+}
