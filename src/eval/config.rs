@@ -962,9 +962,9 @@ values = [1.0, 0.1]
     fn quick_config_and_example_files_are_valid() {
         let q = BenchConfig::quick().unwrap();
         let jobs = q.jobs();
-        // Baseline: 2 resolutions x 3 method configurations; 2 point counts x 3; 3 stress
-        // kinds x 2 values x 3.
-        assert_eq!(jobs.len(), 2 * 3 + 2 * 3 + 3 * 2 * 3);
+        // Baseline: 2 resolutions x 4 method configurations; 2 point counts x 4; 3 stress
+        // kinds x 2 values x 4.
+        assert_eq!(jobs.len(), 2 * 4 + 2 * 4 + 3 * 2 * 4);
         assert!(jobs
             .iter()
             .all(|j| j.frames.measured == 3 && j.width <= 128));
@@ -975,7 +975,7 @@ values = [1.0, 0.1]
         // Both resolve against the file's directory, wherever the process runs.
         assert!(q.models[0].path.starts_with(&dir), "{:?}", q.models[0].path);
         q.check_models().unwrap();
-        for name in ["lavapipe.toml", "full.toml"] {
+        for name in ["lavapipe.toml", "full.toml", "compute.toml"] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()
                 .check_models()
