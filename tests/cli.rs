@@ -152,7 +152,13 @@ fn info_reports_counts_attributes_and_memory() {
     assert!(s.contains("points            64365"), "{s}");
     assert!(s.contains("faces             127229"), "{s}");
     assert!(s.contains("normal") && s.contains("color"), "{s}");
-    assert!(s.contains("24 bytes/point"), "{s}");
+    // One line per stream with its bytes per point, then the total.
+    assert!(s.contains("position f32              12"), "{s}");
+    assert!(s.contains("position q10 (coarse)      4"), "{s}");
+    assert!(s.contains("radius f16                 2"), "{s}");
+    assert!(s.contains("color rgba8                4"), "{s}");
+    assert!(s.contains("34.00 bytes/point"), "{s}");
+    assert!(s.contains("in 7 batches of 10240 points"), "{s}");
 }
 
 #[test]

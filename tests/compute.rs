@@ -188,3 +188,33 @@ fn methods_state_the_features_they_need() {
         None
     );
 }
+
+#[test]
+fn degenerate_clouds_render_cleanly_through_the_compute_path() {
+    let one = |p: Vec3| Cloud {
+        positions: vec![p],
+        normals: Some(vec![Vec3::ZERO]),
+        ..Default::default()
+    };
+    let covered = |f: &Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
+    for method in ["compute", "compute-hq"] {
+        let empty = render(&Cloud::default(), method, 32);
+        assert_eq!(covered(&empty), 0, "{method}: empty cloud");
+        // One point frames itself at the image centre: one pixel, zero normal decoded as +z.
+        let single = render(&one(Vec3::new(5.0, -2.0, 1.0)), method, 32);
+        assert_eq!(covered(&single), 1, "{method}: one point");
+        // A batch of identical points has a zero-extent box: quantization must not divide by
+        // zero, and all of them land in one pixel.
+        let dup = Cloud {
+            positions: vec![Vec3::ONE; 1000],
+            normals: Some(vec![Vec3::Y; 1000]),
+            ..Default::default()
+        };
+        let d = render(&dup, method, 32);
+        assert_eq!(covered(&d), 1, "{method}: duplicates");
+        for f in [&empty, &single, &d] {
+            let report = surfel::eval::metrics::check_finite(f).expect("sizes");
+            assert!(report.is_clean(), "{method}: {report:?}");
+        }
+    }
+}
