@@ -273,6 +273,22 @@ struct Timings<'a> {
     passes: Vec<ScopeStats>,
     frame: ScopeStats,
     points_per_second: f64,
+    startup: Startup,
+}
+
+/// Wall-clock seconds from the start of `surfel render` to its first finished frame.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+struct Startup {
+    /// Parsing and preprocessing (normals, radii).
+    load_s: f64,
+    /// Vulkan instance and device.
+    device_s: f64,
+    /// Morton ordering, stream encoding and upload.
+    upload_s: f64,
+    /// Graph compilation and the first frame on the GPU.
+    first_frame_s: f64,
+    /// The sum: time to first pixel.
+    first_pixel_s: f64,
 }
 
 fn render(a: RenderArgs) -> Result<()> {
@@ -286,9 +302,20 @@ fn render(a: RenderArgs) -> Result<()> {
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = parse_size(&a.size)?;
     let (pose, lights) = view_settings(&a.camera)?;
+    let start = std::time::Instant::now();
+    let mut lap = start;
+    let mut since = || {
+        let now = std::time::Instant::now();
+        let s = (now - lap).as_secs_f64();
+        lap = now;
+        s
+    };
     let cloud = load_prepared(&file, &a.input.options())?;
+    let load_s = since();
     let ctx = context(a.validation)?;
+    let device_s = since();
     let (scene, info) = upload(&ctx, &cloud)?;
+    let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,
         &scene,
@@ -310,6 +337,19 @@ fn render(a: RenderArgs) -> Result<()> {
         use_color: !a.camera.no_color,
         time: 0.0,
     };
+    let first = renderer.render(&view, true)?;
+    let first_frame_s = since();
+    let startup = Startup {
+        load_s,
+        device_s,
+        upload_s,
+        first_frame_s,
+        first_pixel_s: (lap - start).as_secs_f64(),
+    };
+    eprintln!(
+        "first pixel after {:.2} s (load {:.2} s, device {:.2} s, upload {:.2} s, first frame {:.2} s)",
+        startup.first_pixel_s, load_s, device_s, upload_s, first_frame_s
+    );
     if let Some(path) = &a.timings {
         for _ in 0..3 {
             renderer.render(&view, false)?;
@@ -334,6 +374,7 @@ fn render(a: RenderArgs) -> Result<()> {
             },
             passes,
             frame,
+            startup,
         };
         std::fs::write(path, serde_json::to_string_pretty(&timings)?)
             .with_context(|| format!("{}: cannot write timings", path.display()))?;
@@ -345,9 +386,13 @@ fn render(a: RenderArgs) -> Result<()> {
         }
         eprintln!("{:<24} {:>9.3} ms", "frame", timings.frame.median_ms);
     }
-    let frame = renderer
-        .render(&view, true)?
-        .context("renderer returned no frame")?;
+    // The frame to write: the first one, unless timed frames followed (then a fresh one).
+    let frame = if a.timings.is_some() {
+        renderer.render(&view, true)?
+    } else {
+        first
+    }
+    .context("renderer returned no frame")?;
     drop(renderer);
     if ctx.validation && ctx.validation_errors() > 0 {
         bail!("{} Vulkan validation errors", ctx.validation_errors());
