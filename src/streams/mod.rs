@@ -192,6 +192,78 @@ impl StreamLayout {
         inv
     }
 
+    /// Encodes every stream for stream indices `range` (an even start) into `out`, stream
+    /// after stream in `self.streams` order, each `stream_bytes(stream, range.len())` long.
+    /// The f32 and quantized positions are written in one pass (one gather and one
+    /// quantization per point).
+    pub fn encode_chunk(&self, cloud: &Cloud, range: Range<u64>, out: &mut [u8]) {
+        let n = range.end - range.start;
+        let mut rest = out;
+        let mut slices = Vec::with_capacity(self.streams.len());
+        for &stream in &self.streams {
+            let (head, tail) = rest.split_at_mut(Self::stream_bytes(stream, n) as usize);
+            slices.push((stream, head));
+            rest = tail;
+        }
+        let position = |s: Stream| slices.iter().position(|(t, _)| *t == s);
+        let fused = [
+            Stream::Position,
+            Stream::Coarse,
+            Stream::Medium,
+            Stream::Fine,
+        ];
+        if let [Some(0), Some(1), Some(2), Some(3)] = fused.map(position) {
+            let (pos, quant) = slices.split_at_mut(1);
+            let [(_, coarse), (_, medium), (_, fine)] = &mut quant[..3] else {
+                unreachable!("three quantized streams follow the positions");
+            };
+            self.encode_positions(cloud, range.clone(), pos[0].1, [coarse, medium, fine]);
+            slices.drain(..4);
+        }
+        for (stream, slice) in slices {
+            self.encode(cloud, stream, range.clone(), slice);
+        }
+    }
+
+    /// f32 positions and the three quantized words of stream indices `range`.
+    fn encode_positions(
+        &self,
+        cloud: &Cloud,
+        range: Range<u64>,
+        exact: &mut [u8],
+        words: [&mut [u8]; 3],
+    ) {
+        let ids = &self.order[range.start as usize..range.end as usize];
+        let chunk = 4096;
+        let [coarse, medium, fine] = words;
+        exact
+            .par_chunks_mut(chunk * 12)
+            .zip(coarse.par_chunks_mut(chunk * 4))
+            .zip(medium.par_chunks_mut(chunk * 4))
+            .zip(fine.par_chunks_mut(chunk * 4))
+            .zip(ids.par_chunks(chunk))
+            .enumerate()
+            .for_each(|(c, ((((e, w0), w1), w2), ids))| {
+                let start = range.start + (c * chunk) as u64;
+                let mut batch = u64::MAX;
+                let mut scale = Quantizer::default();
+                for (k, &i) in ids.iter().enumerate() {
+                    let b = (start + k as u64) / u64::from(BATCH_POINTS);
+                    if b != batch {
+                        batch = b;
+                        scale = Quantizer::new(&self.batches[b as usize]);
+                    }
+                    let p = cloud.positions[i as usize];
+                    e[12 * k..12 * k + 12].copy_from_slice(bytemuck::bytes_of(&p.to_array()));
+                    let q = scale.quantize(p);
+                    for (w, out) in [&mut *w0, &mut *w1, &mut *w2].into_iter().enumerate() {
+                        out[4 * k..4 * k + 4]
+                            .copy_from_slice(&quant_word(q, w as u32).to_le_bytes());
+                    }
+                }
+            });
+    }
+
     /// Encodes stream `stream` for stream indices `range` (an even start, so radius pairs stay
     /// aligned) into `out`, which must be `stream_bytes(stream, range.len())` long.
     pub fn encode(&self, cloud: &Cloud, stream: Stream, range: Range<u64>, out: &mut [u8]) {
@@ -315,20 +387,44 @@ pub fn morton_order(positions: &[Vec3]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
+/// Maps positions to `QUANT_FULL_BITS` cells per axis of one batch box.
+#[derive(Clone, Copy, Debug, Default)]
+struct Quantizer {
+    lo: [f64; 3],
+    /// Cells per unit length (0 for a flat axis).
+    scale: [f64; 3],
+}
+
+impl Quantizer {
+    fn new(b: &GpuBatch) -> Self {
+        let lo = [b.min_x, b.min_y, b.min_z].map(f64::from);
+        let hi = [b.max_x, b.max_y, b.max_z].map(f64::from);
+        let cells = (1u64 << QUANT_FULL_BITS) as f64;
+        Self {
+            lo,
+            scale: std::array::from_fn(|a| {
+                let extent = hi[a] - lo[a];
+                if extent > 0.0 {
+                    cells / extent
+                } else {
+                    0.0
+                }
+            }),
+        }
+    }
+
+    fn quantize(&self, p: Vec3) -> [u32; 3] {
+        let max = ((1u64 << QUANT_FULL_BITS) - 1) as f64;
+        let p = p.to_array();
+        std::array::from_fn(|a| {
+            ((f64::from(p[a]) - self.lo[a]) * self.scale[a]).clamp(0.0, max) as u32
+        })
+    }
+}
+
 /// `p` quantized to `QUANT_FULL_BITS` per axis relative to the batch box.
 pub fn quantize(p: Vec3, b: &GpuBatch) -> [u32; 3] {
-    let lo = [b.min_x, b.min_y, b.min_z];
-    let hi = [b.max_x, b.max_y, b.max_z];
-    let cells = (1u64 << QUANT_FULL_BITS) as f64;
-    let p = p.to_array();
-    std::array::from_fn(|a| {
-        let extent = f64::from(hi[a]) - f64::from(lo[a]);
-        if extent <= 0.0 {
-            return 0;
-        }
-        let t = (f64::from(p[a]) - f64::from(lo[a])) / extent * cells;
-        t.clamp(0.0, cells - 1.0) as u32
-    })
+    Quantizer::new(b).quantize(p)
 }
 
 /// Word `word` (0 coarse, 1 medium, 2 fine) of a quantized position: `QUANT_BITS` of each
@@ -485,5 +581,23 @@ mod tests {
             assert!((r - c as f32 * 1e-3).abs() < 1e-5);
         }
         assert_eq!(halves[7], 0, "the padding half is zero");
+    }
+
+    #[test]
+    fn a_fused_chunk_equals_the_streams_encoded_one_by_one() {
+        let mut cloud = random_cloud(30_000, 5);
+        cloud.colors = Some((0..30_000).map(|i| [i as u8, 1, 2, 3]).collect());
+        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        let range = 10_240..25_002;
+        let n = range.end - range.start;
+        let mut separate = Vec::new();
+        for &s in &layout.streams {
+            let mut out = vec![0u8; StreamLayout::stream_bytes(s, n) as usize];
+            layout.encode(&cloud, s, range.clone(), &mut out);
+            separate.extend(out);
+        }
+        let mut fused = vec![0u8; separate.len()];
+        layout.encode_chunk(&cloud, range, &mut fused);
+        assert!(fused == separate, "fused chunk differs");
     }
 }

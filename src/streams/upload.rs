@@ -119,15 +119,7 @@ pub fn upload(
             }
             uploader.upload(
                 |staging| {
-                    for (c, (stream, _)) in copies.iter().zip(&buffers) {
-                        let at = c.src_offset as usize;
-                        layout.encode(
-                            cloud,
-                            *stream,
-                            start..end,
-                            &mut staging[at..at + c.size as usize],
-                        );
-                    }
+                    layout.encode_chunk(cloud, start..end, &mut staging[..offset as usize]);
                     Ok(())
                 },
                 &copies,
