@@ -60,13 +60,16 @@ pub fn load(path: Option<&PathBuf>, props: &vk::PhysicalDeviceProperties) -> Vec
         .unwrap_or_default()
 }
 
-/// Writes `data` to `path` through a temporary file and a rename, so concurrent processes
-/// never read a half-written cache.
+/// Writes `data` to `path` through a temporary file and a rename, so concurrent writers
+/// (processes, or contexts dropped on several threads of one process) never leave a
+/// half-written or interleaved cache.
 pub fn save(path: &PathBuf, data: &[u8]) -> std::io::Result<()> {
+    static SAVES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir)?;
     }
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let n = SAVES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = path.with_extension(format!("tmp{}-{n}", std::process::id()));
     std::fs::write(&tmp, data)?;
     std::fs::rename(&tmp, path)
 }
