@@ -42,34 +42,23 @@ impl FrameRing {
             current: 0,
         };
         for _ in 0..count.max(1) {
-            let cmd = ctx.allocate_command_buffer()?;
-            // SAFETY: plain object creation; destroyed in Drop (also on an early return,
-            // since the slot is pushed before the next creation can fail).
-            let fence = unsafe {
-                ctx.device
-                    .create_fence(&vk::FenceCreateInfo::default(), None)
-            };
-            let fence = match fence {
-                Ok(f) => f,
-                Err(e) => {
-                    ctx.free_command_buffer(cmd);
-                    return Err(e.into());
-                }
-            };
             ring.slots.push(Slot {
-                cmd,
-                fence,
+                cmd: ctx.allocate_command_buffer()?,
+                fence: vk::Fence::null(),
                 acquire: vk::Semaphore::null(),
                 pending: false,
             });
-            if acquire_semaphores {
-                // SAFETY: as above; the handle is stored before anything else can fail.
-                let semaphore = unsafe {
-                    ctx.device
-                        .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?
-                };
-                if let Some(slot) = ring.slots.last_mut() {
-                    slot.acquire = semaphore;
+            let slot = ring.slots.last_mut().expect("slot pushed above");
+            // SAFETY: plain object creation; the handles are stored in the ring at once and
+            // destroyed by its Drop (null handles are ignored), also on an early return.
+            unsafe {
+                slot.fence = ctx
+                    .device
+                    .create_fence(&vk::FenceCreateInfo::default(), None)?;
+                if acquire_semaphores {
+                    slot.acquire = ctx
+                        .device
+                        .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?;
                 }
             }
         }
