@@ -15,10 +15,16 @@ use crate::gpu::{Context, ImageDesc, Pipeline};
 
 impl CompiledGraph {
     /// Records the whole frame into `cmd` (which must be recording), timing it in frame slot
-    /// `slot`'s query pool. On-demand passes are recorded only when `on_demand` is set.
+    /// `slot`'s query pool (`slot < frames_in_flight` of `compile_frames`; the slot's previous
+    /// frame must have finished and been collected). On-demand passes are recorded only when `on_demand` is set.
     /// Allocates nothing: barriers were resolved at compile time and commands are built in
     /// fixed-size arrays.
     pub fn record(&mut self, cmd: vk::CommandBuffer, slot: usize, on_demand: bool) {
+        assert!(
+            slot < self.profiler.slots(),
+            "frame slot {slot} of a graph compiled for {} frames in flight",
+            self.profiler.slots()
+        );
         self.check_externals_bound();
         self.profiler.reset(cmd, slot);
         let first = self.first_frame;
