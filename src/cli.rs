@@ -326,6 +326,7 @@ fn render(a: RenderArgs) -> Result<()> {
         Extras {
             readback: true,
             present: None,
+            ..Extras::default()
         },
     )?;
     if a.dump_graph {

@@ -1,5 +1,6 @@
 //! The frame loop shared by the headless renderer, the benchmark and the viewer: uploads a
-//! scene, builds one method's graph once, updates per-frame uniforms, submits, reads back.
+//! scene, builds one method's graph once, keeps frames in flight (`FrameRing`), updates each
+//! slot's uniforms, submits, reads back.
 
 use std::sync::Arc;
 
@@ -11,8 +12,8 @@ use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, FLAG_HAS_NORMALS, FLAG_USE_COLOR};
-use crate::gpu::{Buffer, Context, ImageDesc, ScopeStats};
-use crate::graph::{Access, CompiledGraph, GraphBuilder, ImageId};
+use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
+use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
@@ -99,13 +100,28 @@ pub struct View {
     pub time: f32,
 }
 
-/// Optional extra passes of a renderer.
-#[derive(Clone, Copy, Debug, Default)]
+/// Frames in flight unless `Extras::frames_in_flight` says otherwise.
+pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
+
+/// Optional extra passes of a renderer, and how many frames it keeps in flight.
+#[derive(Clone, Copy, Debug)]
 pub struct Extras {
     /// Add on-demand readback passes (color, depth, normal to host buffers).
     pub readback: bool,
     /// Add a blit to an external (swapchain) image of this format and size, and a present pass.
     pub present: Option<ImageDesc>,
+    /// Frame slots (command buffer, fence, timestamp pool, frame uniforms), at least 1.
+    pub frames_in_flight: usize,
+}
+
+impl Default for Extras {
+    fn default() -> Self {
+        Self {
+            readback: false,
+            present: None,
+            frames_in_flight: DEFAULT_FRAMES_IN_FLIGHT,
+        }
+    }
 }
 
 struct Readback {
@@ -115,14 +131,25 @@ struct Readback {
 }
 
 /// One method's compiled graph and what it needs every frame.
+///
+/// Frames in flight: each slot of `frames` has its own command buffer, fence, timestamp query
+/// pool (in the graph's profiler) and frame-uniform buffer, bound to the graph's external
+/// `frame` buffer before the slot is recorded. The host writes slot `k`'s uniforms and
+/// re-records its command buffer only after slot `k`'s fence. All slots share the graph's
+/// transient and history resources: that is legal because every frame is submitted to the
+/// one queue, and the steady-state barriers (derived from the previous frame's accesses) make
+/// each frame's first use of a resource wait for the previous frame's last use of it, so
+/// frame N+1 is ordered after frame N on the GPU where they touch the same memory.
 pub struct Renderer {
     ctx: Arc<Context>,
     graph: CompiledGraph,
-    frame: Arc<Buffer>,
+    frames: FrameRing,
+    /// Per frame slot: the frame uniforms.
+    uniforms: Vec<Buffer>,
+    frame_id: BufferId,
     readback: Option<Readback>,
     /// The swapchain image slot when presenting.
     pub present_target: Option<ImageId>,
-    cmd: vk::CommandBuffer,
     pub width: u32,
     pub height: u32,
     pub info: SceneInfo,
@@ -155,13 +182,20 @@ impl Renderer {
                 config.method.name
             );
         }
-        let frame = Arc::new(Buffer::new(
-            ctx,
-            "frame",
-            std::mem::size_of::<FrameBlock>() as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::CpuToGpu,
-        )?);
+        let frame_bytes = std::mem::size_of::<FrameBlock>() as u64;
+        let frame_usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let slots = extras.frames_in_flight.max(1);
+        let uniforms = (0..slots)
+            .map(|_| {
+                Buffer::new(
+                    ctx,
+                    "frame",
+                    frame_bytes,
+                    frame_usage,
+                    MemoryLocation::CpuToGpu,
+                )
+            })
+            .collect::<Result<Vec<_>>>()?;
         let mut g = GraphBuilder::new();
         let output = |format| ImageDesc {
             format,
@@ -177,7 +211,7 @@ impl Renderer {
             depth: g.image("depth", output(DEPTH_FORMAT)),
             normal: g.image("normal", output(NORMAL_FORMAT)),
         };
-        let frame_id = g.import_buffer("frame", frame.clone());
+        let frame_id = g.external_buffer("frame", frame_bytes, frame_usage);
         let segments_id = g.import_buffer("stream.segments", scene.streams.table.clone());
         let batches_id = g.import_buffer("stream.batches", scene.streams.batches.clone());
         let indices_id = scene
@@ -210,14 +244,15 @@ impl Renderer {
         if !culled.is_empty() {
             schedule.push_str(&format!("culled (results unused): {}\n", culled.join(", ")));
         }
-        let graph = g.compile(ctx)?;
+        let graph = g.compile_frames(ctx, slots)?;
         Ok(Self {
             ctx: ctx.clone(),
             graph,
-            frame,
+            frames: FrameRing::new(ctx, slots, present_target.is_some())?,
+            uniforms,
+            frame_id,
             readback,
             present_target,
-            cmd: ctx.allocate_command_buffer()?,
             width,
             height,
             info,
@@ -233,7 +268,25 @@ impl Renderer {
         &self.schedule
     }
 
-    /// Writes the frame uniforms for `view`.
+    /// Number of frame slots.
+    pub fn frames_in_flight(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Starts the next frame: moves to the next slot, waits for the frame that last used it
+    /// (not for the frames submitted since), collects that frame's timestamps and binds the
+    /// slot's uniforms. Returns the slot's swapchain image-available semaphore (null unless the
+    /// renderer presents). Call before `update`, `record` and `submit`.
+    pub fn begin_frame(&mut self) -> Result<vk::Semaphore> {
+        let slot = self.frames.advance()?;
+        self.graph.profiler().collect(slot)?;
+        self.graph
+            .bind_external_buffer(self.frame_id, &self.uniforms[slot]);
+        Ok(self.frames.acquire_semaphore())
+    }
+
+    /// Writes the current slot's frame uniforms for `view` (the GPU is done with them:
+    /// `begin_frame` waited for the slot's previous frame).
     pub fn update(&mut self, view: &View) -> Result<()> {
         let mut block = FrameBlock::zeroed();
         let v = view.camera.view();
@@ -279,46 +332,54 @@ impl Renderer {
             *slot = light;
             block.u.light_count += 1;
         }
-        self.frame.write(bytemuck::bytes_of(&block))
+        self.uniforms[self.frames.current()].write(bytemuck::bytes_of(&block))
     }
 
-    /// Records the frame into the renderer's command buffer (begin..end).
-    pub fn record(&mut self, readback: bool) -> Result<vk::CommandBuffer> {
-        let d = &self.ctx.device;
-        // SAFETY: the previous submission of this command buffer has completed (the caller
-        // waited on its fence), so it may be reset and re-recorded.
-        unsafe {
-            d.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())?;
-            d.begin_command_buffer(
-                self.cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )?;
-        }
+    /// Records the frame into the current slot's command buffer.
+    pub fn record(&mut self, readback: bool) -> Result<()> {
+        let cmd = self.frames.begin()?;
+        let slot = self.frames.current();
         self.graph
-            .record(self.cmd, readback && self.readback.is_some());
-        // SAFETY: recording was begun above.
-        unsafe { d.end_command_buffer(self.cmd)? };
-        Ok(self.cmd)
+            .record(cmd, slot, readback && self.readback.is_some());
+        self.frames.end()
     }
 
-    /// Renders one frame and waits for it; returns the read-back frame when asked (and built
-    /// with `Extras::readback`).
+    /// Submits the current slot and returns without waiting for it. `wait` (the swapchain
+    /// acquire semaphore) is waited on before the frame writes the swapchain image; `signal`
+    /// is signalled when the frame is done (for present).
+    pub fn submit(
+        &mut self,
+        wait: Option<vk::Semaphore>,
+        signal: Option<vk::Semaphore>,
+    ) -> Result<()> {
+        self.frames.submit(wait, signal)
+    }
+
+    /// Blocks until every submitted frame has finished and collects their timestamps, oldest
+    /// first (so `last_timings` reports the newest frame).
+    pub fn finish(&mut self) -> Result<()> {
+        let (len, current) = (self.frames.len(), self.frames.current());
+        for i in 1..=len {
+            let slot = (current + i) % len;
+            self.frames.wait(slot)?;
+            self.graph.profiler().collect(slot)?;
+        }
+        Ok(())
+    }
+
+    /// Renders one frame and waits for it (and for any frame still in flight); returns the
+    /// read-back frame when asked (and built with `Extras::readback`).
     pub fn render(&mut self, view: &View, readback: bool) -> Result<Option<Frame>> {
+        self.begin_frame()?;
         self.update(view)?;
-        let cmd = self.record(readback)?;
-        self.ctx.submit_and_wait(cmd)?;
-        self.graph.profiler().collect()?;
+        self.record(readback)?;
+        self.submit(None, None)?;
+        self.finish()?;
         if readback {
             self.read_frame().map(Some)
         } else {
             Ok(None)
         }
-    }
-
-    /// Collects the timestamps of a frame submitted outside `render` (the viewer).
-    pub fn collect_timings(&mut self) -> Result<()> {
-        self.graph.profiler().collect()
     }
 
     /// Binds this frame's swapchain image.
@@ -378,11 +439,10 @@ impl Renderer {
 
 impl Drop for Renderer {
     fn drop(&mut self) {
-        // SAFETY: wait for any in-flight use of the command buffer and the graph's resources.
+        // SAFETY: wait for every in-flight use of the graph's resources before they drop.
         unsafe {
             let _ = self.ctx.device.device_wait_idle();
         }
-        self.ctx.free_command_buffer(self.cmd);
     }
 }
 

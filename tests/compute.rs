@@ -27,6 +27,7 @@ fn render_with(cloud: &Cloud, method: &str, size: u32, options: UploadOptions) -
         Extras {
             readback: true,
             present: None,
+            ..Extras::default()
         },
     )
     .expect("renderer");

@@ -667,3 +667,61 @@ fn passes_whose_results_nothing_uses_are_culled() {
     assert!(!s.contains("debug view"));
     assert!(g.cull().is_empty(), "culling is idempotent");
 }
+
+#[test]
+fn external_buffers_are_checked_against_their_usage_and_outlive_the_frame() {
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let mut g = GraphBuilder::new();
+    let frame = g.external_buffer("frame", 256, storage);
+    let out = g.image("out", desc(vk::Format::R8G8B8A8_UNORM, 1));
+    g.pass("draw")
+        .buffer(frame, Access::UniformRead(Stages::Graphics))
+        .color(out, Load::Clear([0.0; 4]))
+        .record(|_| {});
+    g.pass("sample")
+        .image(out, Access::Sampled(Stages::Fragment))
+        .buffer(frame, Access::StorageWrite(Stages::Fragment))
+        .record(|_| {});
+    assert!(
+        g.cull().is_empty(),
+        "writing an external buffer is an effect"
+    );
+    let steady = g.barriers().expect("valid");
+    let on_frame = |pass: usize| on_buffer(&steady[pass], frame);
+    assert_eq!(
+        on_frame(0)[0].1.transition.src_stages,
+        S::FRAGMENT_SHADER,
+        "the read waits for the previous frame's write"
+    );
+    assert!(
+        on_frame(1)[0]
+            .1
+            .transition
+            .src_stages
+            .contains(S::VERTEX_SHADER | S::FRAGMENT_SHADER),
+        "the write waits for the uniform reads"
+    );
+
+    let mut g = GraphBuilder::new();
+    let frame = g.external_buffer("frame", 256, storage);
+    g.pass("indirect")
+        .buffer(frame, Access::IndirectRead)
+        .record(|_| {});
+    let e = g.barriers().unwrap_err().to_string();
+    assert!(
+        e.contains("'indirect'") && e.contains("'frame'") && e.contains("lacks usage"),
+        "{e}"
+    );
+
+    let mut g = GraphBuilder::new();
+    let frame = g.external_buffer("frame", 256, storage);
+    g.pass("past")
+        .buffer_range(
+            frame,
+            BufferRange::new(128, 256),
+            Access::StorageRead(Stages::Compute),
+        )
+        .record(|_| {});
+    let e = g.barriers().unwrap_err().to_string();
+    assert!(e.contains("256 bytes"), "{e}");
+}

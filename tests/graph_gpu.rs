@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
-use surfel::gpu::{Binding, Buffer, Context, GraphicsDesc, Image, ImageDesc, Pipeline};
+use surfel::gpu::{Binding, Buffer, Context, FrameRing, GraphicsDesc, Image, ImageDesc, Pipeline};
 use surfel::graph::{
     Access, BarrierTarget, BufferRange, CompiledGraph, Descriptor, GraphBuilder, Load, Sampler,
     Stages,
@@ -21,30 +21,22 @@ use surfel::graph::{
 /// Records and submits `graph` once per entry of `readback` (whether on-demand passes run),
 /// calling `check(frame)` after each frame completed.
 fn run_frames(
-    ctx: &Context,
+    ctx: &Arc<Context>,
     graph: &mut CompiledGraph,
     readback: &[bool],
     mut check: impl FnMut(usize),
 ) {
-    let cmd = ctx.allocate_command_buffer().expect("cmd");
+    let mut frames = FrameRing::new(ctx, 1, false).expect("frame ring");
     for (frame, on_demand) in readback.iter().enumerate() {
-        // SAFETY: the previous submission was waited on.
-        unsafe {
-            ctx.device
-                .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
-                .expect("reset");
-            ctx.device
-                .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-                .expect("begin");
-        }
-        graph.record(cmd, *on_demand);
-        // SAFETY: recording began above.
-        unsafe { ctx.device.end_command_buffer(cmd).expect("end") };
-        ctx.submit_and_wait(cmd).expect("submit");
-        graph.profiler().collect().expect("timestamps");
+        let slot = frames.advance().expect("wait");
+        let cmd = frames.begin().expect("begin");
+        graph.record(cmd, slot, *on_demand);
+        frames.end().expect("end");
+        frames.submit(None, None).expect("submit");
+        frames.wait(slot).expect("wait");
+        graph.profiler().collect(slot).expect("timestamps");
         check(frame);
     }
-    ctx.free_command_buffer(cmd);
 }
 
 fn host_buffer(ctx: &Arc<Context>, name: &str, bytes: u64) -> Arc<Buffer> {
@@ -514,7 +506,7 @@ fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
             .expect("begin")
     };
     let panic = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        graph.record(cmd, false);
+        graph.record(cmd, 0, false);
     }))
     .expect_err("binding an undeclared buffer must panic");
     let message = panic.downcast_ref::<String>().cloned().unwrap_or_default();

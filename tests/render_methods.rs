@@ -20,6 +20,7 @@ fn render(cloud: &surfel::scene::Cloud, method: &str, size: u32) -> surfel::eval
         Extras {
             readback: true,
             present: None,
+            ..Extras::default()
         },
     )
     .expect("renderer");

@@ -194,6 +194,7 @@ impl Viewer {
             Extras {
                 readback: false,
                 present: Some(desc),
+                ..Extras::default()
             },
         )
     }
@@ -242,7 +243,10 @@ impl Viewer {
         if (size.width, size.height) != (gpu.swapchain.extent.width, gpu.swapchain.extent.height) {
             return self.rebuild();
         }
-        let Some((index, acquired)) = gpu.swapchain.acquire()? else {
+        // Waits only for the frame that used this slot last; the frame submitted just before
+        // keeps running while this one is recorded.
+        let available = gpu.renderer.begin_frame()?;
+        let Some(index) = gpu.swapchain.acquire(available)? else {
             return self.rebuild();
         };
         let image = gpu.swapchain.images[index as usize];
@@ -254,16 +258,14 @@ impl Viewer {
             use_color: self.use_color,
             time: self.start.elapsed().as_secs_f32(),
         })?;
-        let cmd = gpu.renderer.record(false)?;
-        let ctx = self.ctx.as_ref().context("context")?;
-        ctx.submit_frame(
-            cmd,
-            Some(acquired),
+        gpu.renderer.record(false)?;
+        gpu.renderer.submit(
+            Some(available),
             Some(gpu.swapchain.rendered[index as usize]),
         )?;
-        gpu.renderer.collect_timings()?;
         let presented = gpu.swapchain.present(index)?;
         self.frames += 1;
+        // The newest completed frame's timings (collected by `begin_frame`).
         let passes: Vec<String> = gpu
             .renderer
             .last_timings()

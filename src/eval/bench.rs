@@ -160,6 +160,7 @@ fn run_method(
         Extras {
             readback: true,
             present: None,
+            ..Extras::default()
         },
     )?;
     for _ in 0..job.frames.warmup {

@@ -153,7 +153,6 @@ pub struct Context {
     counters: Box<DebugCounters>,
     pub validation: bool,
     command_pool: vk::CommandPool,
-    submit_fence: Mutex<vk::Fence>,
 }
 
 unsafe extern "system" fn debug_callback(
@@ -379,10 +378,7 @@ impl Context {
             None,
         )?;
 
-        let submit_fence = device.create_fence(&vk::FenceCreateInfo::default(), None)?;
-
         Ok(Self {
-            submit_fence: Mutex::new(submit_fence),
             push_descriptor: khr::push_descriptor::Device::new(&instance, &device),
             debug_utils: debug_available.then(|| ext::debug_utils::Device::new(&instance, &device)),
             mesh_shader: (has_mesh && mesh_q.mesh_shader != 0)
@@ -436,72 +432,44 @@ impl Context {
         unsafe { self.device.free_command_buffers(self.command_pool, &[cmd]) };
     }
 
-    /// Records `record` into a one-shot command buffer, submits it and waits.
+    /// Records `record` into a one-shot command buffer, submits it and waits (setup work such
+    /// as uploads; frames go through `FrameRing`).
     pub fn one_shot(&self, record: impl FnOnce(vk::CommandBuffer)) -> Result<()> {
         let cmd = self.allocate_command_buffer()?;
-        // SAFETY: fresh command buffer, recorded and submitted once, waited on before freeing.
-        unsafe {
-            self.device.begin_command_buffer(
-                cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )?;
-            record(cmd);
-            self.device.end_command_buffer(cmd)?;
-            self.submit_and_wait(cmd)?;
-        }
-        self.free_command_buffer(cmd);
-        Ok(())
-    }
-
-    /// Submits `cmd` and blocks until the GPU has finished it.
-    pub fn submit_and_wait(&self, cmd: vk::CommandBuffer) -> Result<()> {
-        self.submit_frame(cmd, None, None)
-    }
-
-    /// Submits `cmd` waiting on `wait` (at color-attachment output, as a swapchain acquire
-    /// needs) and signalling `signal`, then blocks until the GPU has finished it.
-    pub fn submit_frame(
-        &self,
-        cmd: vk::CommandBuffer,
-        wait: Option<vk::Semaphore>,
-        signal: Option<vk::Semaphore>,
-    ) -> Result<()> {
-        let waits: Vec<_> = wait
-            .iter()
-            .map(|s| {
-                vk::SemaphoreSubmitInfo::default()
-                    .semaphore(*s)
-                    .stage_mask(vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT)
-            })
-            .collect();
-        let signals: Vec<_> = signal
-            .iter()
-            .map(|s| {
-                vk::SemaphoreSubmitInfo::default()
-                    .semaphore(*s)
-                    .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-            })
-            .collect();
-        // One fence, reused: submissions are serialized by the lock and waited on here.
-        let fence = self
-            .submit_fence
-            .lock()
-            .map_err(|_| anyhow!("submit lock poisoned"))?;
-        // SAFETY: cmd is fully recorded; the fence is unsignalled after the reset and no other
-        // submission uses it while the lock is held.
-        unsafe {
-            self.device.reset_fences(&[*fence])?;
-            let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
-            let submit = [vk::SubmitInfo2::default()
-                .command_buffer_infos(&cmds)
-                .wait_semaphore_infos(&waits)
-                .signal_semaphore_infos(&signals)];
+        // SAFETY: plain fence creation; destroyed below.
+        let fence = unsafe {
             self.device
-                .queue_submit2(self.queue, &submit, *fence)
-                .and_then(|_| self.device.wait_for_fences(&[*fence], true, u64::MAX))
-                .context("queue submission failed (device lost?)")
-        }
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        };
+        let result = fence.map_err(anyhow::Error::from).and_then(|fence| {
+            // SAFETY: a fresh command buffer, recorded and submitted once, waited on before the
+            // fence is destroyed and the buffer freed; one-shot work runs on the thread that
+            // renders, which keeps the queue externally synchronized.
+            let done = unsafe {
+                self.device
+                    .begin_command_buffer(
+                        cmd,
+                        &vk::CommandBufferBeginInfo::default()
+                            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                    )
+                    .and_then(|_| {
+                        record(cmd);
+                        self.device.end_command_buffer(cmd)
+                    })
+                    .and_then(|_| {
+                        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
+                        let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+                        self.device.queue_submit2(self.queue, &submit, fence)
+                    })
+                    .and_then(|_| self.device.wait_for_fences(&[fence], true, u64::MAX))
+                    .context("one-shot submission failed (device lost?)")
+            };
+            // SAFETY: the submission (if any) has completed.
+            unsafe { self.device.destroy_fence(fence, None) };
+            done
+        });
+        self.free_command_buffer(cmd);
+        result
     }
 
     /// Opens a debug label region on `cmd` (visible in RenderDoc/Nsight) when debug utils exist.
@@ -553,9 +521,6 @@ impl Drop for Context {
             self.device
                 .destroy_pipeline_cache(self.pipeline_cache, None);
             self.device.destroy_command_pool(self.command_pool, None);
-            if let Ok(fence) = self.submit_fence.lock() {
-                self.device.destroy_fence(*fence, None);
-            }
             if let Ok(mut guard) = self.allocator.lock() {
                 guard.take();
             }

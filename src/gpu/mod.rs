@@ -1,6 +1,8 @@
-//! Thin ash layer: context, memory, pipelines, timestamps, shared layouts, swapchain.
+//! Thin ash layer: context, frames in flight, memory, pipelines, timestamps, shared layouts,
+//! swapchain.
 
 pub mod context;
+pub mod frames;
 pub mod layout;
 pub mod memory;
 pub mod pipeline;
@@ -9,7 +11,8 @@ pub mod profiler;
 pub mod upload;
 
 pub use context::{Capabilities, Context, ContextOptions};
+pub use frames::FrameRing;
 pub use memory::{Buffer, Image, ImageDesc};
 pub use pipeline::{Binding, Blend, GraphicsDesc, Pipeline};
-pub use profiler::{Profiler, ScopeStats};
+pub use profiler::{Profiler, SampleWindow, ScopeStats};
 pub mod swapchain;

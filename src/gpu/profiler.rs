@@ -1,5 +1,6 @@
 //! GPU timestamp profiler: one begin/end query pair per named scope (render-graph pass), read
-//! back after the frame's fence, reported as the median over frames.
+//! back after the frame's fence (one query pool per frame in flight), reported as the median
+//! over the last `WINDOW` frames.
 
 use std::sync::Arc;
 
@@ -33,149 +34,226 @@ pub fn median_and_iqr(samples: &[f64]) -> (f64, f64) {
     (q(0.5), q(0.75) - q(0.25))
 }
 
-/// Timestamp queries for a fixed list of scopes.
+/// How many of the most recent frames the statistics cover, per scope. A long viewer run keeps
+/// collecting timestamps; the window keeps the profiler's memory constant (about 8 KiB per
+/// scope) while medians follow the recent frames.
+pub const WINDOW: usize = 1024;
+
+/// The last `WINDOW` samples of one scope: a ring whose storage is allocated once, up front,
+/// so recording a sample never allocates.
+#[derive(Debug)]
+pub struct SampleWindow {
+    values: Vec<f64>,
+    /// Where the next sample goes once the ring is full.
+    next: usize,
+    last: Option<f64>,
+}
+
+impl Default for SampleWindow {
+    fn default() -> Self {
+        Self {
+            values: Vec::with_capacity(WINDOW),
+            next: 0,
+            last: None,
+        }
+    }
+}
+
+impl SampleWindow {
+    /// Records a sample, replacing the oldest one when the window is full.
+    pub fn push(&mut self, value: f64) {
+        if self.values.len() < WINDOW {
+            self.values.push(value);
+        } else {
+            self.values[self.next] = value;
+            self.next = (self.next + 1) % WINDOW;
+        }
+        self.last = Some(value);
+    }
+
+    /// The samples in the window (in no particular order).
+    pub fn samples(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// The most recent sample.
+    pub fn last(&self) -> Option<f64> {
+        self.last
+    }
+
+    /// Median and interquartile range over the window.
+    pub fn median_and_iqr(&self) -> (f64, f64) {
+        median_and_iqr(&self.values)
+    }
+
+    /// Forgets every sample (keeps the storage).
+    pub fn clear(&mut self) {
+        self.values.clear();
+        self.next = 0;
+        self.last = None;
+    }
+}
+
+/// Timestamp queries for a fixed list of scopes, one query pool per frame slot: the frame
+/// recorded into slot `k` writes slot `k`'s pool, and its results are collected once slot
+/// `k`'s fence has been waited on, before the slot is recorded again.
 pub struct Profiler {
     ctx: Arc<Context>,
-    pool: vk::QueryPool,
+    pools: Vec<vk::QueryPool>,
+    /// Per slot: whether its pool holds a submitted frame not yet collected.
+    written: Vec<bool>,
     names: Vec<String>,
-    /// Per scope, then a final "frame" entry: milliseconds per recorded frame.
-    samples: Vec<Vec<f64>>,
-    written: bool,
+    /// Per scope, then a final "frame" entry: milliseconds of the last `WINDOW` frames.
+    samples: Vec<SampleWindow>,
+    /// Reused buffer for query results.
+    raw: Vec<u64>,
 }
 
 impl Profiler {
-    /// A profiler for `names` scopes (2 queries each).
-    pub fn new(ctx: &Arc<Context>, names: Vec<String>) -> Result<Self> {
+    /// A profiler for `names` scopes (2 queries each) and `slots` frames in flight.
+    pub fn new(ctx: &Arc<Context>, names: Vec<String>, slots: usize) -> Result<Self> {
         let count = (names.len() as u32 * 2).max(2);
-        // SAFETY: valid create info; destroyed in Drop.
-        let pool = unsafe {
-            ctx.device.create_query_pool(
-                &vk::QueryPoolCreateInfo::default()
-                    .query_type(vk::QueryType::TIMESTAMP)
-                    .query_count(count),
-                None,
-            )?
-        };
-        let samples = vec![Vec::new(); names.len() + 1];
-        Ok(Self {
+        let slots = slots.max(1);
+        let mut profiler = Self {
             ctx: ctx.clone(),
-            pool,
+            pools: Vec::with_capacity(slots),
+            written: vec![false; slots],
+            // Not `vec![..; n]`: cloning a Vec drops its reserved capacity.
+            samples: (0..=names.len()).map(|_| SampleWindow::default()).collect(),
+            raw: vec![0; count as usize],
             names,
-            samples,
-            written: false,
-        })
+        };
+        for _ in 0..slots {
+            // SAFETY: valid create info; destroyed in Drop (also on an early return).
+            let pool = unsafe {
+                ctx.device.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::TIMESTAMP)
+                        .query_count(count),
+                    None,
+                )?
+            };
+            profiler.pools.push(pool);
+        }
+        Ok(profiler)
+    }
+
+    /// Number of frame slots (query pools).
+    pub fn slots(&self) -> usize {
+        self.pools.len()
     }
 
     fn query_count(&self) -> u32 {
-        (self.names.len() as u32 * 2).max(2)
+        self.raw.len() as u32
     }
 
-    /// Resets the queries at the start of a frame's command buffer.
-    pub fn reset(&mut self, cmd: vk::CommandBuffer) {
-        // SAFETY: cmd is recording, outside a render pass instance.
+    /// Resets slot `slot`'s queries at the start of a frame's command buffer. The slot's
+    /// previous frame must have been collected (or be abandoned).
+    pub fn reset(&mut self, cmd: vk::CommandBuffer, slot: usize) {
+        // SAFETY: cmd is recording, outside a render pass instance; the slot's previous
+        // frame has completed (its fence was waited on before re-recording).
         unsafe {
             self.ctx
                 .device
-                .cmd_reset_query_pool(cmd, self.pool, 0, self.query_count())
+                .cmd_reset_query_pool(cmd, self.pools[slot], 0, self.query_count())
         };
-        self.written = true;
+        self.written[slot] = true;
     }
 
-    /// Writes the begin (`end == false`) or end timestamp of scope `index`.
-    pub fn stamp(&self, cmd: vk::CommandBuffer, index: usize, end: bool) {
+    /// Writes the begin (`end == false`) or end timestamp of scope `index` into `slot`'s pool.
+    pub fn stamp(&self, cmd: vk::CommandBuffer, slot: usize, index: usize, end: bool) {
         let query = index as u32 * 2 + u32::from(end);
         // SAFETY: query < query_count; the pool was reset earlier in this command buffer.
         unsafe {
             self.ctx.device.cmd_write_timestamp2(
                 cmd,
                 vk::PipelineStageFlags2::ALL_COMMANDS,
-                self.pool,
+                self.pools[slot],
                 query,
             )
         };
     }
 
-    /// Reads the frame's timestamps (call after the frame's fence) and records them.
-    pub fn collect(&mut self) -> Result<()> {
-        if !self.written || self.names.is_empty() {
+    /// Reads the timestamps of the frame recorded into `slot` (call after that frame's fence)
+    /// and records them. Does nothing when the slot holds no uncollected frame. Allocates
+    /// nothing.
+    pub fn collect(&mut self, slot: usize) -> Result<()> {
+        if !std::mem::take(&mut self.written[slot]) || self.names.is_empty() {
             return Ok(());
         }
-        let mut raw = vec![0u64; self.query_count() as usize];
         // SAFETY: every query was written in the completed command buffer.
         unsafe {
             self.ctx.device.get_query_pool_results(
-                self.pool,
+                self.pools[slot],
                 0,
-                &mut raw,
+                &mut self.raw,
                 vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
             )?
         };
-        let ms = |ticks: u64| ticks as f64 * self.ctx.caps.timestamp_period as f64 / 1.0e6;
-        for i in 0..self.names.len() {
-            let (b, e) = (raw[2 * i], raw[2 * i + 1]);
+        let period = f64::from(self.ctx.caps.timestamp_period);
+        let ms = |ticks: u64| ticks as f64 * period / 1.0e6;
+        let n = self.names.len();
+        for i in 0..n {
+            let (b, e) = (self.raw[2 * i], self.raw[2 * i + 1]);
             self.samples[i].push(ms(e.saturating_sub(b)));
         }
-        let first = raw[0];
-        let last = raw[2 * self.names.len() - 1];
-        let frame = self.names.len();
-        self.samples[frame].push(ms(last.saturating_sub(first)));
+        let frame = ms(self.raw[2 * n - 1].saturating_sub(self.raw[0]));
+        self.samples[n].push(frame);
         Ok(())
     }
 
     /// Forgets recorded samples (e.g. after warm-up frames).
     pub fn clear(&mut self) {
-        self.samples.iter_mut().for_each(Vec::clear);
+        self.samples.iter_mut().for_each(SampleWindow::clear);
     }
 
-    /// Per-scope statistics, in scope order.
+    /// Per-scope statistics over the last `WINDOW` frames, in scope order.
     pub fn scopes(&self) -> Vec<ScopeStats> {
         self.names
             .iter()
             .zip(&self.samples)
-            .map(|(name, s)| {
-                let (median_ms, spread_ms) = median_and_iqr(s);
-                ScopeStats {
-                    name: name.clone(),
-                    median_ms,
-                    spread_ms,
-                    samples: s.len(),
-                }
-            })
+            .map(|(name, s)| stats(name, s))
             .collect()
     }
 
-    /// Whole-frame GPU time (first scope begin to last scope end).
+    /// Whole-frame GPU time (first scope begin to last scope end) over the last `WINDOW`
+    /// frames.
     pub fn frame(&self) -> ScopeStats {
-        let s = &self.samples[self.names.len()];
-        let (median_ms, spread_ms) = median_and_iqr(s);
-        ScopeStats {
-            name: "frame".into(),
-            median_ms,
-            spread_ms,
-            samples: s.len(),
-        }
+        stats("frame", &self.samples[self.names.len()])
     }
 
-    /// The most recent frame's per-scope milliseconds.
+    /// The most recently collected frame's per-scope milliseconds.
     pub fn last(&self) -> Vec<(String, f64)> {
         self.names
             .iter()
             .zip(&self.samples)
-            .filter_map(|(n, s)| s.last().map(|v| (n.clone(), *v)))
+            .filter_map(|(n, s)| s.last().map(|v| (n.clone(), v)))
             .collect()
+    }
+}
+
+fn stats(name: &str, s: &SampleWindow) -> ScopeStats {
+    let (median_ms, spread_ms) = s.median_and_iqr();
+    ScopeStats {
+        name: name.into(),
+        median_ms,
+        spread_ms,
+        samples: s.samples().len(),
     }
 }
 
 impl Drop for Profiler {
     fn drop(&mut self) {
-        // SAFETY: no pending frame uses the pool (owners wait before dropping).
-        unsafe { self.ctx.device.destroy_query_pool(self.pool, None) };
+        for &pool in &self.pools {
+            // SAFETY: no pending frame uses the pool (owners wait before dropping).
+            unsafe { self.ctx.device.destroy_query_pool(pool, None) };
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::median_and_iqr;
+    use super::{median_and_iqr, SampleWindow, WINDOW};
 
     #[test]
     fn median_and_iqr_of_known_samples() {
@@ -184,5 +262,30 @@ mod tests {
         let (m, iqr) = median_and_iqr(&[5.0, 1.0, 3.0, 2.0, 4.0]);
         assert_eq!(m, 3.0);
         assert_eq!(iqr, 2.0);
+    }
+
+    #[test]
+    fn sample_window_stays_bounded_and_follows_the_recent_frames() {
+        let mut w = SampleWindow::default();
+        let capacity = w.values.capacity();
+        assert!(capacity >= WINDOW, "storage allocated up front");
+        for i in 0..5000 {
+            w.push(f64::from(i));
+            assert!(w.samples().len() <= WINDOW);
+        }
+        assert_eq!(w.samples().len(), WINDOW);
+        assert_eq!(w.values.capacity(), capacity, "the ring never grows");
+        assert_eq!(w.last(), Some(4999.0));
+        // The window holds exactly the last 1024 samples: 3976..=4999.
+        let mut kept = w.samples().to_vec();
+        kept.sort_by(f64::total_cmp);
+        let expected: Vec<f64> = (5000 - WINDOW as i32..5000).map(f64::from).collect();
+        assert_eq!(kept, expected);
+        let (median, iqr) = w.median_and_iqr();
+        assert_eq!(median, (3976.0 + 4999.0) / 2.0);
+        assert_eq!(iqr, 0.5 * (WINDOW - 1) as f64);
+        w.clear();
+        assert!(w.samples().is_empty() && w.last().is_none());
+        assert_eq!(w.values.capacity(), capacity, "clearing keeps the storage");
     }
 }

@@ -8,7 +8,8 @@ use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 
 use super::Context;
 
-/// A surface with its swapchain and per-image semaphores.
+/// A surface with its swapchain and per-image present-wait semaphores (the image-available
+/// semaphores belong to the frame slots: `FrameRing`).
 pub struct Swapchain {
     ctx: Arc<Context>,
     surface_ext: khr::surface::Instance,
@@ -17,11 +18,9 @@ pub struct Swapchain {
     pub images: Vec<vk::Image>,
     pub format: vk::Format,
     pub extent: vk::Extent2D,
-    /// Signalled when an acquired image is ready, one per image slot (rotated).
-    acquire: Vec<vk::Semaphore>,
-    /// Signalled when rendering to image i finished (waited by present).
+    /// Signalled when rendering to image i finished (waited by present). One per image: it is
+    /// signalled again only after image i was acquired again, when present no longer uses it.
     pub rendered: Vec<vk::Semaphore>,
-    next_acquire: usize,
 }
 
 impl Swapchain {
@@ -62,9 +61,7 @@ impl Swapchain {
             images: Vec::new(),
             format: vk::Format::UNDEFINED,
             extent: vk::Extent2D::default(),
-            acquire: Vec::new(),
             rendered: Vec::new(),
-            next_acquire: 0,
         };
         s.recreate(width, height)?;
         Ok(s)
@@ -140,8 +137,6 @@ impl Swapchain {
             self.destroy_semaphores();
             for _ in 0..self.images.len() {
                 let info = vk::SemaphoreCreateInfo::default();
-                self.acquire
-                    .push(self.ctx.device.create_semaphore(&info, None)?);
                 self.rendered
                     .push(self.ctx.device.create_semaphore(&info, None)?);
             }
@@ -149,17 +144,19 @@ impl Swapchain {
         Ok(())
     }
 
-    /// Acquires the next image: `(index, acquire semaphore)`, or `None` when out of date.
-    pub fn acquire(&mut self) -> Result<Option<(u32, vk::Semaphore)>> {
-        let semaphore = self.acquire[self.next_acquire];
-        self.next_acquire = (self.next_acquire + 1) % self.acquire.len();
-        // SAFETY: the semaphore is unsignalled (its previous frame completed: one frame in flight).
+    /// Acquires the next image, signalling `available` (unsignalled, with no pending wait)
+    /// when it is ready: its index, or `None` when the swapchain is out of date (then
+    /// `available` stays unsignalled). A suboptimal image is still returned; `present` then
+    /// reports that the swapchain must be recreated.
+    pub fn acquire(&mut self, available: vk::Semaphore) -> Result<Option<u32>> {
+        // SAFETY: the caller's semaphore is unsignalled with no pending operation (its frame
+        // slot's previous submission completed).
         match unsafe {
             self.loader()?
-                .acquire_next_image(self.raw, u64::MAX, semaphore, vk::Fence::null())
+                .acquire_next_image(self.raw, u64::MAX, available, vk::Fence::null())
         } {
-            Ok((index, false)) => Ok(Some((index, semaphore))),
-            Ok((_, true)) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(None),
+            Ok((index, _)) => Ok(Some(index)),
+            Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(None),
             Err(e) => Err(e.into()),
         }
     }
@@ -182,11 +179,10 @@ impl Swapchain {
     }
 
     fn destroy_semaphores(&mut self) {
-        for s in self.acquire.drain(..).chain(self.rendered.drain(..)) {
+        for s in self.rendered.drain(..) {
             // SAFETY: the device is idle (callers wait before recreating or dropping).
             unsafe { self.ctx.device.destroy_semaphore(s, None) };
         }
-        self.next_acquire = 0;
     }
 }
 

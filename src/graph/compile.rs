@@ -9,7 +9,7 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use super::derive::{derive, Barrier};
+use super::derive::{derive, Barrier, BarrierTarget};
 use super::sync::StageSupport;
 use super::{
     Access, BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, PassDecl, Subresource,
@@ -29,15 +29,107 @@ pub(super) enum ImageSlot {
 pub(super) enum BufferSlot {
     Owned(Buffer),
     Imported(Arc<Buffer>),
+    External {
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        raw: vk::Buffer,
+    },
+}
+
+/// One pass's barriers as Vulkan structures, resolved to handles at compile time so that
+/// recording allocates nothing. External resources are patched in place when bound.
+#[derive(Default)]
+pub(super) struct BarrierBatch {
+    pub images: Vec<vk::ImageMemoryBarrier2<'static>>,
+    /// The graph image of each entry of `images`.
+    image_ids: Vec<ImageId>,
+    pub buffers: Vec<vk::BufferMemoryBarrier2<'static>>,
+    /// The graph buffer of each entry of `buffers`.
+    buffer_ids: Vec<BufferId>,
+}
+
+impl BarrierBatch {
+    fn new(graph: &CompiledGraph, barriers: &[Barrier]) -> Self {
+        let mut batch = Self::default();
+        for b in barriers {
+            let t = b.transition;
+            match b.target {
+                BarrierTarget::Image { id, mip } => {
+                    let desc = graph.image_desc(id);
+                    let range = vk::ImageSubresourceRange {
+                        aspect_mask: desc.aspect(),
+                        base_mip_level: mip,
+                        level_count: 1,
+                        base_array_layer: 0,
+                        layer_count: 1,
+                    };
+                    batch.images.push(
+                        vk::ImageMemoryBarrier2::default()
+                            .src_stage_mask(t.src_stages)
+                            .src_access_mask(t.src_access)
+                            .dst_stage_mask(t.dst_stages)
+                            .dst_access_mask(t.dst_access)
+                            .old_layout(t.old_layout)
+                            .new_layout(t.new_layout)
+                            .image(graph.image_raw(id))
+                            .subresource_range(range),
+                    );
+                    batch.image_ids.push(id);
+                }
+                BarrierTarget::Buffer { id, range } => {
+                    let (raw, size) = graph.buffer_raw(id);
+                    let end = range.end().min(size);
+                    batch.buffers.push(
+                        vk::BufferMemoryBarrier2::default()
+                            .src_stage_mask(t.src_stages)
+                            .src_access_mask(t.src_access)
+                            .dst_stage_mask(t.dst_stages)
+                            .dst_access_mask(t.dst_access)
+                            .buffer(raw)
+                            .offset(range.offset)
+                            .size(end - range.offset),
+                    );
+                    batch.buffer_ids.push(id);
+                }
+            }
+        }
+        batch
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.images.is_empty() && self.buffers.is_empty()
+    }
+
+    fn patch_image(&mut self, id: ImageId, raw: vk::Image) {
+        for (b, _) in self
+            .images
+            .iter_mut()
+            .zip(&self.image_ids)
+            .filter(|(_, i)| **i == id)
+        {
+            b.image = raw;
+        }
+    }
+
+    fn patch_buffer(&mut self, id: BufferId, raw: vk::Buffer) {
+        for (b, _) in self
+            .buffers
+            .iter_mut()
+            .zip(&self.buffer_ids)
+            .filter(|(_, i)| **i == id)
+        {
+            b.buffer = raw;
+        }
+    }
 }
 
 pub(super) struct CompiledPass {
     pub decl: PassDecl,
     pub label: CString,
     /// Barriers before the pass in the first frame.
-    pub first: Vec<Barrier>,
+    pub first: BarrierBatch,
     /// Barriers before the pass in every later frame.
-    pub steady: Vec<Barrier>,
+    pub steady: BarrierBatch,
     /// Index of the pass's timestamp scope (regular passes only).
     pub scope: Option<usize>,
 }
@@ -71,14 +163,15 @@ impl GraphBuilder {
     /// need.
     fn derived_usage(&self) -> (Vec<vk::ImageUsageFlags>, Vec<vk::BufferUsageFlags>) {
         let mut images: Vec<_> = self.images.iter().map(|r| r.desc().usage).collect();
-        let mut buffers: Vec<_> = self
-            .buffers
-            .iter()
-            .map(|r| match &r.source {
-                BufferSource::Transient { usage, .. } => *usage,
-                BufferSource::Imported(b) => b.usage,
-            })
-            .collect();
+        let mut buffers: Vec<_> =
+            self.buffers
+                .iter()
+                .map(|r| match &r.source {
+                    BufferSource::Transient { usage, .. }
+                    | BufferSource::External { usage, .. } => *usage,
+                    BufferSource::Imported(b) => b.usage,
+                })
+                .collect();
         for pass in &self.passes {
             for (sub, access) in &pass.uses {
                 match *sub {
@@ -94,9 +187,19 @@ impl GraphBuilder {
         (images, buffers)
     }
 
+    /// `compile_frames` for one frame in flight.
+    pub fn compile(self, ctx: &Arc<Context>) -> Result<CompiledGraph> {
+        self.compile_frames(ctx, 1)
+    }
+
     /// Validates, culls unused passes, derives barriers for `ctx`'s device, allocates graph-owned
-    /// resources (their usage derived from their accesses), views and timestamp scopes.
-    pub fn compile(mut self, ctx: &Arc<Context>) -> Result<CompiledGraph> {
+    /// resources (their usage derived from their accesses), views and timestamp scopes (one
+    /// query pool per frame slot: `record` takes the slot, `0..frames_in_flight`).
+    pub fn compile_frames(
+        mut self,
+        ctx: &Arc<Context>,
+        frames_in_flight: usize,
+    ) -> Result<CompiledGraph> {
         self.cull();
         let barriers = derive(&self, stage_support(ctx))?;
         let (image_usage, buffer_usage) = self.derived_usage();
@@ -145,35 +248,27 @@ impl GraphBuilder {
                         gpu_allocator::MemoryLocation::GpuOnly,
                     )?),
                     BufferSource::Imported(b) => BufferSlot::Imported(b),
+                    BufferSource::External { size, usage } => BufferSlot::External {
+                        size,
+                        usage,
+                        raw: vk::Buffer::null(),
+                    },
                 };
                 Ok((r.name, slot))
             })
             .collect::<Result<Vec<_>>>()?;
-        let mut scope_names = Vec::new();
-        let passes = self
+        let scope_names: Vec<String> = self
             .passes
-            .into_iter()
-            .zip(barriers)
-            .map(|(decl, (first, steady))| {
-                let scope = (!decl.on_demand).then(|| {
-                    scope_names.push(decl.name.clone());
-                    scope_names.len() - 1
-                });
-                CompiledPass {
-                    label: CString::new(decl.name.replace('\0', " ")).unwrap_or_default(),
-                    decl,
-                    first,
-                    steady,
-                    scope,
-                }
-            })
+            .iter()
+            .filter(|p| !p.on_demand)
+            .map(|p| p.name.clone())
             .collect();
         let mut graph = CompiledGraph {
             ctx: ctx.clone(),
-            profiler: Profiler::new(ctx, scope_names)?,
+            profiler: Profiler::new(ctx, scope_names, frames_in_flight)?,
             images,
             buffers,
-            passes,
+            passes: Vec::with_capacity(self.passes.len()),
             samplers: [vk::Sampler::null(); 2],
             range_views: HashMap::new(),
             first_frame: true,
@@ -215,6 +310,20 @@ impl GraphBuilder {
             // chain (validated); destroyed in Drop.
             let view = unsafe { ctx.device.create_image_view(&info, None)? };
             graph.range_views.insert((id, base, count), view);
+        }
+        let mut scope = 0;
+        for (decl, (first, steady)) in self.passes.into_iter().zip(barriers) {
+            let pass = CompiledPass {
+                label: CString::new(decl.name.replace('\0', " ")).unwrap_or_default(),
+                first: BarrierBatch::new(&graph, &first),
+                steady: BarrierBatch::new(&graph, &steady),
+                scope: (!decl.on_demand).then(|| {
+                    scope += 1;
+                    scope - 1
+                }),
+                decl,
+            };
+            graph.passes.push(pass);
         }
         Ok(graph)
     }
@@ -264,7 +373,14 @@ impl CompiledGraph {
         match &self.buffers[id.0 as usize].1 {
             BufferSlot::Owned(b) => (b.raw, b.size),
             BufferSlot::Imported(b) => (b.raw, b.size),
+            BufferSlot::External { raw, size, .. } => (*raw, *size),
         }
+    }
+
+    fn batches(&mut self) -> impl Iterator<Item = &mut BarrierBatch> {
+        self.passes
+            .iter_mut()
+            .flat_map(|p| [&mut p.first, &mut p.steady])
     }
 
     /// Binds this frame's swapchain image (and its view) to an external image.
@@ -272,6 +388,42 @@ impl CompiledGraph {
         if let ImageSlot::External { raw, view, .. } = &mut self.images[id.0 as usize].1 {
             *raw = image;
             *view = image_view;
+            self.batches().for_each(|b| b.patch_image(id, image));
+        }
+    }
+
+    /// Binds this frame's buffer to an external buffer (the frame slot's uniforms). Panics
+    /// when `buffer` is smaller than declared or lacks the declared usage.
+    pub fn bind_external_buffer(&mut self, id: BufferId, buffer: &Buffer) {
+        let (name, slot) = &mut self.buffers[id.0 as usize];
+        if let BufferSlot::External { size, usage, raw } = slot {
+            assert!(
+                buffer.size >= *size && buffer.usage.contains(*usage),
+                "external buffer '{name}' needs {size} bytes with usage {usage:?}"
+            );
+            *raw = buffer.raw;
+            let raw = *raw;
+            self.batches().for_each(|b| b.patch_buffer(id, raw));
+        }
+    }
+
+    /// Panics naming the first external image or buffer that was never bound.
+    pub(super) fn check_externals_bound(&self) {
+        for (name, slot) in &self.images {
+            if let ImageSlot::External { raw, .. } = slot {
+                assert!(
+                    *raw != vk::Image::null(),
+                    "external image '{name}' is not bound"
+                );
+            }
+        }
+        for (name, slot) in &self.buffers {
+            if let BufferSlot::External { raw, .. } = slot {
+                assert!(
+                    *raw != vk::Buffer::null(),
+                    "external buffer '{name}' is not bound"
+                );
+            }
         }
     }
 

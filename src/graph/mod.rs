@@ -40,6 +40,12 @@ pub use derive::{Barrier, BarrierTarget};
 pub use record::{Descriptor, PassContext, Sampler};
 pub use sync::{Access, StageSupport, Stages};
 
+/// Most color attachments of one pass (recording keeps them in a fixed-size array).
+pub const MAX_COLOR_ATTACHMENTS: usize = 8;
+
+/// Most descriptors of one `PassContext::bind` (pushed from a fixed-size array).
+pub const MAX_DESCRIPTORS: usize = 16;
+
 /// Handle to an image of the graph.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ImageId(pub(crate) u32);
@@ -97,6 +103,13 @@ pub enum BufferSource {
         usage: vk::BufferUsageFlags,
     },
     Imported(Arc<Buffer>),
+    /// Owned elsewhere and bound per frame with `CompiledGraph::bind_external_buffer` (one
+    /// buffer per frame in flight, e.g. the frame uniforms). The graph tracks it as one
+    /// resource: every bound buffer must be used the same way each frame.
+    External {
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    },
 }
 
 pub(crate) struct ImageRes {
@@ -125,7 +138,7 @@ pub(crate) struct BufferRes {
 impl BufferRes {
     pub fn size(&self) -> u64 {
         match &self.source {
-            BufferSource::Transient { size, .. } => *size,
+            BufferSource::Transient { size, .. } | BufferSource::External { size, .. } => *size,
             BufferSource::Imported(b) => b.size,
         }
     }
@@ -299,6 +312,18 @@ impl GraphBuilder {
     /// A buffer owned outside the graph (point data, per-frame uniforms, readback targets).
     pub fn import_buffer(&mut self, name: &str, buffer: Arc<Buffer>) -> BufferId {
         self.add_buffer(name, BufferSource::Imported(buffer), None)
+    }
+
+    /// A buffer of `size` bytes with `usage` bound per frame with
+    /// `CompiledGraph::bind_external_buffer` (per-frame-slot uniforms). Accesses are checked
+    /// against `usage`, and every bound buffer must have it and at least `size` bytes.
+    pub fn external_buffer(
+        &mut self,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    ) -> BufferId {
+        self.add_buffer(name, BufferSource::External { size, usage }, None)
     }
 
     /// An imported buffer last used with `initial` before the graph's first frame (e.g.

@@ -4,16 +4,29 @@
 
 use ash::vk;
 
-use super::compile::CompiledGraph;
-use super::derive::{Barrier, BarrierTarget};
-use super::{Access, Attachment, BufferId, BufferRange, ImageId, Load, PassDecl, Subresource};
+use std::fmt;
+
+use super::compile::{BarrierBatch, CompiledGraph};
+use super::{
+    Access, Attachment, BufferId, BufferRange, ImageId, Load, PassDecl, Subresource,
+    MAX_COLOR_ATTACHMENTS, MAX_DESCRIPTORS,
+};
 use crate::gpu::{Context, ImageDesc, Pipeline};
 
 impl CompiledGraph {
-    /// Records the whole frame into `cmd` (which must be recording). On-demand passes are
-    /// recorded only when `on_demand` is set.
-    pub fn record(&mut self, cmd: vk::CommandBuffer, on_demand: bool) {
-        self.profiler.reset(cmd);
+    /// Records the whole frame into `cmd` (which must be recording), timing it in frame slot
+    /// `slot`'s query pool (`slot < frames_in_flight` of `compile_frames`; the slot's previous
+    /// frame must have finished and been collected). On-demand passes are recorded only when `on_demand` is set.
+    /// Allocates nothing: barriers were resolved at compile time and commands are built in
+    /// fixed-size arrays.
+    pub fn record(&mut self, cmd: vk::CommandBuffer, slot: usize, on_demand: bool) {
+        assert!(
+            slot < self.profiler.slots(),
+            "frame slot {slot} of a graph compiled for {} frames in flight",
+            self.profiler.slots()
+        );
+        self.check_externals_bound();
+        self.profiler.reset(cmd, slot);
         let first = self.first_frame;
         for pass in &self.passes {
             if pass.decl.on_demand && !on_demand {
@@ -22,7 +35,7 @@ impl CompiledGraph {
             self.ctx.begin_label(cmd, &pass.label);
             self.emit_barriers(cmd, if first { &pass.first } else { &pass.steady });
             if let Some(scope) = pass.scope {
-                self.profiler.stamp(cmd, scope, false);
+                self.profiler.stamp(cmd, slot, scope, false);
             }
             let extent = self.begin_rendering(cmd, &pass.decl);
             (pass.decl.record)(&PassContext {
@@ -37,7 +50,7 @@ impl CompiledGraph {
                 unsafe { self.ctx.device.cmd_end_rendering(cmd) };
             }
             if let Some(scope) = pass.scope {
-                self.profiler.stamp(cmd, scope, true);
+                self.profiler.stamp(cmd, slot, scope, true);
             }
             self.ctx.end_label(cmd);
         }
@@ -77,11 +90,11 @@ impl CompiledGraph {
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(clear)
         };
-        let colors: Vec<_> = decl
-            .colors
-            .iter()
-            .map(|a| attachment(a, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, false))
-            .collect();
+        // At most MAX_COLOR_ATTACHMENTS (validated at compile).
+        let mut colors = [vk::RenderingAttachmentInfo::default(); MAX_COLOR_ATTACHMENTS];
+        for (info, a) in colors.iter_mut().zip(&decl.colors) {
+            *info = attachment(a, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, false);
+        }
         let depth = decl
             .depth
             .as_ref()
@@ -93,7 +106,7 @@ impl CompiledGraph {
         let mut info = vk::RenderingInfo::default()
             .render_area(area)
             .layer_count(1)
-            .color_attachments(&colors);
+            .color_attachments(&colors[..decl.colors.len()]);
         if let Some(d) = depth.as_ref() {
             info = info.depth_attachment(d);
         }
@@ -114,56 +127,15 @@ impl CompiledGraph {
         extent
     }
 
-    fn emit_barriers(&self, cmd: vk::CommandBuffer, barriers: &[Barrier]) {
+    fn emit_barriers(&self, cmd: vk::CommandBuffer, barriers: &BarrierBatch) {
         if barriers.is_empty() {
             return;
         }
-        let mut image_barriers = Vec::new();
-        let mut buffer_barriers = Vec::new();
-        for b in barriers {
-            let t = b.transition;
-            match b.target {
-                BarrierTarget::Image { id, mip } => {
-                    let desc = self.image_desc(id);
-                    let range = vk::ImageSubresourceRange {
-                        aspect_mask: desc.aspect(),
-                        base_mip_level: mip,
-                        level_count: 1,
-                        base_array_layer: 0,
-                        layer_count: 1,
-                    };
-                    image_barriers.push(
-                        vk::ImageMemoryBarrier2::default()
-                            .src_stage_mask(t.src_stages)
-                            .src_access_mask(t.src_access)
-                            .dst_stage_mask(t.dst_stages)
-                            .dst_access_mask(t.dst_access)
-                            .old_layout(t.old_layout)
-                            .new_layout(t.new_layout)
-                            .image(self.image_raw(id))
-                            .subresource_range(range),
-                    );
-                }
-                BarrierTarget::Buffer { id, range } => {
-                    let (raw, size) = self.buffer_raw(id);
-                    let end = range.end().min(size);
-                    buffer_barriers.push(
-                        vk::BufferMemoryBarrier2::default()
-                            .src_stage_mask(t.src_stages)
-                            .src_access_mask(t.src_access)
-                            .dst_stage_mask(t.dst_stages)
-                            .dst_access_mask(t.dst_access)
-                            .buffer(raw)
-                            .offset(range.offset)
-                            .size(end - range.offset),
-                    );
-                }
-            }
-        }
         let dep = vk::DependencyInfo::default()
-            .image_memory_barriers(&image_barriers)
-            .buffer_memory_barriers(&buffer_barriers);
-        // SAFETY: recording outside a rendering scope.
+            .image_memory_barriers(&barriers.images)
+            .buffer_memory_barriers(&barriers.buffers);
+        // SAFETY: recording outside a rendering scope; external handles were patched in by
+        // `bind_external`/`bind_external_buffer` (checked bound at the start of `record`).
         unsafe { self.ctx.device.cmd_pipeline_barrier2(cmd, &dep) };
     }
 }
@@ -230,25 +202,26 @@ fn buffer_declared(
     range: BufferRange,
     ok: impl Fn(Access) -> bool,
 ) -> bool {
-    let mut spans: Vec<(u64, u64)> = uses
-        .iter()
-        .filter_map(|(sub, access)| match *sub {
-            Subresource::Buffer(id, r) if id == buffer && ok(*access) => {
-                Some((r.offset, r.end().min(size)))
-            }
-            _ => None,
-        })
-        .collect();
-    spans.sort_unstable();
     let end = range.end().min(size);
     let mut reached = range.offset;
-    for (start, stop) in spans {
-        if reached >= end || start > reached {
-            break;
+    while reached < end {
+        // The furthest end of a declared span that covers `reached`.
+        let next = uses
+            .iter()
+            .filter_map(|(sub, access)| match *sub {
+                Subresource::Buffer(id, r) if id == buffer && ok(*access) => {
+                    let stop = r.end().min(size);
+                    (r.offset <= reached && stop > reached).then_some(stop)
+                }
+                _ => None,
+            })
+            .max();
+        match next {
+            Some(stop) => reached = stop,
+            None => return false,
         }
-        reached = reached.max(stop);
     }
-    reached >= end
+    true
 }
 
 /// Whether `uses` declares every level of `base..base + count` of `image` with an access `ok`
@@ -284,7 +257,7 @@ impl PassContext<'_> {
 
     fn check_buffer(
         &self,
-        what: &str,
+        what: impl fmt::Display,
         id: BufferId,
         range: BufferRange,
         needs: &str,
@@ -302,7 +275,7 @@ impl PassContext<'_> {
 
     fn check_mips(
         &self,
-        what: &str,
+        what: impl fmt::Display,
         id: ImageId,
         base: u32,
         count: u32,
@@ -343,18 +316,25 @@ impl PassContext<'_> {
 
     /// Binds `pipeline` and pushes its descriptors.
     pub fn bind(&self, pipeline: &Pipeline, descriptors: &[Descriptor]) {
+        #[derive(Clone, Copy)]
         enum Info {
             Buffer([vk::DescriptorBufferInfo; 1]),
             Image([vk::DescriptorImageInfo; 1]),
         }
+        assert!(
+            descriptors.len() <= MAX_DESCRIPTORS,
+            "pass '{}': {} descriptors in one bind (at most {MAX_DESCRIPTORS})",
+            self.pass.name,
+            descriptors.len()
+        );
         let buffer = |binding: u32, id: BufferId, range: BufferRange, uniform: bool| {
-            let what = format!("binding {binding}");
+            let what = format_args!("binding {binding}");
             if uniform {
-                self.check_buffer(&what, id, range, "UniformRead", |a| {
+                self.check_buffer(what, id, range, "UniformRead", |a| {
                     matches!(a, Access::UniformRead(_))
                 });
             } else {
-                self.check_buffer(&what, id, range, "Storage* or UniformRead", |a| {
+                self.check_buffer(what, id, range, "Storage* or UniformRead", |a| {
                     is_storage(a) || matches!(a, Access::UniformRead(_))
                 });
             }
@@ -371,7 +351,7 @@ impl PassContext<'_> {
         };
         let sampled = |binding: u32, id: ImageId, base: u32, count: u32, sampler: Sampler| {
             self.check_mips(
-                &format!("binding {binding}"),
+                format_args!("binding {binding}"),
                 id,
                 base,
                 count,
@@ -388,15 +368,21 @@ impl PassContext<'_> {
                 Info::Image([info]),
             )
         };
-        let infos: Vec<(u32, vk::DescriptorType, Info)> = descriptors
-            .iter()
-            .map(|desc| match *desc {
+        // Fixed-size arrays: binding allocates nothing.
+        let unused = (
+            0,
+            vk::DescriptorType::STORAGE_BUFFER,
+            Info::Buffer([vk::DescriptorBufferInfo::default()]),
+        );
+        let mut infos = [unused; MAX_DESCRIPTORS];
+        for (info, desc) in infos.iter_mut().zip(descriptors) {
+            *info = match *desc {
                 Descriptor::Buffer(binding, id) => buffer(binding, id, BufferRange::WHOLE, false),
                 Descriptor::BufferRange(binding, id, range) => buffer(binding, id, range, false),
                 Descriptor::Uniform(binding, id) => buffer(binding, id, BufferRange::WHOLE, true),
                 Descriptor::StorageImage(binding, id, mip) => {
                     self.check_mips(
-                        &format!("binding {binding}"),
+                        format_args!("binding {binding}"),
                         id,
                         mip,
                         1,
@@ -422,20 +408,19 @@ impl PassContext<'_> {
                     count,
                     sampler,
                 } => sampled(binding, image, base, count, sampler),
-            })
-            .collect();
-        let writes: Vec<_> = infos
-            .iter()
-            .map(|(binding, ty, info)| {
-                let w = vk::WriteDescriptorSet::default()
-                    .dst_binding(*binding)
-                    .descriptor_type(*ty);
-                match info {
-                    Info::Buffer(b) => w.buffer_info(b),
-                    Info::Image(i) => w.image_info(i),
-                }
-            })
-            .collect();
+            };
+        }
+        let mut writes = [vk::WriteDescriptorSet::default(); MAX_DESCRIPTORS];
+        for (w, (binding, ty, info)) in writes.iter_mut().zip(&infos[..descriptors.len()]) {
+            let write = vk::WriteDescriptorSet::default()
+                .dst_binding(*binding)
+                .descriptor_type(*ty);
+            *w = match info {
+                Info::Buffer(b) => write.buffer_info(b),
+                Info::Image(i) => write.image_info(i),
+            };
+        }
+        let writes = &writes[..descriptors.len()];
         // SAFETY: the command buffer is recording; descriptors match the pipeline's layout.
         unsafe {
             self.ctx
@@ -447,7 +432,7 @@ impl PassContext<'_> {
                     pipeline.bind_point,
                     pipeline.layout,
                     0,
-                    &writes,
+                    writes,
                 );
             }
         }
@@ -647,12 +632,12 @@ impl PassContext<'_> {
     }
 
     fn check_transfer(&self, what: &str, id: ImageId, mip: u32, dst: bool) {
-        let needs = if dst {
-            Access::TransferDst
+        let (needs, name) = if dst {
+            (Access::TransferDst, "TransferDst")
         } else {
-            Access::TransferSrc
+            (Access::TransferSrc, "TransferSrc")
         };
-        self.check_mips(what, id, mip, 1, &format!("{needs:?}"), |a| a == needs);
+        self.check_mips(what, id, mip, 1, name, |a| a == needs);
     }
 
     /// Scales mip `src_mip` of `src` onto mip `dst_mip` of `dst` (declared TransferSrc /

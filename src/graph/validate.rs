@@ -6,7 +6,10 @@ use std::collections::HashSet;
 use anyhow::{anyhow, bail, Result};
 
 use super::sync::Access;
-use super::{BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, Load, Subresource};
+use super::{
+    BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, Load, Subresource,
+    MAX_COLOR_ATTACHMENTS,
+};
 
 pub(crate) fn validate(builder: &GraphBuilder) -> Result<()> {
     let mut seen_on_demand = false;
@@ -90,8 +93,13 @@ pub(crate) fn validate(builder: &GraphBuilder) -> Result<()> {
                         );
                     }
                     let needs = access.buffer_usage();
-                    if let BufferSource::Imported(b) = &res.source {
-                        if !needs.is_empty() && !b.usage.intersects(needs) {
+                    let owned = match &res.source {
+                        BufferSource::Imported(b) => Some(b.usage),
+                        BufferSource::External { usage, .. } => Some(*usage),
+                        BufferSource::Transient { .. } => None,
+                    };
+                    if let Some(usage) = owned {
+                        if !needs.is_empty() && !usage.intersects(needs) {
                             bail!(
                                 "pass '{}': imported buffer '{}' lacks usage {needs:?} for {access:?}",
                                 pass.name,
@@ -101,6 +109,13 @@ pub(crate) fn validate(builder: &GraphBuilder) -> Result<()> {
                     }
                 }
             }
+        }
+        if pass.colors.len() > MAX_COLOR_ATTACHMENTS {
+            bail!(
+                "pass '{}': {} color attachments (at most {MAX_COLOR_ATTACHMENTS})",
+                pass.name,
+                pass.colors.len()
+            );
         }
         let extents: Vec<(u32, u32)> = pass
             .colors
@@ -138,9 +153,9 @@ impl GraphBuilder {
         let persistent_image =
             |id: ImageId| !matches!(self.images[id.0 as usize].source, ImageSource::Transient(_));
         let persistent_buffer = |id: BufferId| {
-            matches!(
+            !matches!(
                 self.buffers[id.0 as usize].source,
-                BufferSource::Imported(_)
+                BufferSource::Transient { .. }
             )
         };
         let mut needed: HashSet<(bool, u32, u32)> = HashSet::new();

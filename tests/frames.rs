@@ -1,0 +1,197 @@
+//! Frames in flight on lavapipe: frames submitted back to back without waiting render the
+//! same image as one frame alone (synchronization validation on), and a warmed-up frame
+//! (`begin_frame` + `update` + record + submit + wait) performs no heap allocation.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use surfel::eval::Frame;
+use surfel::methods::{MethodConfig, METHODS};
+use surfel::render::{upload, Extras, Renderer, View};
+use surfel::scene::{Camera, Cloud, Light};
+
+/// Counts the allocations (`alloc`, `alloc_zeroed`, `realloc`) made by threads that opted in.
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    /// Whether this thread's allocations are counted (the test harness and the other tests
+    /// of this binary run on other threads).
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+
+fn count() {
+    if COUNTED.with(Cell::get) {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+    }
+}
+
+// SAFETY: every call is forwarded unchanged to the system allocator; counting touches only an
+// atomic and a const-initialized thread-local, neither of which allocates.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: forwarded with the caller's layout.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: forwarded with the caller's layout.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        // SAFETY: `ptr` was allocated by `System` (through this allocator) with `layout`.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` was allocated by `System` (through this allocator) with `layout`.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// Allocations `f` makes on this thread.
+fn allocations_of(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    COUNTED.with(|c| c.set(true));
+    f();
+    COUNTED.with(|c| c.set(false));
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+/// Every method this device can run on `cloud` (it has faces).
+fn methods(ctx: &surfel::gpu::Context) -> Vec<MethodConfig> {
+    METHODS
+        .iter()
+        .filter(|m| m.unsupported(&ctx.caps).is_none())
+        .map(|m| MethodConfig::parse(m.name).expect("method"))
+        .collect()
+}
+
+fn renderer(
+    ctx: &std::sync::Arc<surfel::gpu::Context>,
+    cloud: &Cloud,
+    config: &MethodConfig,
+    frames_in_flight: usize,
+) -> (Renderer, View) {
+    let (scene, info) = upload(ctx, cloud).expect("upload");
+    let r = Renderer::new(
+        ctx,
+        &scene,
+        info,
+        config,
+        48,
+        48,
+        Extras {
+            readback: true,
+            frames_in_flight,
+            ..Extras::default()
+        },
+    )
+    .expect("renderer");
+    let view = View {
+        camera: Camera::orbit(info.centre, info.radius, 15.0, 10.0),
+        lights: vec![Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    (r, view)
+}
+
+fn assert_same(a: &Frame, b: &Frame, method: &str) {
+    assert_eq!(a.color, b.color, "{method}: color");
+    assert_eq!(
+        a.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>(),
+        b.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>(),
+        "{method}: depth"
+    );
+    assert_eq!(a.normal, b.normal, "{method}: normal");
+}
+
+#[test]
+fn frames_in_flight_render_the_single_frame_image() {
+    let ctx = common::context();
+    let cloud = common::square(96);
+    for config in methods(&ctx) {
+        let name = config.method.name;
+        let (mut single, view) = renderer(&ctx, &cloud, &config, 1);
+        assert_eq!(single.frames_in_flight(), 1);
+        let expected = single
+            .render(&view, true)
+            .expect("frame")
+            .expect("readback");
+        drop(single);
+        assert!(
+            common::coverage(&expected) > 0.1,
+            "{name}: renders the square"
+        );
+
+        let (mut r, view) = renderer(&ctx, &cloud, &config, 2);
+        assert_eq!(r.frames_in_flight(), 2);
+        // Eight frames from other viewpoints, submitted back to back: each waits only for
+        // the frame that used its slot two frames earlier. A frame reading another slot's
+        // uniforms would render one of these viewpoints instead of the final one.
+        for i in 0..8 {
+            let moved = View {
+                camera: Camera::orbit(
+                    r.info.centre,
+                    r.info.radius,
+                    40.0 * i as f32,
+                    -20.0 + 5.0 * i as f32,
+                ),
+                ..view.clone()
+            };
+            r.begin_frame().expect("begin");
+            r.update(&moved).expect("update");
+            r.record(false).expect("record");
+            r.submit(None, None).expect("submit");
+        }
+        let got = r.render(&view, true).expect("frame").expect("readback");
+        assert_same(&got, &expected, name);
+        let (_, frame) = r.timings();
+        assert_eq!(
+            frame.samples, 9,
+            "{name}: every frame's timestamps collected"
+        );
+        drop(r);
+    }
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn warmed_up_frames_allocate_nothing() {
+    // Validation stays on: the counter sees only Rust allocations (the global allocator),
+    // while the Vulkan loader, the layers and the driver allocate through their own C
+    // allocators, which are not ours to remove.
+    let ctx = common::context();
+    let cloud = common::square(32);
+    for config in methods(&ctx) {
+        let name = config.method.name;
+        let (mut r, view) = renderer(&ctx, &cloud, &config, 2);
+        for _ in 0..3 {
+            r.render(&view, false).expect("warm-up frame");
+        }
+        let mut result = Ok(None);
+        let allocations = allocations_of(|| {
+            for _ in 0..10 {
+                result = r.render(&view, false);
+                if result.is_err() {
+                    break;
+                }
+            }
+        });
+        result.expect("frame");
+        assert_eq!(allocations, 0, "{name}: allocations in 10 frames");
+    }
+    common::assert_clean(&ctx);
+}
