@@ -18,6 +18,41 @@ pub struct LoadStats {
     pub dropped_non_finite: usize,
 }
 
+/// Axis-aligned bounds of the finite points seen so far, in f64 file coordinates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Bounds {
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+impl Bounds {
+    pub(crate) const EMPTY: Bounds = Bounds {
+        lo: DVec3::INFINITY,
+        hi: DVec3::NEG_INFINITY,
+    };
+
+    /// Adds `p` when all its coordinates are finite.
+    #[inline]
+    pub(crate) fn add(&mut self, p: DVec3) {
+        if p.is_finite() {
+            self.lo = self.lo.min(p);
+            self.hi = self.hi.max(p);
+        }
+    }
+
+    pub(crate) fn union(self, other: Bounds) -> Bounds {
+        Bounds {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    /// The f64 centre of the box, `None` when no finite point was added.
+    pub(crate) fn centre(&self) -> Option<DVec3> {
+        (self.lo.x <= self.hi.x).then(|| (self.lo + self.hi) * 0.5)
+    }
+}
+
 /// A point cloud in a local frame: `positions` are relative to `origin` (f64, in file units),
 /// so large LiDAR coordinates keep their precision after the conversion to f32.
 #[derive(Clone, Debug, Default)]
