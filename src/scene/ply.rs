@@ -1141,28 +1141,54 @@ pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
         out.write_all(b"property float radius\n")?;
     }
     out.write_all(b"end_header\n")?;
-    for i in 0..n {
+    let stride = if wide { 24 } else { 12 }
+        + normals.map_or(0, |_| 12)
+        + colors.map_or(0, |_| 4)
+        + radii.map_or(0, |_| 4);
+    let encode = |i: usize, record: &mut [u8]| {
+        let mut at = 0;
+        let mut put = |bytes: &[u8]| {
+            record[at..at + bytes.len()].copy_from_slice(bytes);
+            at += bytes.len();
+        };
         let p = cloud.positions[i];
         if wide {
             for c in (p.as_dvec3() + cloud.origin).to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         } else {
             for c in p.to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         }
         if let Some(normals) = normals {
             for c in normals[i].to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         }
         if let Some(colors) = colors {
-            out.write_all(&colors[i])?;
+            put(&colors[i]);
         }
         if let Some(radii) = radii {
-            out.write_all(&radii[i].to_le_bytes())?;
+            put(&radii[i].to_le_bytes());
         }
+    };
+    // Records are encoded in parallel, a block at a time, and each block written at once.
+    let per_task = records::task_records(stride);
+    let per_block = (records::BLOCK_BYTES / stride).max(1).next_multiple_of(per_task);
+    let mut block = Vec::new();
+    for start in (0..n).step_by(per_block) {
+        block.resize((n - start).min(per_block) * stride, 0);
+        block
+            .par_chunks_mut(per_task * stride)
+            .enumerate()
+            .for_each(|(task, bytes)| {
+                let first = start + task * per_task;
+                for (i, record) in bytes.chunks_exact_mut(stride).enumerate() {
+                    encode(first + i, record);
+                }
+            });
+        out.write_all(&block)?;
     }
     out.flush()
 }
