@@ -55,7 +55,7 @@ impl Bounds {
 
 /// A point cloud in a local frame: `positions` are relative to `origin` (f64, in file units),
 /// so large LiDAR coordinates keep their precision after the conversion to f32.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Cloud {
     pub positions: Vec<Vec3>,
     /// Unit normals, one per point, when the file has them or preprocessing computed them.

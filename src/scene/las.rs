@@ -221,7 +221,7 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     let header = read_header(file, &mut cursor)?;
     if header.point_format().is_compressed {
         cursor.rewind().map_err(|source| io_error(file, source))?;
-        return read_compressed(file, cursor, size);
+        return read_with_crate(file, cursor, size);
     }
     let at = cursor.position() as usize;
     let layout = Layout::new(file, &header, at, size)?;
@@ -235,6 +235,11 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
 /// Loads a LAS or LAZ file. LAS point records are streamed from the file and decoded in
 /// parallel while the next block is read.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+    load_in_blocks(path, records::BLOCK_BYTES)
+}
+
+/// [`load`], reading records in blocks of about `block_bytes`.
+fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let file = path.display().to_string();
     let open = File::open(path).map_err(|source| io_error(&file, source))?;
     let size = open.metadata().map_err(|source| io_error(&file, source))?.len();
@@ -243,7 +248,7 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     let header = read_header(&file, &mut read)?;
     if header.point_format().is_compressed {
         read.rewind().map_err(|source| io_error(&file, source))?;
-        return read_compressed(&file, read, size);
+        return read_with_crate(&file, read, size);
     }
     let at = read
         .stream_position()
@@ -256,7 +261,7 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
         &file,
         &mut read,
         layout.span,
-        records::BLOCK_BYTES,
+        block_bytes,
         &progress,
         |first, block| columns.decode_block(&layout, first, block),
     )?;
@@ -270,8 +275,9 @@ fn io_error(file: &str, source: std::io::Error) -> LoadError {
     }
 }
 
-/// Reads LAZ points with the `las` crate, from the start of a file of `size` bytes.
-fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
+/// Reads the points with the `las` crate (used for LAZ), from the start of a file of `size`
+/// bytes.
+fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
     file: &str,
     read: R,
     size: usize,
@@ -327,4 +333,114 @@ fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
     };
     cloud.retain_finite();
     Ok(cloud)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use las::point::{Classification, Format};
+    use las::{Builder, Color, Point, Transform, Vector, Writer};
+
+    use super::*;
+
+    /// A LAS 1.4 file of point `format` with 3 extra bytes per record and `n` points whose
+    /// color channels exceed 255 only from point `wide_from` on. Every fifth point has the
+    /// overlap class (with flag bits set in formats 0-5).
+    fn las_file(format: u8, n: usize, wide_from: usize) -> Vec<u8> {
+        let mut builder = Builder::from((1, 4));
+        builder.point_format = Format::new(format).unwrap();
+        builder.point_format.extra_bytes = 3;
+        builder.transforms = Vector {
+            x: Transform {
+                scale: 0.01,
+                offset: 636_000.0,
+            },
+            y: Transform {
+                scale: 0.001,
+                offset: -55_989.0,
+            },
+            z: Transform {
+                scale: 0.1,
+                offset: 0.0,
+            },
+        };
+        let point_format = builder.point_format;
+        let mut writer = Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
+        for i in 0..n {
+            let f = i as f64;
+            let channel = if i >= wide_from {
+                (i * 997 % 65_536) as u16
+            } else {
+                (i % 256) as u16
+            };
+            let point = Point {
+                x: 636_000.0 + f * 0.37,
+                y: -55_989.0 - f * 0.011,
+                z: (f * 0.7) % 50.0,
+                intensity: (i * 31 % 65_536) as u16,
+                classification: Classification::new((i % 12) as u8).unwrap(),
+                gps_time: point_format.has_gps_time.then_some(f),
+                color: point_format
+                    .has_color
+                    .then(|| Color::new(channel, channel / 2, 255 - (i % 256) as u16)),
+                nir: point_format.has_nir.then_some(7),
+                extra_bytes: vec![1, 2, 3],
+                ..Default::default()
+            };
+            writer.write_point(point).unwrap();
+        }
+        let mut bytes = writer.into_inner().unwrap().into_inner();
+        let at = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+        let stride = usize::from(u16::from_le_bytes([bytes[105], bytes[106]]));
+        for record in bytes[at..].chunks_exact_mut(stride).step_by(5) {
+            if point_format.is_extended {
+                record[16] = OVERLAP;
+            } else {
+                record[15] = 0b1110_0000 | OVERLAP;
+            }
+        }
+        bytes
+    }
+
+    fn temp_file(name: &str, bytes: &[u8]) -> PathBuf {
+        let path = std::env::temp_dir().join(format!("surfel-{}-{name}", std::process::id()));
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    /// The parallel decoder, in memory and streamed in blocks of several sizes, against the
+    /// `las` crate's point reader.
+    fn assert_matches_crate(name: &str, bytes: Vec<u8>) {
+        let reference = read_with_crate(name, Cursor::new(bytes.clone()), bytes.len()).unwrap();
+        assert_eq!(parse(name, bytes.clone()).unwrap(), reference, "{name} in memory");
+        let path = temp_file(name, &bytes);
+        for block in [1, 4096, records::BLOCK_BYTES] {
+            let streamed = load_in_blocks(&path, block).unwrap();
+            assert_eq!(streamed, reference, "{name} in blocks of {block} bytes");
+        }
+        std::fs::remove_file(path).unwrap();
+    }
+
+    #[test]
+    fn point_formats_match_the_las_crate() {
+        for format in [0, 1, 2, 3, 6, 7, 8] {
+            // 16-bit colors from the first point, from a later block on, and never.
+            for wide_from in [0, 700, usize::MAX] {
+                let bytes = las_file(format, 1000, wide_from);
+                assert_matches_crate(&format!("f{format}-{wide_from}.las"), bytes);
+            }
+        }
+    }
+
+    #[test]
+    fn shared_files_match_the_las_crate() {
+        let root = std::env::var_os("SURFEL_DATA")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+        for file in ["autzen_trim.las", "vegetation_1_3.las"] {
+            let bytes = std::fs::read(root.join("lidar").join(file)).unwrap();
+            assert_matches_crate(file, bytes);
+        }
+    }
 }

@@ -1034,6 +1034,11 @@ fn read_header_bytes(read: &mut impl Read) -> io::Result<Vec<u8>> {
 /// is never held in memory; the elements after it (faces) are read into memory. Other files
 /// are read whole and parsed by [`parse`].
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+    load_in_blocks(path, records::BLOCK_BYTES)
+}
+
+/// [`load`], reading records in blocks of about `block_bytes`.
+fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let file = path.display().to_string();
     let io_error = |source| LoadError::Io {
         file: file.clone(),
@@ -1074,7 +1079,7 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
         &file,
         &mut f,
         span,
-        records::BLOCK_BYTES,
+        block_bytes,
         &progress,
         |first, block| {
             let b = layout.decode_block(&mut columns, first, block, DVec3::ZERO, false);
@@ -1090,7 +1095,7 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
             &file,
             &mut f,
             span,
-            records::BLOCK_BYTES,
+            block_bytes,
             &progress,
             |first, block| {
                 layout.decode_block(&mut columns, first, block, origin, true);
@@ -1290,6 +1295,62 @@ mod tests {
             );
             assert_eq!(cloud.scalars[0].name, "confidence");
             assert_eq!(cloud.scalars[0].values, vec![0.5, 0.25]);
+        }
+    }
+
+    /// A binary PLY of `n` points with normals, colors and radii (double coordinates far
+    /// from zero when `wide`), one NaN position, and two faces after the vertices.
+    fn binary_with_faces(n: usize, wide: bool) -> Vec<u8> {
+        let mut cloud = Cloud {
+            positions: (0..n)
+                .map(|i| {
+                    let f = i as f32;
+                    Vec3::new(f * 0.5, (i % 7) as f32, -f.sqrt())
+                })
+                .collect(),
+            normals: Some((0..n).map(|i| Vec3::new(0.0, 1.0, i as f32)).collect()),
+            colors: Some((0..n).map(|i| [i as u8, 2, 3, (i / 3) as u8]).collect()),
+            radii: Some((0..n).map(|i| i as f32 * 0.25).collect()),
+            ..Cloud::default()
+        };
+        if wide {
+            cloud.origin = DVec3::new(636_000.0, 849_000.0, 400.0);
+        }
+        cloud.positions[17].x = f32::NAN;
+        let mut bytes = Vec::new();
+        write_binary(&cloud, &mut bytes).unwrap();
+        let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap();
+        bytes.splice(
+            end..end,
+            b"element face 2\nproperty list uchar int vertex_indices\n".iter().copied(),
+        );
+        for face in [[0i32, 1, 2], [3, 17, 4]] {
+            bytes.push(3);
+            for i in face {
+                bytes.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        bytes
+    }
+
+    #[test]
+    fn streamed_blocks_match_in_memory_parse() {
+        for wide in [false, true] {
+            let bytes = binary_with_faces(5000, wide);
+            let expected = parse("mem.ply", &bytes).unwrap();
+            assert_eq!(expected.len(), 4999);
+            assert_eq!(expected.faces, Some(vec![[0, 1, 2]]));
+            assert_eq!(expected.origin != DVec3::ZERO, wide);
+            let path = std::env::temp_dir().join(format!(
+                "surfel-{}-blocks-{wide}.ply",
+                std::process::id()
+            ));
+            std::fs::write(&path, &bytes).unwrap();
+            for block in [1, 1000, records::BLOCK_BYTES] {
+                let streamed = load_in_blocks(&path, block).unwrap();
+                assert_eq!(streamed, expected, "blocks of {block} bytes");
+            }
+            std::fs::remove_file(path).unwrap();
         }
     }
 }
