@@ -1,6 +1,7 @@
 //! The in-memory point cloud every loader produces and every method consumes.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// A named per-point scalar attribute (LAS intensity, classification, PLY confidence, ...).
 #[derive(Clone, Debug, PartialEq)]
@@ -89,8 +90,9 @@ impl Cloud {
         let first = *self.positions.first()?;
         Some(
             self.positions
-                .iter()
-                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+                .par_iter()
+                .fold(|| (first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+                .reduce(|| (first, first), |a, b| (a.0.min(b.0), a.1.max(b.1))),
         )
     }
 
@@ -105,11 +107,11 @@ impl Cloud {
     /// radius and scalar values. Faces that used a removed point are removed; the others are
     /// re-indexed. Adds the number of removed points to `stats.dropped_non_finite` and returns it.
     pub fn retain_finite(&mut self) -> usize {
-        let keep: Vec<bool> = self.positions.iter().map(|p| p.is_finite()).collect();
-        let dropped = keep.iter().filter(|k| !**k).count();
-        if dropped == 0 {
+        if self.positions.par_iter().all(|p| p.is_finite()) {
             return 0;
         }
+        let keep: Vec<bool> = self.positions.iter().map(|p| p.is_finite()).collect();
+        let dropped = keep.iter().filter(|k| !**k).count();
         fn filter<T: Copy>(values: &mut Vec<T>, keep: &[bool]) {
             if values.len() == keep.len() {
                 let mut i = 0;

@@ -79,10 +79,10 @@ impl Layout {
     fn columns(&self) -> Columns {
         let n = self.span.count;
         Columns {
-            raw: vec![[0; 3]; n],
-            colors: self.color_at.map(|_| vec![[0, 0, 0, 255]; n]),
-            intensity: vec![0.0; n],
-            class: vec![0.0; n],
+            raw: records::filled([0; 3], n),
+            colors: self.color_at.map(|_| records::filled([0, 0, 0, 255], n)),
+            intensity: records::filled(0.0, n),
+            class: records::filled(0.0, n),
             bounds: Bounds::EMPTY,
             sixteen_bit: false,
         }

@@ -629,11 +629,13 @@ struct ColumnsMut<'a> {
 impl Columns {
     fn new(spec: &VertexSpec, n: usize) -> Self {
         Columns {
-            positions: vec![Vec3::ZERO; n],
-            normals: spec.has_normals.then(|| vec![Vec3::ZERO; n]),
-            colors: spec.has_colors.then(|| vec![[0, 0, 0, 255]; n]),
-            radii: spec.has_radius.then(|| vec![0.0; n]),
-            scalars: spec.scalar_names.iter().map(|_| vec![0.0; n]).collect(),
+            positions: records::filled(Vec3::ZERO, n),
+            normals: spec.has_normals.then(|| records::filled(Vec3::ZERO, n)),
+            colors: spec.has_colors.then(|| records::filled([0, 0, 0, 255], n)),
+            radii: spec.has_radius.then(|| records::filled(0.0, n)),
+            scalars: (spec.scalar_names.iter())
+                .map(|_| records::filled(0.0, n))
+                .collect(),
         }
     }
 
@@ -696,15 +698,15 @@ struct VertexLayout {
 }
 
 impl VertexLayout {
-    /// The layout of `element`'s records, `None` when it has a list property.
-    fn new(element: &Element, spec: &VertexSpec, big: bool) -> Option<Self> {
-        let stride = element.fixed_record_size()?;
+    /// The layout of `element`'s records, which have no list property and `stride` bytes
+    /// ([`Element::fixed_record_size`]).
+    fn new(element: &Element, spec: &VertexSpec, big: bool, stride: usize) -> Self {
         let mut xyz = [(0, ScalarType::F32); 3];
         let mut others = Vec::new();
         let mut offset = 0;
         for (prop, &role) in element.props.iter().zip(&spec.roles) {
             let Kind::Scalar(t) = prop.kind else {
-                return None;
+                continue;
             };
             match role {
                 Role::X => xyz[0] = (offset, t),
@@ -717,12 +719,12 @@ impl VertexLayout {
             }
             offset += t.size();
         }
-        Some(VertexLayout {
+        VertexLayout {
             stride,
             big,
             xyz,
             others,
-        })
+        }
     }
 
     /// Decodes the whole records in `bytes` into `out` (one row per record). Positions are
@@ -819,18 +821,17 @@ fn read_vertices(
 ) -> Result<(), LoadError> {
     let spec = VertexSpec::new(body.file, element)?;
     let n = element.count;
-    if let Encoding::Binary { big } = body.encoding {
-        if let Some(layout) = VertexLayout::new(element, &spec, big) {
-            let bytes = body.take(n.saturating_mul(layout.stride), element, 0)?;
-            let mut columns = Columns::new(&spec, n);
-            let bounds = layout.decode_block(&mut columns, 0, bytes, DVec3::ZERO, false);
-            let origin = local_origin(&bounds);
-            if origin != DVec3::ZERO {
-                layout.decode_block(&mut columns, 0, bytes, origin, true);
-            }
-            columns.store(spec, origin, cloud);
-            return Ok(());
+    if let (Encoding::Binary { big }, Some(stride)) = (body.encoding, element.fixed_record_size()) {
+        let layout = VertexLayout::new(element, &spec, big, stride);
+        let bytes = body.take(n.saturating_mul(stride), element, 0)?;
+        let mut columns = Columns::new(&spec, n);
+        let bounds = layout.decode_block(&mut columns, 0, bytes, DVec3::ZERO, false);
+        let origin = local_origin(&bounds);
+        if origin != DVec3::ZERO {
+            layout.decode_block(&mut columns, 0, bytes, origin, true);
         }
+        columns.store(spec, origin, cloud);
+        return Ok(());
     }
     let mut positions = Vec::with_capacity(n);
     let mut columns = Columns {
@@ -1050,20 +1051,19 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let header = parse_header(&file, &data, usize::try_from(len).unwrap_or(usize::MAX))?;
     let v = vertex_element(&file, &header)?;
     let element = &header.elements[v];
-    let spec = VertexSpec::new(&file, element)?;
     let before: Option<usize> = header.elements[..v]
         .iter()
         .map(|e| Some(e.fixed_record_size()? * e.count))
         .sum();
-    let layout = match header.encoding {
-        Encoding::Binary { big } => VertexLayout::new(element, &spec, big),
-        Encoding::Ascii => None,
-    };
-    let (Some(before), Some(layout)) = (before, layout) else {
+    let (Encoding::Binary { big }, Some(before), Some(stride)) =
+        (header.encoding, before, element.fixed_record_size())
+    else {
         f.read_to_end(&mut data).map_err(io_error)?;
         return parse(&file, &data);
     };
     drop(data);
+    let spec = VertexSpec::new(&file, element)?;
+    let layout = VertexLayout::new(element, &spec, big, stride);
     let span = records::Span {
         at: header.body + before,
         count: element.count,

@@ -4,6 +4,8 @@
 
 use std::io::Read;
 
+use rayon::prelude::*;
+
 use super::error::LoadError;
 use super::progress::Progress;
 
@@ -20,6 +22,14 @@ pub(crate) const PROGRESS_MIN_BYTES: usize = 64 << 20;
 /// Records per parallel task for records of `stride` bytes.
 pub(crate) fn task_records(stride: usize) -> usize {
     (TASK_BYTES / stride.max(1)).max(1)
+}
+
+/// A vector of `n` copies of `value`, written in parallel (so the pages of a large column are
+/// first touched by all threads, not one).
+pub(crate) fn filled<T: Copy + Send + Sync>(value: T, n: usize) -> Vec<T> {
+    let mut column = Vec::with_capacity(n);
+    column.par_extend((0..n).into_par_iter().map(|_| value));
+    column
 }
 
 /// Where a run of `count` records of `stride` bytes lies in a file.
