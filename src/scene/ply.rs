@@ -9,7 +9,7 @@ use std::fs::File;
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::Path;
-use std::slice::ChunksMut;
+use std::slice::{ChunksExact, ChunksMut};
 
 use glam::{DVec3, Vec3};
 
@@ -20,6 +20,73 @@ use super::error::LoadError;
 use super::progress::Progress;
 use super::records;
 use super::text::{self, Lines};
+
+/// A Rust number type that a PLY scalar type decodes to.
+trait Raw {
+    /// Reads the value at the start of `b` in big-endian (`big`) or little-endian order.
+    fn read(b: &[u8], big: bool) -> f64;
+}
+
+macro_rules! impl_raw {
+    ($($t:ty),*) => {$(
+        impl Raw for $t {
+            #[inline(always)]
+            fn read(b: &[u8], big: bool) -> f64 {
+                let mut raw = [0u8; std::mem::size_of::<$t>()];
+                raw.copy_from_slice(&b[..std::mem::size_of::<$t>()]);
+                let value = if big {
+                    <$t>::from_be_bytes(raw)
+                } else {
+                    <$t>::from_le_bytes(raw)
+                };
+                value as f64
+            }
+        }
+    )*};
+}
+
+impl_raw!(i8, u8, i16, u16, i32, u32, f32, f64);
+
+/// Evaluates `$body` with `$T` naming the Rust type of the [`ScalarType`] `$t`, so that a loop
+/// in the body is compiled once per type instead of matching the type for every value.
+macro_rules! with_type {
+    ($t:expr, $T:ident => $body:expr) => {
+        match $t {
+            ScalarType::I8 => {
+                type $T = i8;
+                $body
+            }
+            ScalarType::U8 => {
+                type $T = u8;
+                $body
+            }
+            ScalarType::I16 => {
+                type $T = i16;
+                $body
+            }
+            ScalarType::U16 => {
+                type $T = u16;
+                $body
+            }
+            ScalarType::I32 => {
+                type $T = i32;
+                $body
+            }
+            ScalarType::U32 => {
+                type $T = u32;
+                $body
+            }
+            ScalarType::F32 => {
+                type $T = f32;
+                $body
+            }
+            ScalarType::F64 => {
+                type $T = f64;
+                $body
+            }
+        }
+    };
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum ScalarType {
@@ -57,30 +124,27 @@ impl ScalarType {
         }
     }
 
-    /// Decodes one value from exactly `self.size()` bytes.
+    /// Decodes one value from the first `self.size()` bytes of `b`.
     #[inline]
     fn decode(self, b: &[u8], big: bool) -> f64 {
-        macro_rules! num {
-            ($t:ty, $n:literal) => {{
-                let mut raw = [0u8; $n];
-                raw.copy_from_slice(&b[..$n]);
-                if big {
-                    <$t>::from_be_bytes(raw) as f64
-                } else {
-                    <$t>::from_le_bytes(raw) as f64
-                }
-            }};
-        }
-        match self {
-            Self::I8 => f64::from(b[0] as i8),
-            Self::U8 => f64::from(b[0]),
-            Self::I16 => num!(i16, 2),
-            Self::U16 => num!(u16, 2),
-            Self::I32 => num!(i32, 4),
-            Self::U32 => num!(u32, 4),
-            Self::F32 => num!(f32, 4),
-            Self::F64 => num!(f64, 8),
-        }
+        with_type!(self, T => T::read(b, big))
+    }
+
+    /// Calls `f(row, value)` with the value of this type at byte `offset` of every record;
+    /// the type is matched once, not per value.
+    #[inline]
+    fn each_value(
+        self,
+        records: ChunksExact<'_, u8>,
+        offset: usize,
+        big: bool,
+        mut f: impl FnMut(usize, f64),
+    ) {
+        with_type!(self, T => {
+            for (row, r) in records.enumerate() {
+                f(row, T::read(&r[offset..], big));
+            }
+        })
     }
 
     /// Converts a color channel of this type to 8 bits.
@@ -739,17 +803,25 @@ impl VertexLayout {
     ) -> Bounds {
         let records = bytes.chunks_exact(self.stride);
         let big = self.big;
-        let mut bounds = Bounds::EMPTY;
         let [(ox, tx), (oy, ty), (oz, tz)] = self.xyz;
-        for (r, p) in records.clone().zip(out.positions.iter_mut()) {
-            let world = DVec3::new(
-                tx.decode(&r[ox..], big),
-                ty.decode(&r[oy..], big),
-                tz.decode(&r[oz..], big),
-            );
-            bounds.add(world);
-            *p = (world - origin).as_vec3();
-        }
+        let positions = &mut *out.positions;
+        let bounds = if tx == ty && tx == tz {
+            with_type!(tx, T => decode_positions(records.clone(), positions, origin, |r| {
+                DVec3::new(
+                    T::read(&r[ox..], big),
+                    T::read(&r[oy..], big),
+                    T::read(&r[oz..], big),
+                )
+            }))
+        } else {
+            decode_positions(records.clone(), positions, origin, |r| {
+                DVec3::new(
+                    tx.decode(&r[ox..], big),
+                    ty.decode(&r[oy..], big),
+                    tz.decode(&r[oz..], big),
+                )
+            })
+        };
         if positions_only {
             return bounds;
         }
@@ -761,7 +833,7 @@ impl VertexLayout {
             ..
         } = out;
         for &(offset, t, role) in &self.others {
-            let column = records.clone().map(|r| t.decode(&r[offset..], big));
+            let records = records.clone();
             let axis = match role {
                 Role::Nx | Role::Red => 0,
                 Role::Ny | Role::Green => 1,
@@ -769,23 +841,22 @@ impl VertexLayout {
                 _ => 3,
             };
             match (role, normals.as_deref_mut(), colors.as_deref_mut()) {
-                (Role::Nx | Role::Ny | Role::Nz, Some(ns), _) => ns
-                    .iter_mut()
-                    .zip(column)
-                    .for_each(|(d, v)| d[axis] = v as f32),
-                (Role::Red | Role::Green | Role::Blue | Role::Alpha, _, Some(cs)) => cs
-                    .iter_mut()
-                    .zip(column)
-                    .for_each(|(d, v)| d[axis] = t.to_u8_channel(v)),
+                (Role::Nx | Role::Ny | Role::Nz, Some(ns), _) => {
+                    t.each_value(records, offset, big, |row, v| ns[row][axis] = v as f32)
+                }
+                (Role::Red | Role::Green | Role::Blue | Role::Alpha, _, Some(cs)) => t
+                    .each_value(records, offset, big, |row, v| {
+                        cs[row][axis] = t.to_u8_channel(v)
+                    }),
                 (Role::Radius, ..) => {
                     if let Some(rs) = radii.as_deref_mut() {
-                        rs.iter_mut().zip(column).for_each(|(d, v)| *d = v as f32);
+                        t.each_value(records, offset, big, |row, v| rs[row] = v as f32);
                     }
                 }
-                (Role::Scalar(s), ..) => scalars[s]
-                    .iter_mut()
-                    .zip(column)
-                    .for_each(|(d, v)| *d = v as f32),
+                (Role::Scalar(s), ..) => {
+                    let values = &mut *scalars[s];
+                    t.each_value(records, offset, big, |row, v| values[row] = v as f32);
+                }
                 _ => {}
             }
         }
@@ -810,6 +881,24 @@ impl VertexLayout {
             .map(|(out, b)| self.decode(b, out, origin, positions_only))
             .reduce(|| Bounds::EMPTY, Bounds::union)
     }
+}
+
+/// Stores the position `world(record)` of every record relative to `origin` and returns the
+/// bounds of the finite ones.
+#[inline]
+fn decode_positions(
+    records: ChunksExact<'_, u8>,
+    positions: &mut [Vec3],
+    origin: DVec3,
+    world: impl Fn(&[u8]) -> DVec3,
+) -> Bounds {
+    let mut bounds = Bounds::EMPTY;
+    for (r, p) in records.zip(positions) {
+        let w = world(r);
+        bounds.add(w);
+        *p = (w - origin).as_vec3();
+    }
+    bounds
 }
 
 /// Reads the vertex element from memory: list-free binary records in parallel, anything else
