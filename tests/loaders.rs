@@ -237,7 +237,10 @@ fn type_size(name: &str) -> usize {
 /// One property of a PLY element, for [`transcode`].
 enum Prop {
     Scalar(usize),
-    List { count: usize, item: usize },
+    List {
+        count: usize,
+        item: usize,
+    },
     /// An empty list written into the output only.
     Pad,
 }
@@ -340,8 +343,16 @@ fn assert_binary_decodings_agree(name: &str, binary: &[u8]) {
         let padded = transcode(binary, big, true);
         let label = format!("{name} big={big}");
         assert_eq!(load_bytes(name, &fixed), reference, "{label} streamed");
-        assert_eq!(ply::parse(name, &fixed).unwrap(), reference, "{label} in memory");
-        assert_eq!(load_bytes(name, &padded), reference, "{label} record by record");
+        assert_eq!(
+            ply::parse(name, &fixed).unwrap(),
+            reference,
+            "{label} in memory"
+        );
+        assert_eq!(
+            load_bytes(name, &padded),
+            reference,
+            "{label} record by record"
+        );
     }
 }
 

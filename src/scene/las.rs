@@ -154,7 +154,9 @@ impl Columns {
             let sixteen_bit = shift || max_channel > 255;
             if sixteen_bit && !shift {
                 // Every channel before this block was at most 255, so shifted down it is 0.
-                colors[..first].par_iter_mut().for_each(|c| *c = [0, 0, 0, 255]);
+                colors[..first]
+                    .par_iter_mut()
+                    .for_each(|c| *c = [0, 0, 0, 255]);
                 self.sixteen_bit = true;
             }
             colors[rows]
@@ -242,7 +244,10 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
 fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let file = path.display().to_string();
     let open = File::open(path).map_err(|source| io_error(&file, source))?;
-    let size = open.metadata().map_err(|source| io_error(&file, source))?.len();
+    let size = open
+        .metadata()
+        .map_err(|source| io_error(&file, source))?
+        .len();
     let size = usize::try_from(size).unwrap_or(usize::MAX);
     let mut read = BufReader::new(open);
     let header = read_header(&file, &mut read)?;
@@ -287,7 +292,9 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
     let declared = reader.header().number_of_points();
     // Compressed records bound the count only loosely: reserve at most one point per two
     // bytes and let honest files that compress better grow the vectors.
-    let capacity = usize::try_from(declared).unwrap_or(usize::MAX).min(size / 2);
+    let capacity = usize::try_from(declared)
+        .unwrap_or(usize::MAX)
+        .min(size / 2);
     let mut world = Vec::with_capacity(capacity);
     let mut rgb16 = Vec::new();
     let mut intensity = Vec::with_capacity(capacity);
@@ -366,7 +373,8 @@ mod tests {
             },
         };
         let point_format = builder.point_format;
-        let mut writer = Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
+        let mut writer =
+            Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
         for i in 0..n {
             let f = i as f64;
             let channel = if i >= wide_from {
@@ -413,7 +421,11 @@ mod tests {
     /// `las` crate's point reader.
     fn assert_matches_crate(name: &str, bytes: Vec<u8>) {
         let reference = read_with_crate(name, Cursor::new(bytes.clone()), bytes.len()).unwrap();
-        assert_eq!(parse(name, bytes.clone()).unwrap(), reference, "{name} in memory");
+        assert_eq!(
+            parse(name, bytes.clone()).unwrap(),
+            reference,
+            "{name} in memory"
+        );
         let path = temp_file(name, &bytes);
         for block in [1, 4096, records::BLOCK_BYTES] {
             let streamed = load_in_blocks(&path, block).unwrap();

@@ -705,7 +705,11 @@ impl Columns {
 
     /// Splits rows `rows` of every column into consecutive pieces of `per_task` rows.
     fn tasks(&mut self, rows: Range<usize>, per_task: usize) -> Vec<ColumnsMut<'_>> {
-        fn split<'c, T>(column: &'c mut [T], rows: &Range<usize>, per_task: usize) -> ChunksMut<'c, T> {
+        fn split<'c, T>(
+            column: &'c mut [T],
+            rows: &Range<usize>,
+            per_task: usize,
+        ) -> ChunksMut<'c, T> {
             column[rows.clone()].chunks_mut(per_task)
         }
         let mut normals = self
@@ -716,10 +720,7 @@ impl Columns {
             .colors
             .as_deref_mut()
             .map(|c| split(c, &rows, per_task));
-        let mut radii = self
-            .radii
-            .as_deref_mut()
-            .map(|c| split(c, &rows, per_task));
+        let mut radii = self.radii.as_deref_mut().map(|c| split(c, &rows, per_task));
         let mut scalars: Vec<_> = self
             .scalars
             .iter_mut()
@@ -844,10 +845,11 @@ impl VertexLayout {
                 (Role::Nx | Role::Ny | Role::Nz, Some(ns), _) => {
                     t.each_value(records, offset, big, |row, v| ns[row][axis] = v as f32)
                 }
-                (Role::Red | Role::Green | Role::Blue | Role::Alpha, _, Some(cs)) => t
-                    .each_value(records, offset, big, |row, v| {
+                (Role::Red | Role::Green | Role::Blue | Role::Alpha, _, Some(cs)) => {
+                    t.each_value(records, offset, big, |row, v| {
                         cs[row][axis] = t.to_u8_channel(v)
-                    }),
+                    })
+                }
                 (Role::Radius, ..) => {
                     if let Some(rs) = radii.as_deref_mut() {
                         t.each_value(records, offset, big, |row, v| rs[row] = v as f32);
@@ -1089,13 +1091,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
     let vertex_count = header.elements[vertex_element(file, &header)?].count;
     let mut body = Body::new(file, data, header.body, 0, &header);
     let mut cloud = Cloud::default();
-    read_elements(
-        &mut body,
-        &header.elements,
-        vertex_count,
-        false,
-        &mut cloud,
-    )?;
+    read_elements(&mut body, &header.elements, vertex_count, false, &mut cloud)?;
     Ok(finish(cloud, vertex_count))
 }
 
@@ -1269,7 +1265,9 @@ pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
     };
     // Records are encoded in parallel, a block at a time, and each block written at once.
     let per_task = records::task_records(stride);
-    let per_block = (records::BLOCK_BYTES / stride).max(1).next_multiple_of(per_task);
+    let per_block = (records::BLOCK_BYTES / stride)
+        .max(1)
+        .next_multiple_of(per_task);
     let mut block = Vec::new();
     for start in (0..n).step_by(per_block) {
         block.resize((n - start).min(per_block) * stride, 0);
@@ -1408,10 +1406,15 @@ mod tests {
         cloud.positions[17].x = f32::NAN;
         let mut bytes = Vec::new();
         write_binary(&cloud, &mut bytes).unwrap();
-        let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap();
+        let end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap();
         bytes.splice(
             end..end,
-            b"element face 2\nproperty list uchar int vertex_indices\n".iter().copied(),
+            b"element face 2\nproperty list uchar int vertex_indices\n"
+                .iter()
+                .copied(),
         );
         for face in [[0i32, 1, 2], [3, 17, 4]] {
             bytes.push(3);
@@ -1430,10 +1433,8 @@ mod tests {
             assert_eq!(expected.len(), 4999);
             assert_eq!(expected.faces, Some(vec![[0, 1, 2]]));
             assert_eq!(expected.origin != DVec3::ZERO, wide);
-            let path = std::env::temp_dir().join(format!(
-                "surfel-{}-blocks-{wide}.ply",
-                std::process::id()
-            ));
+            let path = std::env::temp_dir()
+                .join(format!("surfel-{}-blocks-{wide}.ply", std::process::id()));
             std::fs::write(&path, &bytes).unwrap();
             for block in [1, 1000, records::BLOCK_BYTES] {
                 let streamed = load_in_blocks(&path, block).unwrap();

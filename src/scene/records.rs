@@ -14,7 +14,7 @@ use super::progress::Progress;
 const TASK_BYTES: usize = 1 << 20;
 
 /// Bytes read from a file per block.
-pub(crate) const BLOCK_BYTES: usize = 32 << 20;
+pub(crate) const BLOCK_BYTES: usize = 16 << 20;
 
 /// Files whose record data is at least this large show a progress bar (on a terminal).
 pub(crate) const PROGRESS_MIN_BYTES: usize = 64 << 20;
