@@ -106,11 +106,12 @@ struct Columns {
     sixteen_bit: bool,
 }
 
-/// Reads little-endian values at `at` of a record.
+/// The little-endian u16 at byte `at` of a record.
 fn u16_at(r: &[u8], at: usize) -> u16 {
     u16::from_le_bytes([r[at], r[at + 1]])
 }
 
+/// The little-endian i32 at byte `at` of a record.
 fn i32_at(r: &[u8], at: usize) -> i32 {
     i32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
 }
