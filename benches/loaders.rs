@@ -24,18 +24,42 @@ fn sampled_dragon(n: usize) -> Cloud {
     sample::sample_mesh(&dragon, n, 1).expect("sampling")
 }
 
+/// Autzen's point records repeated `copies` times behind its header (a LAS 1.2 file, so the
+/// point count is the 32-bit field at byte 107).
+fn repeated_las(copies: u32) -> Vec<u8> {
+    let autzen = read("lidar/autzen_trim.las");
+    let at = u32::from_le_bytes(autzen[96..100].try_into().expect("offset")) as usize;
+    let count = u32::from_le_bytes(autzen[107..111].try_into().expect("count"));
+    let mut bytes = autzen[..at].to_vec();
+    bytes[107..111].copy_from_slice(&(count * copies).to_le_bytes());
+    for _ in 0..copies {
+        bytes.extend_from_slice(&autzen[at..]);
+    }
+    bytes
+}
+
 fn loaders(c: &mut Criterion) {
-    let mut group = c.benchmark_group("parse");
+    let threads = rayon::current_num_threads();
+    let mut group = c.benchmark_group(format!("parse ({threads} threads)"));
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(5));
 
-    let mut binary = Vec::new();
-    ply::write_binary(&sampled_dragon(1_000_000), &mut binary).expect("write");
-    group.throughput(Throughput::Bytes(binary.len() as u64));
-    group.bench_function("ply binary (1M sampled dragon)", |b| {
-        b.iter(|| ply::parse("dragon.ply", &binary).expect("parse"))
-    });
+    for n in [1_000_000, 10_000_000] {
+        let mut binary = Vec::new();
+        ply::write_binary(&sampled_dragon(n), &mut binary).expect("write");
+        group.throughput(Throughput::Bytes(binary.len() as u64));
+        group.bench_function(format!("ply binary ({n} sampled dragon, memory)"), |b| {
+            b.iter(|| ply::parse("dragon.ply", &binary).expect("parse"))
+        });
+        let path = std::env::temp_dir().join(format!("surfel-bench-{n}.ply"));
+        std::fs::write(&path, &binary).expect("write");
+        drop(binary);
+        group.bench_function(format!("ply binary ({n} sampled dragon, file)"), |b| {
+            b.iter(|| ply::load(&path).expect("load"))
+        });
+        std::fs::remove_file(&path).expect("remove");
+    }
 
     let ascii = read("stanford/dragon_vrip.ply");
     group.throughput(Throughput::Bytes(ascii.len() as u64));
@@ -56,6 +80,29 @@ fn loaders(c: &mut Criterion) {
             b.iter(|| las::parse(file, bytes.clone()).expect("parse"))
         });
     }
+    let big = repeated_las(30);
+    group.throughput(Throughput::Bytes(big.len() as u64));
+    let path = std::env::temp_dir().join("surfel-bench-autzen30.las");
+    std::fs::write(&path, &big).expect("write");
+    group.bench_function("las (autzen x30, 3.3M points, file)", |b| {
+        b.iter(|| las::load(&path).expect("load"))
+    });
+    std::fs::remove_file(&path).expect("remove");
+    group.finish();
+
+    let mut group = c.benchmark_group(format!("sample ({threads} threads)"));
+    group.sample_size(10);
+    let dragon = scene::load(&data("stanford/dragon_vrip.ply")).expect("dragon");
+    let n = 1_000_000;
+    group.throughput(Throughput::Elements(n as u64));
+    group.bench_function("sample + write 1M points (dragon_vrip)", |b| {
+        b.iter(|| {
+            let cloud = sample::sample_mesh(&dragon, n, 1).expect("sampling");
+            let mut bytes = Vec::new();
+            ply::write_binary(&cloud, &mut bytes).expect("write");
+            bytes
+        })
+    });
     group.finish();
 }
 

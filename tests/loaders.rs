@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use glam::{DVec3, Vec3};
-use surfel::scene::{self, Cloud};
+use surfel::scene::{self, ply, sample, Cloud};
 
 fn data(rel: &str) -> PathBuf {
     let root = std::env::var_os("SURFEL_DATA")
@@ -221,4 +221,177 @@ fn vegetation_negative_offsets() {
         [-98447.4, -55969.4, -81455.2],
         0.06,
     );
+}
+
+/// Size in bytes of a PLY scalar type.
+fn type_size(name: &str) -> usize {
+    match name {
+        "char" | "int8" | "uchar" | "uint8" => 1,
+        "short" | "int16" | "ushort" | "uint16" => 2,
+        "int" | "int32" | "uint" | "uint32" | "float" | "float32" => 4,
+        "double" | "float64" => 8,
+        other => panic!("unknown PLY type {other}"),
+    }
+}
+
+/// One property of a PLY element, for [`transcode`].
+enum Prop {
+    Scalar(usize),
+    List {
+        count: usize,
+        item: usize,
+    },
+    /// An empty list written into the output only.
+    Pad,
+}
+
+/// Re-encodes a binary PLY in the byte order `big`. With `pad`, every vertex record starts
+/// with an empty list, so the vertices no longer have a fixed size and the loader decodes
+/// them one record at a time.
+fn transcode(data: &[u8], big: bool, pad: bool) -> Vec<u8> {
+    let end = data.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let header = std::str::from_utf8(&data[..end]).unwrap();
+    let source_big = header.contains("binary_big_endian");
+    let mut elements: Vec<(usize, Vec<Prop>)> = Vec::new();
+    let mut out = String::new();
+    for line in header.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["format", ..] => {
+                let order = if big { "big" } else { "little" };
+                out += &format!("format binary_{order}_endian 1.0\n");
+                continue;
+            }
+            ["element", name, count] => {
+                out += &format!("{line}\n");
+                elements.push((count.parse().unwrap(), Vec::new()));
+                if pad && *name == "vertex" {
+                    out += "property list uchar int pad\n";
+                    elements.last_mut().unwrap().1.push(Prop::Pad);
+                }
+                continue;
+            }
+            ["property", "list", count, item, _] => {
+                elements.last_mut().unwrap().1.push(Prop::List {
+                    count: type_size(count),
+                    item: type_size(item),
+                });
+            }
+            ["property", ty, _] => elements
+                .last_mut()
+                .unwrap()
+                .1
+                .push(Prop::Scalar(type_size(ty))),
+            _ => {}
+        }
+        out += &format!("{line}\n");
+    }
+    let mut bytes = out.into_bytes();
+    let mut at = end;
+    // Copies one value of `size` bytes in the output's byte order and returns it as read.
+    let mut copy = |bytes: &mut Vec<u8>, size: usize| {
+        let value = &data[at..at + size];
+        at += size;
+        if source_big == big {
+            bytes.extend_from_slice(value);
+        } else {
+            bytes.extend(value.iter().rev());
+        }
+        let digits: Vec<u8> = if source_big {
+            value.to_vec()
+        } else {
+            value.iter().rev().copied().collect()
+        };
+        digits.iter().fold(0usize, |v, &b| v << 8 | usize::from(b))
+    };
+    for (count, props) in &elements {
+        for _ in 0..*count {
+            for prop in props {
+                match *prop {
+                    Prop::Scalar(size) => {
+                        copy(&mut bytes, size);
+                    }
+                    Prop::List { count, item } => {
+                        for _ in 0..copy(&mut bytes, count) {
+                            copy(&mut bytes, item);
+                        }
+                    }
+                    Prop::Pad => bytes.push(0),
+                }
+            }
+        }
+    }
+    assert_eq!(at, data.len());
+    bytes
+}
+
+/// Loads `bytes` through a file named `name` in the temp folder.
+fn load_bytes(name: &str, bytes: &[u8]) -> Cloud {
+    let path = std::env::temp_dir().join(format!("surfel-loaders-{}-{name}", std::process::id()));
+    std::fs::write(&path, bytes).unwrap();
+    let cloud = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::remove_file(&path).unwrap();
+    cloud
+}
+
+/// Little- and big-endian, streamed from a file and parsed from memory in parallel, and
+/// decoded record by record (padded with a list property): all identical.
+fn assert_binary_decodings_agree(name: &str, binary: &[u8]) {
+    let reference = ply::parse(name, &transcode(binary, false, true)).unwrap();
+    for big in [false, true] {
+        let fixed = transcode(binary, big, false);
+        let padded = transcode(binary, big, true);
+        let label = format!("{name} big={big}");
+        assert_eq!(load_bytes(name, &fixed), reference, "{label} streamed");
+        assert_eq!(
+            ply::parse(name, &fixed).unwrap(),
+            reference,
+            "{label} in memory"
+        );
+        assert_eq!(
+            load_bytes(name, &padded),
+            reference,
+            "{label} record by record"
+        );
+    }
+}
+
+#[test]
+fn binary_ply_parallel_matches_sequential() {
+    let fragment = std::fs::read(data("ply/frag_115.ply")).unwrap();
+    assert_binary_decodings_agree("frag_115.ply", &fragment);
+    let mesh = load("ply/frag_115.ply");
+    let mut sampled = sample::sample_mesh(&mesh, 200_000, 3).unwrap();
+    let mut bytes = Vec::new();
+    ply::write_binary(&sampled, &mut bytes).unwrap();
+    assert_binary_decodings_agree("sampled.ply", &bytes);
+    // Double coordinates far from zero: positions are decoded again relative to the origin.
+    sampled.origin = DVec3::new(636_000.0, 849_000.0, 400.0);
+    bytes.clear();
+    ply::write_binary(&sampled, &mut bytes).unwrap();
+    assert_binary_decodings_agree("wide.ply", &bytes);
+}
+
+#[test]
+fn sample_is_identical_for_any_thread_count() {
+    let mesh = load("ply/frag_115.ply");
+    let write = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let cloud = sample::sample_mesh(&mesh, 300_000, 11).unwrap();
+            let mut bytes = Vec::new();
+            ply::write_binary(&cloud, &mut bytes).unwrap();
+            bytes
+        })
+    };
+    let one = write(1);
+    assert_eq!(one, write(2));
+    assert_eq!(one, write(3));
+    let other_seed = sample::sample_mesh(&mesh, 300_000, 12).unwrap();
+    let mut bytes = Vec::new();
+    ply::write_binary(&other_seed, &mut bytes).unwrap();
+    assert_ne!(one, bytes);
 }

@@ -1,6 +1,7 @@
 //! The in-memory point cloud every loader produces and every method consumes.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// A named per-point scalar attribute (LAS intensity, classification, PLY confidence, ...).
 #[derive(Clone, Debug, PartialEq)]
@@ -18,9 +19,44 @@ pub struct LoadStats {
     pub dropped_non_finite: usize,
 }
 
+/// Axis-aligned bounds of the finite points seen so far, in f64 file coordinates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Bounds {
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+impl Bounds {
+    pub(crate) const EMPTY: Bounds = Bounds {
+        lo: DVec3::INFINITY,
+        hi: DVec3::NEG_INFINITY,
+    };
+
+    /// Adds `p` when all its coordinates are finite.
+    #[inline]
+    pub(crate) fn add(&mut self, p: DVec3) {
+        if p.is_finite() {
+            self.lo = self.lo.min(p);
+            self.hi = self.hi.max(p);
+        }
+    }
+
+    pub(crate) fn union(self, other: Bounds) -> Bounds {
+        Bounds {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    /// The f64 centre of the box, `None` when no finite point was added.
+    pub(crate) fn centre(&self) -> Option<DVec3> {
+        (self.lo.x <= self.hi.x).then(|| (self.lo + self.hi) * 0.5)
+    }
+}
+
 /// A point cloud in a local frame: `positions` are relative to `origin` (f64, in file units),
 /// so large LiDAR coordinates keep their precision after the conversion to f32.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Cloud {
     pub positions: Vec<Vec3>,
     /// Unit normals, one per point, when the file has them or preprocessing computed them.
@@ -54,8 +90,9 @@ impl Cloud {
         let first = *self.positions.first()?;
         Some(
             self.positions
-                .iter()
-                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+                .par_iter()
+                .fold(|| (first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+                .reduce(|| (first, first), |a, b| (a.0.min(b.0), a.1.max(b.1))),
         )
     }
 
@@ -70,11 +107,11 @@ impl Cloud {
     /// radius and scalar values. Faces that used a removed point are removed; the others are
     /// re-indexed. Adds the number of removed points to `stats.dropped_non_finite` and returns it.
     pub fn retain_finite(&mut self) -> usize {
-        let keep: Vec<bool> = self.positions.iter().map(|p| p.is_finite()).collect();
-        let dropped = keep.iter().filter(|k| !**k).count();
-        if dropped == 0 {
+        if self.positions.par_iter().all(|p| p.is_finite()) {
             return 0;
         }
+        let keep: Vec<bool> = self.positions.iter().map(|p| p.is_finite()).collect();
+        let dropped = keep.iter().filter(|k| !**k).count();
         fn filter<T: Copy>(values: &mut Vec<T>, keep: &[bool]) {
             if values.len() == keep.len() {
                 let mut i = 0;

@@ -12,6 +12,8 @@ pub mod pack;
 pub mod pcd;
 pub mod ply;
 pub mod preprocess;
+mod progress;
+mod records;
 pub mod sample;
 pub mod scene_file;
 mod text;

@@ -5,14 +5,88 @@
 //! property as a named [`Scalar`]. The `face` element's `vertex_indices` (or `vertex_index`)
 //! list is fan-triangulated. Any other element is skipped.
 
-use std::io::{self, Write};
+use std::fs::File;
+use std::io::{self, Read, Seek, SeekFrom, Write};
+use std::ops::Range;
 use std::path::Path;
+use std::slice::{ChunksExact, ChunksMut};
 
 use glam::{DVec3, Vec3};
 
-use super::cloud::{Cloud, LoadStats, Scalar};
+use rayon::prelude::*;
+
+use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::LoadError;
+use super::progress::Progress;
+use super::records;
 use super::text::{self, Lines};
+
+/// A Rust number type that a PLY scalar type decodes to.
+trait Raw {
+    /// Reads the value at the start of `b` in big-endian (`big`) or little-endian order.
+    fn read(b: &[u8], big: bool) -> f64;
+}
+
+macro_rules! impl_raw {
+    ($($t:ty),*) => {$(
+        impl Raw for $t {
+            #[inline(always)]
+            fn read(b: &[u8], big: bool) -> f64 {
+                let mut raw = [0u8; std::mem::size_of::<$t>()];
+                raw.copy_from_slice(&b[..std::mem::size_of::<$t>()]);
+                let value = if big {
+                    <$t>::from_be_bytes(raw)
+                } else {
+                    <$t>::from_le_bytes(raw)
+                };
+                value as f64
+            }
+        }
+    )*};
+}
+
+impl_raw!(i8, u8, i16, u16, i32, u32, f32, f64);
+
+/// Evaluates `$body` with `$T` naming the Rust type of the [`ScalarType`] `$t`, so that a loop
+/// in the body is compiled once per type instead of matching the type for every value.
+macro_rules! with_type {
+    ($t:expr, $T:ident => $body:expr) => {
+        match $t {
+            ScalarType::I8 => {
+                type $T = i8;
+                $body
+            }
+            ScalarType::U8 => {
+                type $T = u8;
+                $body
+            }
+            ScalarType::I16 => {
+                type $T = i16;
+                $body
+            }
+            ScalarType::U16 => {
+                type $T = u16;
+                $body
+            }
+            ScalarType::I32 => {
+                type $T = i32;
+                $body
+            }
+            ScalarType::U32 => {
+                type $T = u32;
+                $body
+            }
+            ScalarType::F32 => {
+                type $T = f32;
+                $body
+            }
+            ScalarType::F64 => {
+                type $T = f64;
+                $body
+            }
+        }
+    };
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum ScalarType {
@@ -50,30 +124,27 @@ impl ScalarType {
         }
     }
 
-    /// Decodes one value from exactly `self.size()` bytes.
+    /// Decodes one value from the first `self.size()` bytes of `b`.
     #[inline]
     fn decode(self, b: &[u8], big: bool) -> f64 {
-        macro_rules! num {
-            ($t:ty, $n:literal) => {{
-                let mut raw = [0u8; $n];
-                raw.copy_from_slice(&b[..$n]);
-                if big {
-                    <$t>::from_be_bytes(raw) as f64
-                } else {
-                    <$t>::from_le_bytes(raw) as f64
-                }
-            }};
-        }
-        match self {
-            Self::I8 => f64::from(b[0] as i8),
-            Self::U8 => f64::from(b[0]),
-            Self::I16 => num!(i16, 2),
-            Self::U16 => num!(u16, 2),
-            Self::I32 => num!(i32, 4),
-            Self::U32 => num!(u32, 4),
-            Self::F32 => num!(f32, 4),
-            Self::F64 => num!(f64, 8),
-        }
+        with_type!(self, T => T::read(b, big))
+    }
+
+    /// Calls `f(row, value)` with the value of this type at byte `offset` of every record;
+    /// the type is matched once, not per value.
+    #[inline]
+    fn each_value(
+        self,
+        records: ChunksExact<'_, u8>,
+        offset: usize,
+        big: bool,
+        mut f: impl FnMut(usize, f64),
+    ) {
+        with_type!(self, T => {
+            for (row, r) in records.enumerate() {
+                f(row, T::read(&r[offset..], big));
+            }
+        })
     }
 
     /// Converts a color channel of this type to 8 bits.
@@ -148,7 +219,9 @@ struct Header {
     lines: usize,
 }
 
-fn parse_header(file: &str, data: &[u8]) -> Result<Header, LoadError> {
+/// Parses the header at the start of `data`; `file_len` is the size of the whole file (`data`
+/// may hold only its beginning).
+fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, LoadError> {
     let mut lines = Lines::new(data);
     match lines.next_line() {
         Some(l) if l.trim_ascii() == b"ply" => {}
@@ -258,7 +331,7 @@ fn parse_header(file: &str, data: &[u8]) -> Result<Header, LoadError> {
         body: lines.offset(),
         lines: lines.line(),
     };
-    check_counts(file, &header, data.len() - header.body)?;
+    check_counts(file, &header, file_len.saturating_sub(header.body))?;
     Ok(header)
 }
 
@@ -294,12 +367,27 @@ struct Body<'a> {
     file: &'a str,
     data: &'a [u8],
     pos: usize,
+    /// File offset of `data[0]` (for error messages).
+    base: usize,
     lines: Lines<'a>,
     line_base: usize,
     encoding: Encoding,
 }
 
 impl<'a> Body<'a> {
+    /// A reader of `data` from `pos` on; `data[0]` is at byte `base` of the file.
+    fn new(file: &'a str, data: &'a [u8], pos: usize, base: usize, header: &Header) -> Self {
+        Body {
+            file,
+            data,
+            pos,
+            base,
+            lines: Lines::new(&data[pos.min(data.len())..]),
+            line_base: header.lines,
+            encoding: header.encoding,
+        }
+    }
+
     /// Reads one record. Scalar properties go to `scalars` (by property index); the items of
     /// the list property `keep_list` go to `list`; other lists are skipped.
     fn record(
@@ -327,7 +415,7 @@ impl<'a> Body<'a> {
             }
             None => Err(LoadError::at_byte(
                 self.file,
-                self.pos,
+                self.base + self.pos,
                 format!(
                     "unexpected end of file; expected {n} more bytes for {} {index} of {}",
                     element.name, element.count
@@ -360,7 +448,7 @@ impl<'a> Body<'a> {
             match prop.kind {
                 Kind::Scalar(t) => scalars[p] = t.decode(self.take(t.size(), element, index)?, big),
                 Kind::List { count, item } => {
-                    let at = self.pos;
+                    let at = self.base + self.pos;
                     let n = count.decode(self.take(count.size(), element, index)?, big);
                     if !(n >= 0.0 && n.fract() == 0.0) {
                         return Err(LoadError::at_byte(
@@ -510,172 +598,366 @@ fn vertex_role(name: &str, next_scalar: &mut usize) -> Role {
     }
 }
 
+/// What the vertex element's properties mean, decided once from the header.
+struct VertexSpec {
+    /// Role of every property, by property index (lists are ignored).
+    roles: Vec<Role>,
+    scalar_names: Vec<String>,
+    has_normals: bool,
+    has_colors: bool,
+    has_alpha: bool,
+    has_radius: bool,
+    /// Types of red, green, blue and alpha (for the conversion to 8 bits).
+    color_types: [ScalarType; 4],
+}
+
+impl VertexSpec {
+    fn new(file: &str, element: &Element) -> Result<Self, LoadError> {
+        let mut scalar_names = Vec::new();
+        let mut next_scalar = 0;
+        let roles: Vec<Role> = element
+            .props
+            .iter()
+            .map(|p| match p.kind {
+                Kind::List { .. } => Role::Ignore,
+                Kind::Scalar(_) => {
+                    let role = vertex_role(&p.name, &mut next_scalar);
+                    if let Role::Scalar(_) = role {
+                        scalar_names.push(p.name.clone());
+                    }
+                    role
+                }
+            })
+            .collect();
+        let has = |r: Role| roles.contains(&r);
+        let type_of = |r: Role| {
+            roles
+                .iter()
+                .position(|x| *x == r)
+                .and_then(|i| match element.props[i].kind {
+                    Kind::Scalar(t) => Some(t),
+                    Kind::List { .. } => None,
+                })
+                .unwrap_or(ScalarType::U8)
+        };
+        if !(has(Role::X) && has(Role::Y) && has(Role::Z)) {
+            return Err(LoadError::whole(
+                file,
+                "the vertex element needs properties x, y and z",
+            ));
+        }
+        Ok(VertexSpec {
+            has_normals: has(Role::Nx) && has(Role::Ny) && has(Role::Nz),
+            has_colors: has(Role::Red) && has(Role::Green) && has(Role::Blue),
+            has_alpha: has(Role::Alpha),
+            has_radius: has(Role::Radius),
+            color_types: [
+                type_of(Role::Red),
+                type_of(Role::Green),
+                type_of(Role::Blue),
+                type_of(Role::Alpha),
+            ],
+            roles,
+            scalar_names,
+        })
+    }
+}
+
+/// The origin for a local frame: zero for small coordinates (so round trips are exact), else
+/// the f64 centre of the finite points' bounding box.
+fn local_origin(bounds: &Bounds) -> DVec3 {
+    match bounds.centre() {
+        Some(c) if bounds.lo.abs().max(bounds.hi.abs()).max_element() >= 1.0e4 => c,
+        _ => DVec3::ZERO,
+    }
+}
+
+/// The vertex attribute columns, sized for every record before decoding starts.
+struct Columns {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    colors: Option<Vec<[u8; 4]>>,
+    radii: Option<Vec<f32>>,
+    scalars: Vec<Vec<f32>>,
+}
+
+/// The rows of [`Columns`] that one parallel task writes.
+struct ColumnsMut<'a> {
+    positions: &'a mut [Vec3],
+    normals: Option<&'a mut [Vec3]>,
+    colors: Option<&'a mut [[u8; 4]]>,
+    radii: Option<&'a mut [f32]>,
+    scalars: Vec<&'a mut [f32]>,
+}
+
+impl Columns {
+    fn new(spec: &VertexSpec, n: usize) -> Self {
+        Columns {
+            positions: records::filled(Vec3::ZERO, n),
+            normals: spec.has_normals.then(|| records::filled(Vec3::ZERO, n)),
+            colors: spec.has_colors.then(|| records::filled([0, 0, 0, 255], n)),
+            radii: spec.has_radius.then(|| records::filled(0.0, n)),
+            scalars: (spec.scalar_names.iter())
+                .map(|_| records::filled(0.0, n))
+                .collect(),
+        }
+    }
+
+    /// Splits rows `rows` of every column into consecutive pieces of `per_task` rows.
+    fn tasks(&mut self, rows: Range<usize>, per_task: usize) -> Vec<ColumnsMut<'_>> {
+        fn split<'c, T>(
+            column: &'c mut [T],
+            rows: &Range<usize>,
+            per_task: usize,
+        ) -> ChunksMut<'c, T> {
+            column[rows.clone()].chunks_mut(per_task)
+        }
+        let mut normals = self
+            .normals
+            .as_deref_mut()
+            .map(|c| split(c, &rows, per_task));
+        let mut colors = self
+            .colors
+            .as_deref_mut()
+            .map(|c| split(c, &rows, per_task));
+        let mut radii = self.radii.as_deref_mut().map(|c| split(c, &rows, per_task));
+        let mut scalars: Vec<_> = self
+            .scalars
+            .iter_mut()
+            .map(|c| split(c, &rows, per_task))
+            .collect();
+        split(&mut self.positions, &rows, per_task)
+            .map(|positions| ColumnsMut {
+                positions,
+                normals: normals.as_mut().and_then(Iterator::next),
+                colors: colors.as_mut().and_then(Iterator::next),
+                radii: radii.as_mut().and_then(Iterator::next),
+                scalars: scalars.iter_mut().filter_map(Iterator::next).collect(),
+            })
+            .collect()
+    }
+
+    /// Moves the columns into `cloud`.
+    fn store(self, spec: VertexSpec, origin: DVec3, cloud: &mut Cloud) {
+        cloud.positions = self.positions;
+        cloud.normals = self.normals;
+        cloud.colors = self.colors;
+        cloud.radii = self.radii;
+        cloud.scalars = spec
+            .scalar_names
+            .into_iter()
+            .zip(self.scalars)
+            .map(|(name, values)| Scalar { name, values })
+            .collect();
+        cloud.origin = origin;
+    }
+}
+
+/// Byte offsets and roles of the properties of a list-free vertex element's binary records.
+struct VertexLayout {
+    stride: usize,
+    big: bool,
+    xyz: [(usize, ScalarType); 3],
+    /// Every other property that has a destination: offset, type and role.
+    others: Vec<(usize, ScalarType, Role)>,
+}
+
+impl VertexLayout {
+    /// The layout of `element`'s records, which have no list property and `stride` bytes
+    /// ([`Element::fixed_record_size`]).
+    fn new(element: &Element, spec: &VertexSpec, big: bool, stride: usize) -> Self {
+        let mut xyz = [(0, ScalarType::F32); 3];
+        let mut others = Vec::new();
+        let mut offset = 0;
+        for (prop, &role) in element.props.iter().zip(&spec.roles) {
+            let Kind::Scalar(t) = prop.kind else {
+                continue;
+            };
+            match role {
+                Role::X => xyz[0] = (offset, t),
+                Role::Y => xyz[1] = (offset, t),
+                Role::Z => xyz[2] = (offset, t),
+                Role::Nx | Role::Ny | Role::Nz if !spec.has_normals => {}
+                Role::Red | Role::Green | Role::Blue | Role::Alpha if !spec.has_colors => {}
+                Role::Ignore => {}
+                _ => others.push((offset, t, role)),
+            }
+            offset += t.size();
+        }
+        VertexLayout {
+            stride,
+            big,
+            xyz,
+            others,
+        }
+    }
+
+    /// Decodes the whole records in `bytes` into `out` (one row per record). Positions are
+    /// stored relative to `origin`; with `positions_only` the other columns are left alone.
+    /// Returns the bounds of the finite positions.
+    fn decode(
+        &self,
+        bytes: &[u8],
+        out: ColumnsMut<'_>,
+        origin: DVec3,
+        positions_only: bool,
+    ) -> Bounds {
+        let records = bytes.chunks_exact(self.stride);
+        let big = self.big;
+        let [(ox, tx), (oy, ty), (oz, tz)] = self.xyz;
+        let positions = &mut *out.positions;
+        let bounds = if tx == ty && tx == tz {
+            with_type!(tx, T => decode_positions(records.clone(), positions, origin, |r| {
+                DVec3::new(
+                    T::read(&r[ox..], big),
+                    T::read(&r[oy..], big),
+                    T::read(&r[oz..], big),
+                )
+            }))
+        } else {
+            decode_positions(records.clone(), positions, origin, |r| {
+                DVec3::new(
+                    tx.decode(&r[ox..], big),
+                    ty.decode(&r[oy..], big),
+                    tz.decode(&r[oz..], big),
+                )
+            })
+        };
+        if positions_only {
+            return bounds;
+        }
+        let ColumnsMut {
+            mut normals,
+            mut colors,
+            mut radii,
+            mut scalars,
+            ..
+        } = out;
+        for &(offset, t, role) in &self.others {
+            let records = records.clone();
+            let axis = match role {
+                Role::Nx | Role::Red => 0,
+                Role::Ny | Role::Green => 1,
+                Role::Nz | Role::Blue => 2,
+                _ => 3,
+            };
+            match (role, normals.as_deref_mut(), colors.as_deref_mut()) {
+                (Role::Nx | Role::Ny | Role::Nz, Some(ns), _) => {
+                    t.each_value(records, offset, big, |row, v| ns[row][axis] = v as f32)
+                }
+                (Role::Red | Role::Green | Role::Blue | Role::Alpha, _, Some(cs)) => {
+                    t.each_value(records, offset, big, |row, v| {
+                        cs[row][axis] = t.to_u8_channel(v)
+                    })
+                }
+                (Role::Radius, ..) => {
+                    if let Some(rs) = radii.as_deref_mut() {
+                        t.each_value(records, offset, big, |row, v| rs[row] = v as f32);
+                    }
+                }
+                (Role::Scalar(s), ..) => {
+                    let values = &mut *scalars[s];
+                    t.each_value(records, offset, big, |row, v| values[row] = v as f32);
+                }
+                _ => {}
+            }
+        }
+        bounds
+    }
+
+    /// Decodes the records in `bytes`, which are rows `first..` of `columns`, in parallel.
+    fn decode_block(
+        &self,
+        columns: &mut Columns,
+        first: usize,
+        bytes: &[u8],
+        origin: DVec3,
+        positions_only: bool,
+    ) -> Bounds {
+        let per_task = records::task_records(self.stride);
+        let rows = first..first + bytes.len() / self.stride;
+        columns
+            .tasks(rows, per_task)
+            .into_par_iter()
+            .zip(bytes.par_chunks(per_task * self.stride))
+            .map(|(out, b)| self.decode(b, out, origin, positions_only))
+            .reduce(|| Bounds::EMPTY, Bounds::union)
+    }
+}
+
+/// Stores the position `world(record)` of every record relative to `origin` and returns the
+/// bounds of the finite ones.
+#[inline]
+fn decode_positions(
+    records: ChunksExact<'_, u8>,
+    positions: &mut [Vec3],
+    origin: DVec3,
+    world: impl Fn(&[u8]) -> DVec3,
+) -> Bounds {
+    let mut bounds = Bounds::EMPTY;
+    for (r, p) in records.zip(positions) {
+        let w = world(r);
+        bounds.add(w);
+        *p = (w - origin).as_vec3();
+    }
+    bounds
+}
+
+/// Reads the vertex element from memory: list-free binary records in parallel, anything else
+/// (ascii, records with lists) record by record.
 fn read_vertices(
     body: &mut Body<'_>,
     element: &Element,
     cloud: &mut Cloud,
 ) -> Result<(), LoadError> {
-    let mut scalar_names = Vec::new();
-    let mut next_scalar = 0;
-    let roles: Vec<Role> = element
-        .props
-        .iter()
-        .map(|p| match p.kind {
-            Kind::List { .. } => Role::Ignore,
-            Kind::Scalar(_) => {
-                let role = vertex_role(&p.name, &mut next_scalar);
-                if let Role::Scalar(_) = role {
-                    scalar_names.push(p.name.clone());
-                }
-                role
-            }
-        })
-        .collect();
-    let has = |r: Role| roles.contains(&r);
-    let type_of = |r: Role| {
-        roles
-            .iter()
-            .position(|x| *x == r)
-            .and_then(|i| match element.props[i].kind {
-                Kind::Scalar(t) => Some(t),
-                Kind::List { .. } => None,
-            })
-            .unwrap_or(ScalarType::U8)
-    };
-    if !(has(Role::X) && has(Role::Y) && has(Role::Z)) {
-        return Err(LoadError::whole(
-            body.file,
-            "the vertex element needs properties x, y and z",
-        ));
-    }
+    let spec = VertexSpec::new(body.file, element)?;
     let n = element.count;
-    let has_normals = has(Role::Nx) && has(Role::Ny) && has(Role::Nz);
-    let has_colors = has(Role::Red) && has(Role::Green) && has(Role::Blue);
-    let has_alpha = has(Role::Alpha);
-    let color_types = [
-        type_of(Role::Red),
-        type_of(Role::Green),
-        type_of(Role::Blue),
-        type_of(Role::Alpha),
-    ];
+    if let (Encoding::Binary { big }, Some(stride)) = (body.encoding, element.fixed_record_size()) {
+        let layout = VertexLayout::new(element, &spec, big, stride);
+        let bytes = body.take(n.saturating_mul(stride), element, 0)?;
+        let mut columns = Columns::new(&spec, n);
+        let bounds = layout.decode_block(&mut columns, 0, bytes, DVec3::ZERO, false);
+        let origin = local_origin(&bounds);
+        if origin != DVec3::ZERO {
+            layout.decode_block(&mut columns, 0, bytes, origin, true);
+        }
+        columns.store(spec, origin, cloud);
+        return Ok(());
+    }
     let mut positions = Vec::with_capacity(n);
-    let mut normals = has_normals.then(|| Vec::with_capacity(n));
-    let mut colors = has_colors.then(|| Vec::with_capacity(n));
-    let mut radii = has(Role::Radius).then(|| Vec::with_capacity(n));
-    let mut scalars: Vec<Scalar> = scalar_names
-        .into_iter()
-        .map(|name| Scalar {
-            name,
-            values: Vec::with_capacity(n),
-        })
-        .collect();
+    let mut columns = Columns {
+        positions: Vec::new(),
+        normals: spec.has_normals.then(|| Vec::with_capacity(n)),
+        colors: spec.has_colors.then(|| Vec::with_capacity(n)),
+        radii: spec.has_radius.then(|| Vec::with_capacity(n)),
+        scalars: spec
+            .scalar_names
+            .iter()
+            .map(|_| Vec::with_capacity(n))
+            .collect(),
+    };
     let mut values = vec![0.0f64; element.props.len()];
     let mut list = Vec::new();
-    // Binary records without lists: take the whole element at once (one bounds check) and
-    // decode it column by column, one tight loop per property.
-    if let (Encoding::Binary { big }, Some(size)) = (body.encoding, element.fixed_record_size()) {
-        let bytes = body.take(n.saturating_mul(size), element, 0)?;
-        positions.resize(n, DVec3::ZERO);
-        if let Some(v) = normals.as_mut() {
-            v.resize(n, Vec3::ZERO);
-        }
-        if let Some(v) = colors.as_mut() {
-            v.resize(n, [0, 0, 0, 255]);
-        }
-        if let Some(v) = radii.as_mut() {
-            v.resize(n, 0.0);
-        }
-        for s in &mut scalars {
-            s.values.resize(n, 0.0);
-        }
-        for ((offset, t), role) in binary_layout(element).into_iter().zip(&roles) {
-            let column = bytes
-                .chunks_exact(size.max(1))
-                .map(|r| t.decode(&r[offset..offset + t.size()], big));
-            let set_f32 = |dst: Option<&mut Vec<f32>>| {
-                if let Some(dst) = dst {
-                    dst.iter_mut()
-                        .zip(column.clone())
-                        .for_each(|(d, v)| *d = v as f32);
-                }
-            };
-            match *role {
-                Role::X => positions.iter_mut().zip(column).for_each(|(d, v)| d.x = v),
-                Role::Y => positions.iter_mut().zip(column).for_each(|(d, v)| d.y = v),
-                Role::Z => positions.iter_mut().zip(column).for_each(|(d, v)| d.z = v),
-                Role::Nx | Role::Ny | Role::Nz => {
-                    let axis = match *role {
-                        Role::Nx => 0,
-                        Role::Ny => 1,
-                        _ => 2,
-                    };
-                    if let Some(ns) = normals.as_mut() {
-                        ns.iter_mut()
-                            .zip(column)
-                            .for_each(|(d, v)| d[axis] = v as f32);
-                    }
-                }
-                Role::Red | Role::Green | Role::Blue | Role::Alpha => {
-                    let channel = match *role {
-                        Role::Red => 0,
-                        Role::Green => 1,
-                        Role::Blue => 2,
-                        _ => 3,
-                    };
-                    if let Some(cs) = colors.as_mut() {
-                        cs.iter_mut()
-                            .zip(column)
-                            .for_each(|(d, v)| d[channel] = t.to_u8_channel(v));
-                    }
-                }
-                Role::Radius => set_f32(radii.as_mut()),
-                Role::Scalar(s) => set_f32(Some(&mut scalars[s].values)),
-                Role::Ignore => {}
-            }
-        }
-    } else {
-        for i in 0..n {
-            body.record(element, i, None, &mut values, &mut list)?;
-            push_vertex(
-                &roles,
-                &values,
-                &color_types,
-                has_alpha,
-                &mut positions,
-                &mut normals,
-                &mut colors,
-                &mut radii,
-                &mut scalars,
-            );
-        }
+    let mut bounds = Bounds::EMPTY;
+    for i in 0..n {
+        body.record(element, i, None, &mut values, &mut list)?;
+        let p = push_vertex(&spec, &values, &mut columns);
+        bounds.add(p);
+        positions.push(p);
     }
-    let origin = local_origin(&positions);
-    cloud.positions = positions.iter().map(|p| (*p - origin).as_vec3()).collect();
-    cloud.origin = origin;
-    cloud.normals = normals;
-    cloud.colors = colors;
-    cloud.radii = radii;
-    cloud.scalars = scalars;
+    let origin = local_origin(&bounds);
+    columns.positions = positions.iter().map(|p| (*p - origin).as_vec3()).collect();
+    columns.store(spec, origin, cloud);
     Ok(())
 }
 
-/// Appends one decoded vertex record (`values` by property index) to the attribute arrays.
-#[allow(clippy::too_many_arguments)]
-fn push_vertex(
-    roles: &[Role],
-    values: &[f64],
-    color_types: &[ScalarType; 4],
-    has_alpha: bool,
-    positions: &mut Vec<DVec3>,
-    normals: &mut Option<Vec<Vec3>>,
-    colors: &mut Option<Vec<[u8; 4]>>,
-    radii: &mut Option<Vec<f32>>,
-    scalars: &mut [Scalar],
-) {
+/// Appends one decoded vertex record (`values` by property index) to the attribute columns
+/// other than positions, and returns its position.
+fn push_vertex(spec: &VertexSpec, values: &[f64], columns: &mut Columns) -> DVec3 {
     let mut p = [0.0f64; 3];
     let mut nrm = [0.0f32; 3];
     let mut rgba = [0.0f64, 0.0, 0.0, 255.0];
-    for (role, &v) in roles.iter().zip(values) {
+    for (role, &v) in spec.roles.iter().zip(values) {
         match *role {
             Role::X => p[0] = v,
             Role::Y => p[1] = v,
@@ -688,63 +970,32 @@ fn push_vertex(
             Role::Blue => rgba[2] = v,
             Role::Alpha => rgba[3] = v,
             Role::Radius => {
-                if let Some(r) = radii.as_mut() {
+                if let Some(r) = columns.radii.as_mut() {
                     r.push(v as f32);
                 }
             }
-            Role::Scalar(s) => scalars[s].values.push(v as f32),
+            Role::Scalar(s) => columns.scalars[s].push(v as f32),
             Role::Ignore => {}
         }
     }
-    positions.push(DVec3::from(p));
-    if let Some(normals) = normals.as_mut() {
+    if let Some(normals) = columns.normals.as_mut() {
         normals.push(Vec3::from(nrm));
     }
-    if let Some(colors) = colors.as_mut() {
-        let alpha = if has_alpha {
-            color_types[3].to_u8_channel(rgba[3])
+    if let Some(colors) = columns.colors.as_mut() {
+        let types = &spec.color_types;
+        let alpha = if spec.has_alpha {
+            types[3].to_u8_channel(rgba[3])
         } else {
             255
         };
         colors.push([
-            color_types[0].to_u8_channel(rgba[0]),
-            color_types[1].to_u8_channel(rgba[1]),
-            color_types[2].to_u8_channel(rgba[2]),
+            types[0].to_u8_channel(rgba[0]),
+            types[1].to_u8_channel(rgba[1]),
+            types[2].to_u8_channel(rgba[2]),
             alpha,
         ]);
     }
-}
-
-/// Offset and type of every (scalar) property of a list-free element's binary record.
-fn binary_layout(element: &Element) -> Vec<(usize, ScalarType)> {
-    let mut offset = 0;
-    element
-        .props
-        .iter()
-        .filter_map(|p| match p.kind {
-            Kind::Scalar(t) => {
-                offset += t.size();
-                Some((offset - t.size(), t))
-            }
-            Kind::List { .. } => None,
-        })
-        .collect()
-}
-
-/// The origin for a local frame: zero for small coordinates (so round trips are exact), else
-/// the f64 bounding-box centre of the finite points.
-fn local_origin(points: &[DVec3]) -> DVec3 {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in points.iter().filter(|p| p.is_finite()) {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
-    if lo.x > hi.x || lo.abs().max(hi.abs()).max_element() < 1.0e4 {
-        DVec3::ZERO
-    } else {
-        (lo + hi) * 0.5
-    }
+    DVec3::from(p)
 }
 
 fn read_faces(
@@ -758,7 +1009,7 @@ fn read_faces(
     let mut list = Vec::new();
     let mut indices = Vec::new();
     for i in 0..element.count {
-        let at_byte = body.pos;
+        let at_byte = body.base + body.pos;
         body.record(element, i, Some(list_prop), &mut values, &mut list)?;
         indices.clear();
         for &v in &list {
@@ -782,38 +1033,27 @@ fn read_faces(
     Ok(faces)
 }
 
-/// Parses a PLY file held in memory. `file` names it in error messages.
-pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
-    let header = parse_header(file, data)?;
-    let vertex_count = header
-        .elements
-        .iter()
-        .find(|e| e.name == "vertex")
-        .map(|e| e.count)
-        .ok_or_else(|| LoadError::whole(file, "the header declares no vertex element"))?;
-    let body_bytes = &data[header.body..];
-    let mut body = Body {
-        file,
-        data,
-        pos: header.body,
-        lines: Lines::new(body_bytes),
-        line_base: header.lines,
-        encoding: header.encoding,
-    };
-    let mut cloud = Cloud::default();
-    let mut seen_vertex = false;
-    for element in &header.elements {
+/// Reads `elements` from `body`: the first vertex element (unless `seen_vertex`), faces, and
+/// skips everything else.
+fn read_elements(
+    body: &mut Body<'_>,
+    elements: &[Element],
+    vertex_count: usize,
+    mut seen_vertex: bool,
+    cloud: &mut Cloud,
+) -> Result<(), LoadError> {
+    for element in elements {
         let face_list = element.props.iter().position(|p| {
             matches!(p.kind, Kind::List { .. })
                 && (p.name == "vertex_indices" || p.name == "vertex_index")
         });
         match (element.name.as_str(), face_list) {
             ("vertex", _) if !seen_vertex => {
-                read_vertices(&mut body, element, &mut cloud)?;
+                read_vertices(body, element, cloud)?;
                 seen_vertex = true;
             }
             ("face", Some(list_prop)) => {
-                let mut faces = read_faces(&mut body, element, list_prop, vertex_count)?;
+                let mut faces = read_faces(body, element, list_prop, vertex_count)?;
                 if let Some(existing) = cloud.faces.as_mut() {
                     existing.append(&mut faces);
                 } else {
@@ -823,18 +1063,142 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
             _ => body.skip(element)?,
         }
     }
+    Ok(())
+}
+
+/// Index of the first vertex element.
+fn vertex_element(file: &str, header: &Header) -> Result<usize, LoadError> {
+    header
+        .elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| LoadError::whole(file, "the header declares no vertex element"))
+}
+
+/// Records the header's vertex count and drops non-finite points.
+fn finish(mut cloud: Cloud, vertex_count: usize) -> Cloud {
     cloud.stats = LoadStats {
         records: vertex_count,
         dropped_non_finite: 0,
     };
     cloud.retain_finite();
-    Ok(cloud)
+    cloud
 }
 
-/// Loads a PLY file.
+/// Parses a PLY file held in memory. `file` names it in error messages.
+pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
+    let header = parse_header(file, data, data.len())?;
+    let vertex_count = header.elements[vertex_element(file, &header)?].count;
+    let mut body = Body::new(file, data, header.body, 0, &header);
+    let mut cloud = Cloud::default();
+    read_elements(&mut body, &header.elements, vertex_count, false, &mut cloud)?;
+    Ok(finish(cloud, vertex_count))
+}
+
+/// Reads from the start of `read` until the buffer holds the header's `end_header` line or
+/// the input ends.
+fn read_header_bytes(read: &mut impl Read) -> io::Result<Vec<u8>> {
+    let mut data = Vec::new();
+    let mut scanned = 0;
+    loop {
+        let got = read.by_ref().take(64 << 10).read_to_end(&mut data)?;
+        while let Some(end) = data[scanned..].iter().position(|&b| b == b'\n') {
+            let line = &data[scanned..scanned + end];
+            scanned += end + 1;
+            if text::tokens(line, false).next() == Some(b"end_header") {
+                return Ok(data);
+            }
+        }
+        if got == 0 {
+            return Ok(data);
+        }
+    }
+}
+
+/// Loads a PLY file. A binary vertex element without list properties (after only list-free
+/// elements) is streamed from the file and decoded in parallel while it is read, so the file
+/// is never held in memory; the elements after it (faces) are read into memory. Other files
+/// are read whole and parsed by [`parse`].
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
-    let data = super::read_file(path)?;
-    parse(&path.display().to_string(), &data)
+    load_in_blocks(path, records::BLOCK_BYTES)
+}
+
+/// [`load`], reading records in blocks of about `block_bytes`.
+fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
+    let file = path.display().to_string();
+    let io_error = |source| LoadError::Io {
+        file: file.clone(),
+        source,
+    };
+    let mut f = File::open(path).map_err(io_error)?;
+    let len = f.metadata().map_err(io_error)?.len();
+    let mut data = read_header_bytes(&mut f).map_err(io_error)?;
+    let header = parse_header(&file, &data, usize::try_from(len).unwrap_or(usize::MAX))?;
+    let v = vertex_element(&file, &header)?;
+    let element = &header.elements[v];
+    let before: Option<usize> = header.elements[..v]
+        .iter()
+        .map(|e| Some(e.fixed_record_size()? * e.count))
+        .sum();
+    let (Encoding::Binary { big }, Some(before), Some(stride)) =
+        (header.encoding, before, element.fixed_record_size())
+    else {
+        f.read_to_end(&mut data).map_err(io_error)?;
+        return parse(&file, &data);
+    };
+    drop(data);
+    let spec = VertexSpec::new(&file, element)?;
+    let layout = VertexLayout::new(element, &spec, big, stride);
+    let span = records::Span {
+        at: header.body + before,
+        count: element.count,
+        stride: layout.stride,
+    };
+    let bytes = span.count * span.stride;
+    let start = SeekFrom::Start(span.at as u64);
+    let mut columns = Columns::new(&spec, span.count);
+    let progress = Progress::new("loading", bytes, bytes >= records::PROGRESS_MIN_BYTES);
+    let mut bounds = Bounds::EMPTY;
+    f.seek(start).map_err(io_error)?;
+    records::for_each_block(
+        &file,
+        &mut f,
+        span,
+        block_bytes,
+        &progress,
+        |first, block| {
+            let b = layout.decode_block(&mut columns, first, block, DVec3::ZERO, false);
+            bounds = bounds.union(b);
+        },
+    )?;
+    let origin = local_origin(&bounds);
+    if origin != DVec3::ZERO {
+        // Large coordinates: decode the positions again, relative to the origin.
+        f.seek(start).map_err(io_error)?;
+        let progress = Progress::new("centring", bytes, bytes >= records::PROGRESS_MIN_BYTES);
+        records::for_each_block(
+            &file,
+            &mut f,
+            span,
+            block_bytes,
+            &progress,
+            |first, block| {
+                layout.decode_block(&mut columns, first, block, origin, true);
+            },
+        )?;
+    }
+    let mut cloud = Cloud::default();
+    columns.store(spec, origin, &mut cloud);
+    let rest = &header.elements[v + 1..];
+    if !rest.is_empty() {
+        let at = span.at + bytes;
+        f.seek(SeekFrom::Start(at as u64)).map_err(io_error)?;
+        let mut tail = Vec::new();
+        f.read_to_end(&mut tail).map_err(io_error)?;
+        let mut body = Body::new(&file, &tail, 0, at, &header);
+        read_elements(&mut body, rest, element.count, true, &mut cloud)?;
+    }
+    Ok(finish(cloud, element.count))
 }
 
 /// Writes `cloud` as binary little-endian PLY: positions (float, or double when the cloud has
@@ -867,28 +1231,56 @@ pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
         out.write_all(b"property float radius\n")?;
     }
     out.write_all(b"end_header\n")?;
-    for i in 0..n {
+    let stride = if wide { 24 } else { 12 }
+        + normals.map_or(0, |_| 12)
+        + colors.map_or(0, |_| 4)
+        + radii.map_or(0, |_| 4);
+    let encode = |i: usize, record: &mut [u8]| {
+        let mut at = 0;
+        let mut put = |bytes: &[u8]| {
+            record[at..at + bytes.len()].copy_from_slice(bytes);
+            at += bytes.len();
+        };
         let p = cloud.positions[i];
         if wide {
             for c in (p.as_dvec3() + cloud.origin).to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         } else {
             for c in p.to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         }
         if let Some(normals) = normals {
             for c in normals[i].to_array() {
-                out.write_all(&c.to_le_bytes())?;
+                put(&c.to_le_bytes());
             }
         }
         if let Some(colors) = colors {
-            out.write_all(&colors[i])?;
+            put(&colors[i]);
         }
         if let Some(radii) = radii {
-            out.write_all(&radii[i].to_le_bytes())?;
+            put(&radii[i].to_le_bytes());
         }
+    };
+    // Records are encoded in parallel, a block at a time, and each block written at once.
+    let per_task = records::task_records(stride);
+    let per_block = (records::BLOCK_BYTES / stride)
+        .max(1)
+        .next_multiple_of(per_task);
+    let mut block = Vec::new();
+    for start in (0..n).step_by(per_block) {
+        block.resize((n - start).min(per_block) * stride, 0);
+        block
+            .par_chunks_mut(per_task * stride)
+            .enumerate()
+            .for_each(|(task, bytes)| {
+                let first = start + task * per_task;
+                for (i, record) in bytes.chunks_exact_mut(stride).enumerate() {
+                    encode(first + i, record);
+                }
+            });
+        out.write_all(&block)?;
     }
     out.flush()
 }
@@ -990,6 +1382,65 @@ mod tests {
             );
             assert_eq!(cloud.scalars[0].name, "confidence");
             assert_eq!(cloud.scalars[0].values, vec![0.5, 0.25]);
+        }
+    }
+
+    /// A binary PLY of `n` points with normals, colors and radii (double coordinates far
+    /// from zero when `wide`), one NaN position, and two faces after the vertices.
+    fn binary_with_faces(n: usize, wide: bool) -> Vec<u8> {
+        let mut cloud = Cloud {
+            positions: (0..n)
+                .map(|i| {
+                    let f = i as f32;
+                    Vec3::new(f * 0.5, (i % 7) as f32, -f.sqrt())
+                })
+                .collect(),
+            normals: Some((0..n).map(|i| Vec3::new(0.0, 1.0, i as f32)).collect()),
+            colors: Some((0..n).map(|i| [i as u8, 2, 3, (i / 3) as u8]).collect()),
+            radii: Some((0..n).map(|i| i as f32 * 0.25).collect()),
+            ..Cloud::default()
+        };
+        if wide {
+            cloud.origin = DVec3::new(636_000.0, 849_000.0, 400.0);
+        }
+        cloud.positions[17].x = f32::NAN;
+        let mut bytes = Vec::new();
+        write_binary(&cloud, &mut bytes).unwrap();
+        let end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap();
+        bytes.splice(
+            end..end,
+            b"element face 2\nproperty list uchar int vertex_indices\n"
+                .iter()
+                .copied(),
+        );
+        for face in [[0i32, 1, 2], [3, 17, 4]] {
+            bytes.push(3);
+            for i in face {
+                bytes.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        bytes
+    }
+
+    #[test]
+    fn streamed_blocks_match_in_memory_parse() {
+        for wide in [false, true] {
+            let bytes = binary_with_faces(5000, wide);
+            let expected = parse("mem.ply", &bytes).unwrap();
+            assert_eq!(expected.len(), 4999);
+            assert_eq!(expected.faces, Some(vec![[0, 1, 2]]));
+            assert_eq!(expected.origin != DVec3::ZERO, wide);
+            let path = std::env::temp_dir()
+                .join(format!("surfel-{}-blocks-{wide}.ply", std::process::id()));
+            std::fs::write(&path, &bytes).unwrap();
+            for block in [1, 1000, records::BLOCK_BYTES] {
+                let streamed = load_in_blocks(&path, block).unwrap();
+                assert_eq!(streamed, expected, "blocks of {block} bytes");
+            }
+            std::fs::remove_file(path).unwrap();
         }
     }
 }

@@ -18,10 +18,9 @@
 //!
 //! Results can be cached next to the input file ([`save_cache`], [`load_cache`]).
 
-use std::io::{self, IsTerminal, Write};
+use std::io;
 use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::UNIX_EPOCH;
 
 use glam::{DVec3, Vec3};
@@ -30,6 +29,7 @@ use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 
 use super::cloud::Cloud;
+use super::progress::Progress;
 
 /// Default neighbourhood size.
 pub const DEFAULT_K: usize = 10;
@@ -71,49 +71,6 @@ impl Default for PreprocessOptions {
     }
 }
 
-/// A minimal progress bar on stderr, shown only for large inputs on a terminal.
-struct Progress {
-    label: &'static str,
-    total: usize,
-    done: AtomicUsize,
-    shown: AtomicUsize,
-    enabled: bool,
-}
-
-impl Progress {
-    fn new(label: &'static str, total: usize, wanted: bool) -> Self {
-        Progress {
-            label,
-            total,
-            done: AtomicUsize::new(0),
-            shown: AtomicUsize::new(0),
-            enabled: wanted && total >= PROGRESS_MIN_POINTS && io::stderr().is_terminal(),
-        }
-    }
-
-    fn advance(&self, n: usize) {
-        if !self.enabled {
-            return;
-        }
-        let done = self.done.fetch_add(n, Ordering::Relaxed) + n;
-        let percent = (done * 100 / self.total.max(1)).min(100);
-        if percent > self.shown.fetch_max(percent, Ordering::Relaxed) {
-            let filled = percent * 30 / 100;
-            let bar = format!("{}{}", "#".repeat(filled), " ".repeat(30 - filled));
-            let mut err = io::stderr().lock();
-            // A failed progress write is harmless; the computation goes on.
-            let _ = write!(err, "\r{:<8} [{bar}] {percent:3}%", self.label);
-            let _ = err.flush();
-        }
-    }
-
-    fn finish(&self) {
-        if self.enabled {
-            eprintln!();
-        }
-    }
-}
-
 /// Points processed per parallel task (and per progress update).
 const CHUNK: usize = 2048;
 
@@ -145,7 +102,7 @@ impl Neighbours {
         if coords.len() >= 2 {
             let tree: ImmutableKdTree<f32, u32, 3, 32> = ImmutableKdTree::new_from_slice(&coords);
             let want = NonZeroUsize::new((k + 1).min(coords.len())).unwrap_or(NonZeroUsize::MIN);
-            let bar = Progress::new("k-NN", n, progress);
+            let bar = Progress::new("k-NN", n, progress && n >= PROGRESS_MIN_POINTS);
             indices
                 .par_chunks_mut(CHUNK * k)
                 .zip(dist2.par_chunks_mut(CHUNK * k))
@@ -336,7 +293,11 @@ pub fn estimate_normals(
 ) -> Vec<Vec3> {
     let centre = centroid(positions);
     let sensor = sensor.filter(|s| s.is_finite());
-    let bar = Progress::new("normals", positions.len(), progress);
+    let bar = Progress::new(
+        "normals",
+        positions.len(),
+        progress && positions.len() >= PROGRESS_MIN_POINTS,
+    );
     let mut normals = vec![Vec3::Z; positions.len()];
     normals
         .par_chunks_mut(CHUNK)

@@ -1,18 +1,80 @@
 //! Uniform random sampling of a triangle mesh into a point cloud (`surfel sample`).
 //!
-//! Triangles are chosen with probability proportional to their area (prefix sum of areas and a
-//! binary search), points are uniform inside a triangle (folded barycentric coordinates), the
+//! Triangles are chosen with probability proportional to their area (Walker's alias method: one
+//! uniform number and one table lookup per point), points are uniform inside a triangle (folded barycentric coordinates), the
 //! normal is the face normal (right-handed with the winding: `(b - a) x (c - a)`), and colors
 //! are interpolated when the mesh has them. Every point gets the radius
 //! `sqrt(total_area / (pi N)) * SPLAT_RADIUS_FACTOR`: discs of radius `sqrt(A / (pi N))` have
 //! the surface's total area, and with random (Poisson) positions they cover a fraction
 //! `1 - exp(-f^2)` of it for a factor `f`, so `f = 2` covers about 98%.
-//! The output is deterministic for a given seed.
+//! Points are drawn in parallel blocks of fixed size, each with its own generator, so the output
+//! is deterministic for a given seed whatever the number of threads.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::cloud::{Cloud, LoadStats};
 use crate::rng::SplitMix64;
+
+/// Points per block: each block of the output draws from its own generator, seeded from the
+/// seed and the block index, so the result does not depend on the number of threads.
+const BLOCK: usize = 1 << 16;
+
+/// The generator of block `block`: the block index is hashed before it is mixed into the seed,
+/// so the blocks' streams start far apart in the generator's sequence.
+fn block_rng(seed: u64, block: usize) -> SplitMix64 {
+    SplitMix64::new(seed ^ SplitMix64::new(block as u64).next_u64())
+}
+
+/// Walker's alias table: picks index `i` with probability `weights[i] / total` from one uniform
+/// number, in constant time. Each slot keeps its own index with probability `keep` and
+/// otherwise gives its `alias`; indices with zero weight are never picked.
+struct AliasTable {
+    slots: Vec<(f64, u32)>,
+}
+
+impl AliasTable {
+    /// Vose's construction over non-negative `weights` with positive sum `total`.
+    fn new(weights: &[f64], total: f64) -> Self {
+        let n = weights.len();
+        let mut scaled: Vec<f64> = weights.iter().map(|w| w * n as f64 / total).collect();
+        let (mut small, mut large): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| scaled[i] < 1.0);
+        let mut slots = vec![(1.0, 0); n];
+        while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+            small.pop();
+            slots[s] = (scaled[s], l as u32);
+            scaled[l] -= 1.0 - scaled[s];
+            if scaled[l] < 1.0 {
+                large.pop();
+                small.push(l);
+            }
+        }
+        // Rounding leaves slots that should be full; those without weight point to one that
+        // has weight.
+        let heaviest = (0..n).max_by(|&a, &b| weights[a].total_cmp(&weights[b]));
+        for i in large.into_iter().chain(small) {
+            slots[i] = if weights[i] > 0.0 {
+                (1.0, i as u32)
+            } else {
+                (0.0, heaviest.unwrap_or(0) as u32)
+            };
+        }
+        AliasTable { slots }
+    }
+
+    /// The index for a uniform `u` in [0, 1).
+    fn pick(&self, u: f64) -> usize {
+        let x = u * self.slots.len() as f64;
+        let i = (x as usize).min(self.slots.len() - 1);
+        let (keep, alias) = self.slots[i];
+        if x - (i as f64) < keep {
+            i
+        } else {
+            alias as usize
+        }
+    }
+}
 
 /// Radius factor over the equal-area disc radius (see the module documentation).
 pub const SPLAT_RADIUS_FACTOR: f32 = 2.0;
@@ -50,8 +112,7 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         .filter(|f| !f.is_empty())
         .ok_or(SampleError::NoFaces)?;
     let vertices = mesh.positions.len();
-    let mut cumulative = Vec::with_capacity(faces.len());
-    let mut total = 0.0f64;
+    let mut areas = Vec::with_capacity(faces.len());
     for (face, tri) in faces.iter().enumerate() {
         if let Some(&index) = tri.iter().find(|&&i| i as usize >= vertices) {
             return Err(SampleError::BadIndex {
@@ -62,50 +123,49 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         }
         let [a, b, c] = tri.map(|i| mesh.positions[i as usize].as_dvec3());
         let area = 0.5 * (b - a).cross(c - a).length();
-        if area.is_finite() {
-            total += area;
-        }
-        cumulative.push(total);
+        areas.push(if area.is_finite() { area } else { 0.0 });
     }
+    let total: f64 = areas.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Err(SampleError::ZeroArea);
     }
-    // Rounding can put a target at the very end; clamp to the last face with positive area.
-    let last_face = cumulative
-        .partition_point(|&c| c < total)
-        .min(faces.len() - 1);
+    let table = AliasTable::new(&areas, total);
     let colors = mesh.colors.as_ref().filter(|c| c.len() == vertices);
-    let mut rng = SplitMix64::new(seed);
-    let mut positions = Vec::with_capacity(n_points);
-    let mut normals = Vec::with_capacity(n_points);
-    let mut out_colors = colors.map(|_| Vec::with_capacity(n_points));
-    for _ in 0..n_points {
-        let target = rng.next_f64() * total;
-        // First face whose cumulative area exceeds the target: zero-area faces are never chosen.
-        let face = cumulative.partition_point(|&c| c <= target).min(last_face);
-        let tri = faces[face];
-        let [a, b, c] = tri.map(|i| mesh.positions[i as usize]);
-        let (mut u, mut v) = (rng.next_f64() as f32, rng.next_f64() as f32);
-        if u + v > 1.0 {
-            (u, v) = (1.0 - u, 1.0 - v);
-        }
-        let w = 1.0 - u - v;
-        positions.push(a * w + b * u + c * v);
-        let normal = (b - a).cross(c - a).normalize_or_zero();
-        normals.push(if normal == Vec3::ZERO {
-            Vec3::Z
-        } else {
-            normal
+    let mut positions = vec![Vec3::ZERO; n_points];
+    let mut normals = vec![Vec3::ZERO; n_points];
+    let mut out_colors = colors.map(|_| vec![[0u8; 4]; n_points]);
+    let color_blocks: Vec<Option<&mut [[u8; 4]]>> = match out_colors.as_deref_mut() {
+        Some(c) => c.chunks_mut(BLOCK).map(Some).collect(),
+        None => (0..n_points.div_ceil(BLOCK)).map(|_| None).collect(),
+    };
+    positions
+        .par_chunks_mut(BLOCK)
+        .zip(normals.par_chunks_mut(BLOCK))
+        .zip(color_blocks)
+        .enumerate()
+        .for_each(|(block, ((positions, normals), mut out_colors))| {
+            let mut rng = block_rng(seed, block);
+            for (k, (position, normal)) in positions.iter_mut().zip(normals).enumerate() {
+                let tri = faces[table.pick(rng.next_f64())];
+                let [a, b, c] = tri.map(|i| mesh.positions[i as usize]);
+                let (mut u, mut v) = (rng.next_f64() as f32, rng.next_f64() as f32);
+                if u + v > 1.0 {
+                    (u, v) = (1.0 - u, 1.0 - v);
+                }
+                let w = 1.0 - u - v;
+                *position = a * w + b * u + c * v;
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                *normal = if n == Vec3::ZERO { Vec3::Z } else { n };
+                if let (Some(out), Some(colors)) = (out_colors.as_deref_mut(), colors) {
+                    let [ca, cb, cc] = tri.map(|i| colors[i as usize]);
+                    out[k] = std::array::from_fn(|k| {
+                        (f32::from(ca[k]) * w + f32::from(cb[k]) * u + f32::from(cc[k]) * v)
+                            .round()
+                            .clamp(0.0, 255.0) as u8
+                    });
+                }
+            }
         });
-        if let (Some(out), Some(colors)) = (out_colors.as_mut(), colors) {
-            let [ca, cb, cc] = tri.map(|i| colors[i as usize]);
-            out.push(std::array::from_fn(|k| {
-                (f32::from(ca[k]) * w + f32::from(cb[k]) * u + f32::from(cc[k]) * v)
-                    .round()
-                    .clamp(0.0, 255.0) as u8
-            }));
-        }
-    }
     let radius = ((total / (std::f64::consts::PI * n_points.max(1) as f64)).sqrt() as f32)
         * SPLAT_RADIUS_FACTOR;
     Ok(Cloud {
