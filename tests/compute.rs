@@ -6,47 +6,11 @@ mod common;
 
 use std::path::Path;
 
+use common::{render, render_with};
 use glam::Vec3;
 use surfel::eval::Frame;
-use surfel::methods::MethodConfig;
-use surfel::render::{upload_with, Extras, Renderer, View};
-use surfel::scene::{pack, Camera, Cloud, Light};
+use surfel::scene::{pack, Cloud};
 use surfel::streams::UploadOptions;
-
-fn render_with(cloud: &Cloud, method: &str, size: u32, options: UploadOptions) -> Frame {
-    let ctx = common::context();
-    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
-    let config = MethodConfig::parse(method).expect("method");
-    let mut r = Renderer::new(
-        &ctx,
-        &scene,
-        info,
-        &config,
-        size,
-        size,
-        Extras {
-            readback: true,
-            present: None,
-            ..Extras::default()
-        },
-    )
-    .expect("renderer");
-    let view = View {
-        camera: Camera::framing(info.centre, info.radius),
-        lights: vec![Light::headlight()],
-        use_color: true,
-        time: 0.0,
-    };
-    r.render(&view, false).expect("frame 1");
-    let frame = r.render(&view, true).expect("frame 2").expect("readback");
-    drop(r);
-    common::assert_clean(&ctx);
-    frame
-}
-
-fn render(cloud: &Cloud, method: &str, size: u32) -> Frame {
-    render_with(cloud, method, size, UploadOptions::default())
-}
 
 fn bunny() -> Cloud {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/stanford/bun_zipper.ply");

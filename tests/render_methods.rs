@@ -2,41 +2,7 @@
 
 mod common;
 
-use surfel::methods::MethodConfig;
-use surfel::render::{upload, Extras, Renderer, View};
-use surfel::scene::{Camera, Light};
-
-fn render(cloud: &surfel::scene::Cloud, method: &str, size: u32) -> surfel::eval::Frame {
-    let ctx = common::context();
-    let (scene, info) = upload(&ctx, cloud).expect("upload");
-    let config = MethodConfig::parse(method).expect("method");
-    let mut r = Renderer::new(
-        &ctx,
-        &scene,
-        info,
-        &config,
-        size,
-        size,
-        Extras {
-            readback: true,
-            present: None,
-            ..Extras::default()
-        },
-    )
-    .expect("renderer");
-    let view = View {
-        camera: Camera::framing(info.centre, info.radius),
-        lights: vec![Light::headlight()],
-        use_color: true,
-        time: 0.0,
-    };
-    // Two frames: the second uses the steady-state barriers.
-    r.render(&view, false).expect("frame 1");
-    let frame = r.render(&view, true).expect("frame 2").expect("readback");
-    drop(r);
-    common::assert_clean(&ctx);
-    frame
-}
+use common::render;
 
 /// Expected fraction of the image covered by the square: its half extent 1 at the framing
 /// distance r / sin(fov / 2) with r = sqrt(2) spans 1 / (d tan(fov / 2)) of the NDC half range.

@@ -59,3 +59,47 @@ pub fn square(n: usize) -> Cloud {
 pub fn coverage(frame: &surfel::eval::Frame) -> f64 {
     (0..frame.pixels()).filter(|&i| frame.covered(i)).count() as f64 / frame.pixels() as f64
 }
+
+/// Renders `cloud` with `method` at `size`² in a validated context (streams uploaded with
+/// `options`): one frame with the first-frame barriers, then a read-back frame with the
+/// steady-state ones. Fails on any validation error.
+pub fn render_with(
+    cloud: &Cloud,
+    method: &str,
+    size: u32,
+    options: surfel::streams::UploadOptions,
+) -> surfel::eval::Frame {
+    use surfel::render::{upload_with, Extras, Renderer, View};
+    let ctx = context();
+    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
+    let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let mut r = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        size,
+        size,
+        Extras {
+            readback: true,
+            ..Extras::default()
+        },
+    )
+    .expect("renderer");
+    let view = View {
+        camera: surfel::scene::Camera::framing(info.centre, info.radius),
+        lights: vec![surfel::scene::Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    r.render(&view, false).expect("frame 1");
+    let frame = r.render(&view, true).expect("frame 2").expect("readback");
+    drop(r);
+    assert_clean(&ctx);
+    frame
+}
+
+/// `render_with` the default upload options.
+pub fn render(cloud: &Cloud, method: &str, size: u32) -> surfel::eval::Frame {
+    render_with(cloud, method, size, Default::default())
+}
