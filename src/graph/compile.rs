@@ -14,6 +14,7 @@ use super::sync::StageSupport;
 use super::{
     Access, BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, PassDecl, Subresource,
 };
+use crate::gpu::memory::create_view;
 use crate::gpu::{Buffer, Context, Image, ImageDesc, Profiler};
 
 pub(super) enum ImageSlot {
@@ -293,22 +294,10 @@ impl GraphBuilder {
             graph.samplers[i] = unsafe { ctx.device.create_sampler(&info, None)? };
         }
         for (id, base, count) in ranges {
-            let raw = graph.image_raw(id);
-            let desc = graph.image_desc(id);
-            let info = vk::ImageViewCreateInfo::default()
-                .image(raw)
-                .view_type(vk::ImageViewType::TYPE_2D)
-                .format(desc.format)
-                .subresource_range(vk::ImageSubresourceRange {
-                    aspect_mask: desc.aspect(),
-                    base_mip_level: base,
-                    level_count: count,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                });
+            let (raw, desc) = (graph.image_raw(id), graph.image_desc(id));
             // SAFETY: the image is sampled (validated usage), the range lies within its mip
             // chain (validated); destroyed in Drop.
-            let view = unsafe { ctx.device.create_image_view(&info, None)? };
+            let view = unsafe { create_view(&ctx.device, raw, &desc, base, count)? };
             graph.range_views.insert((id, base, count), view);
         }
         let mut scope = 0;
