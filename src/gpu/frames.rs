@@ -97,12 +97,8 @@ impl FrameRing {
     /// Blocks until `slot`'s submitted frame (if any) has finished.
     pub fn wait(&mut self, slot: usize) -> Result<()> {
         let s = &mut self.slots[slot];
-        if s.pending {
-            wait_and_reset(&self.ctx.device, s.fence)
-                .context("waiting for a frame failed (device lost?)")?;
-            s.pending = false;
-        }
-        Ok(())
+        wait_and_reset(&self.ctx.device, s.fence, &mut s.pending)
+            .context("waiting for a frame failed (device lost?)")
     }
 
     /// Blocks until every submitted frame has finished.
@@ -169,13 +165,21 @@ impl FrameRing {
     }
 }
 
-/// Blocks until `fence` signals, then resets it for the next submission.
-pub(super) fn wait_and_reset(device: &ash::Device, fence: vk::Fence) -> Result<()> {
-    // SAFETY: waiting has no precondition beyond a valid fence; once it has signalled, no
-    // pending submission uses it, so it may be reset.
-    unsafe {
-        device.wait_for_fences(&[fence], true, u64::MAX)?;
-        device.reset_fences(&[fence])?;
+/// When `pending` (a submission signals `fence`), blocks until `fence` signals, resets it
+/// for the next submission and clears `pending`.
+pub(super) fn wait_and_reset(
+    device: &ash::Device,
+    fence: vk::Fence,
+    pending: &mut bool,
+) -> Result<()> {
+    if *pending {
+        // SAFETY: waiting has no precondition beyond a valid fence; once it has signalled, no
+        // pending submission uses it, so it may be reset.
+        unsafe {
+            device.wait_for_fences(&[fence], true, u64::MAX)?;
+            device.reset_fences(&[fence])?;
+        }
+        *pending = false;
     }
     Ok(())
 }

@@ -76,12 +76,8 @@ impl Uploader {
 
     fn wait(&mut self, slot: usize) -> Result<()> {
         let s = &mut self.slots[slot];
-        if s.pending {
-            wait_and_reset(&self.ctx.device, s.fence)
-                .context("waiting for an upload (device lost?)")?;
-            s.pending = false;
-        }
-        Ok(())
+        wait_and_reset(&self.ctx.device, s.fence, &mut s.pending)
+            .context("waiting for an upload (device lost?)")
     }
 
     /// Lets `fill` write the next chunk (at most `chunk()` bytes), then submits `copies` out
