@@ -102,26 +102,25 @@ impl BarrierBatch {
     }
 
     fn patch_image(&mut self, id: ImageId, raw: vk::Image) {
-        for (b, _) in self
-            .images
-            .iter_mut()
-            .zip(&self.image_ids)
-            .filter(|(_, i)| **i == id)
-        {
-            b.image = raw;
-        }
+        entries_of(&mut self.images, &self.image_ids, id).for_each(|b| b.image = raw);
     }
 
     fn patch_buffer(&mut self, id: BufferId, raw: vk::Buffer) {
-        for (b, _) in self
-            .buffers
-            .iter_mut()
-            .zip(&self.buffer_ids)
-            .filter(|(_, i)| **i == id)
-        {
-            b.buffer = raw;
-        }
+        entries_of(&mut self.buffers, &self.buffer_ids, id).for_each(|b| b.buffer = raw);
     }
+}
+
+/// The barriers among `barriers` whose graph resource (the same entry of `ids`) is `id`.
+fn entries_of<'a, B, I: PartialEq>(
+    barriers: &'a mut [B],
+    ids: &'a [I],
+    id: I,
+) -> impl Iterator<Item = &'a mut B> {
+    barriers
+        .iter_mut()
+        .zip(ids)
+        .filter(move |(_, i)| **i == id)
+        .map(|(b, _)| b)
 }
 
 pub(super) struct CompiledPass {
