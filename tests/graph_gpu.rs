@@ -14,8 +14,8 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 use surfel::gpu::{Binding, Buffer, Context, FrameRing, GraphicsDesc, Image, ImageDesc, Pipeline};
 use surfel::graph::{
-    Access, BarrierTarget, BufferRange, CompiledGraph, Descriptor, GraphBuilder, Load, Sampler,
-    Stages,
+    Access, BarrierTarget, BufferId, BufferRange, CompiledGraph, Descriptor, GraphBuilder, ImageId,
+    Load, Sampler, Stages,
 };
 
 /// Records and submits `graph` once per entry of `readback` (whether on-demand passes run),
@@ -70,6 +70,87 @@ fn frame_color(frame: u32) -> ([f32; 4], [u8; 4]) {
     )
 }
 
+fn u32_bytes(words: &[u32]) -> Vec<u8> {
+    words.iter().flat_map(|w| w.to_ne_bytes()).collect()
+}
+
+fn f32_bytes(values: &[f32]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_ne_bytes()).collect()
+}
+
+/// A compute pipeline whose binding `i` has descriptor type `types[i]`.
+fn compute_pipeline(
+    ctx: &Arc<Context>,
+    shader: &str,
+    types: &[vk::DescriptorType],
+) -> Arc<Pipeline> {
+    Arc::new(Pipeline::compute(ctx, shader, &compute_bindings(types)).expect("pipeline"))
+}
+
+fn compute_bindings(types: &[vk::DescriptorType]) -> Vec<Binding> {
+    (0..)
+        .zip(types)
+        .map(|(i, ty)| Binding::new(i, *ty, vk::ShaderStageFlags::COMPUTE))
+        .collect()
+}
+
+/// One region copying the first `size` bytes.
+fn whole(size: u64) -> [vk::BufferCopy; 1] {
+    [vk::BufferCopy {
+        src_offset: 0,
+        dst_offset: 0,
+        size,
+    }]
+}
+
+/// An 8x8 single-level render target whose usage the graph derives.
+fn target_8x8(g: &mut GraphBuilder, format: vk::Format) -> ImageId {
+    g.image(
+        "target",
+        ImageDesc {
+            format,
+            width: 8,
+            height: 8,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::empty(),
+        },
+    )
+}
+
+/// The pass "host", reading `host` after the frame's fence.
+fn host_pass(g: &mut GraphBuilder, host: BufferId) {
+    g.pass("host").buffer(host, Access::HostRead).record(|_| {});
+}
+
+/// The passes "download" (mip 0 of `image` into `host`) and "host".
+fn download(g: &mut GraphBuilder, image: ImageId, host: BufferId) {
+    g.pass("download")
+        .image(image, Access::TransferSrc)
+        .buffer(host, Access::TransferDst)
+        .record(move |ctx| ctx.copy_image_to_buffer(image, 0, host));
+    host_pass(g, host);
+}
+
+/// Every pixel of the 8x8 RGBA8 `pixels` is red in the left half and blue in the right.
+fn assert_halves(pixels: &[u8], frame: usize) {
+    for (i, px) in pixels.chunks(4).enumerate() {
+        let expected: [u8; 4] = if i % 8 < 4 {
+            [255, 0, 0, 255]
+        } else {
+            [0, 0, 255, 255]
+        };
+        assert_eq!(px, expected, "frame {frame}, pixel ({}, {})", i % 8, i / 8);
+    }
+}
+
+/// Whether the device lacks `feature` (`has` false), noting the skipped test.
+fn skipped(ctx: &Context, has: bool, feature: &str) -> bool {
+    if !has {
+        eprintln!("note: {} {feature}; test skipped", ctx.caps.device_name);
+    }
+    !has
+}
+
 #[test]
 fn ping_pong_pyramid_history_and_readback_run_hazard_free() {
     let ctx = common::context();
@@ -85,16 +166,7 @@ fn ping_pong_pyramid_history_and_readback_run_hazard_free() {
         .into_iter()
         .map(|l| {
             let (w, h) = desc.level_extent(l);
-            Arc::new(
-                Buffer::new(
-                    &ctx,
-                    "rb",
-                    u64::from(w * h * 4),
-                    vk::BufferUsageFlags::TRANSFER_DST,
-                    MemoryLocation::GpuToCpu,
-                )
-                .expect("buffer"),
-            )
+            host_buffer(&ctx, "rb", u64::from(w * h * 4))
         })
         .collect();
     let mut g = GraphBuilder::new();
@@ -207,23 +279,19 @@ fn ping_pong_pyramid_history_and_readback_run_hazard_free() {
 #[test]
 fn indirect_dispatch_reads_group_counts_a_compute_pass_wrote() {
     let ctx = common::context();
-    let comp = vk::ShaderStageFlags::COMPUTE;
-    let write_args = Arc::new(
-        Pipeline::compute(
-            &ctx,
-            "test/indirect_args.comp",
-            &[
-                Binding::new(0, vk::DescriptorType::UNIFORM_BUFFER, comp),
-                Binding::new(1, vk::DescriptorType::STORAGE_BUFFER, comp),
-            ],
-        )
-        .expect("pipeline"),
+    let write_args = compute_pipeline(
+        &ctx,
+        "test/indirect_args.comp",
+        &[
+            vk::DescriptorType::UNIFORM_BUFFER,
+            vk::DescriptorType::STORAGE_BUFFER,
+        ],
     );
     let fill = Arc::new(
         Pipeline::compute_specialized(
             &ctx,
             "test/indirect_fill.comp",
-            &[Binding::new(0, vk::DescriptorType::STORAGE_BUFFER, comp)],
+            &compute_bindings(&[vk::DescriptorType::STORAGE_BUFFER]),
             &[(0, 3)],
         )
         .expect("specialized pipeline"),
@@ -261,9 +329,7 @@ fn indirect_dispatch_reads_group_counts_a_compute_pass_wrote() {
         size: 64,
     });
     g.copy_buffer("download", values, host_id, &halves);
-    g.pass("host")
-        .buffer(host_id, Access::HostRead)
-        .record(|_| {});
+    host_pass(&mut g, host_id);
     let steady = g.barriers().expect("valid");
     let indirect = steady[3]
         .iter()
@@ -301,11 +367,7 @@ fn indirect_dispatch_reads_group_counts_a_compute_pass_wrote() {
 #[test]
 fn mesh_shader_quads_cover_exactly_their_half_of_the_target() {
     let ctx = common::context();
-    if !ctx.caps.mesh_shader {
-        eprintln!(
-            "note: {} has no mesh shaders; test skipped",
-            ctx.caps.device_name
-        );
+    if skipped(&ctx, ctx.caps.mesh_shader, "has no mesh shaders") {
         return;
     }
     let format = vk::Format::R8G8B8A8_UNORM;
@@ -326,28 +388,12 @@ fn mesh_shader_quads_cover_exactly_their_half_of_the_target() {
     let (left, right) = (pipeline(0), pipeline(1));
     let host = host_buffer(&ctx, "pixels", 8 * 8 * 4);
     let mut g = GraphBuilder::new();
-    let target = g.image(
-        "target",
-        ImageDesc {
-            format,
-            width: 8,
-            height: 8,
-            mip_levels: 1,
-            usage: vk::ImageUsageFlags::empty(),
-        },
-    );
+    let target = target_8x8(&mut g, format);
     let args = g.buffer("args", 12, vk::BufferUsageFlags::empty());
     let host_id = g.import_buffer("pixels", host.clone());
-    let words: Vec<u8> = [1u32, 1, 1].iter().flat_map(|w| w.to_ne_bytes()).collect();
-    g.update_buffer("args", args, 0, &words);
-    let red: Vec<u8> = [1.0f32, 0.0, 0.0, 1.0]
-        .iter()
-        .flat_map(|c| c.to_ne_bytes())
-        .collect();
-    let blue: Vec<u8> = [0.0f32, 0.0, 1.0, 1.0]
-        .iter()
-        .flat_map(|c| c.to_ne_bytes())
-        .collect();
+    g.update_buffer("args", args, 0, &u32_bytes(&[1, 1, 1]));
+    let red = f32_bytes(&[1.0, 0.0, 0.0, 1.0]);
+    let blue = f32_bytes(&[0.0, 0.0, 1.0, 1.0]);
     g.pass("left")
         .color(target, Load::Clear([0.0; 4]))
         .record(move |ctx| {
@@ -363,24 +409,10 @@ fn mesh_shader_quads_cover_exactly_their_half_of_the_target() {
             ctx.push(&right, &blue);
             ctx.draw_mesh_tasks_indirect(args, 0, 1, 12);
         });
-    g.pass("download")
-        .image(target, Access::TransferSrc)
-        .buffer(host_id, Access::TransferDst)
-        .record(move |ctx| ctx.copy_image_to_buffer(target, 0, host_id));
-    g.pass("host")
-        .buffer(host_id, Access::HostRead)
-        .record(|_| {});
+    download(&mut g, target, host_id);
     let mut graph = g.compile(&ctx).expect("compile");
     run_frames(&ctx, &mut graph, &[false; 2], |f| {
-        let pixels = host.mapped().expect("mapped");
-        for (i, px) in pixels.chunks(4).enumerate() {
-            let expected: [u8; 4] = if i % 8 < 4 {
-                [255, 0, 0, 255]
-            } else {
-                [0, 0, 255, 255]
-            };
-            assert_eq!(px, expected, "frame {f}, pixel ({}, {})", i % 8, i / 8);
-        }
+        assert_halves(host.mapped().expect("mapped"), f);
     });
     drop(graph);
     common::assert_clean(&ctx);
@@ -418,13 +450,7 @@ fn imported_images_keep_their_contents_from_the_declared_initial_state() {
     let mut g = GraphBuilder::new();
     let tex = g.import_image_with("texture", image.clone(), Access::Sampled(Stages::Fragment));
     let host_id = g.import_buffer("texels", host.clone());
-    g.pass("download")
-        .image(tex, Access::TransferSrc)
-        .buffer(host_id, Access::TransferDst)
-        .record(move |ctx| ctx.copy_image_to_buffer(tex, 0, host_id));
-    g.pass("host")
-        .buffer(host_id, Access::HostRead)
-        .record(|_| {});
+    download(&mut g, tex, host_id);
     let first = g.first_frame_barriers().expect("valid");
     let t = first[0]
         .iter()
@@ -468,14 +494,10 @@ fn imported_resources_lacking_a_declared_usage_are_rejected_at_compile() {
 #[test]
 fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
     let ctx = common::context();
-    let comp = vk::ShaderStageFlags::COMPUTE;
-    let fill = Arc::new(
-        Pipeline::compute(
-            &ctx,
-            "test/indirect_fill.comp",
-            &[Binding::new(0, vk::DescriptorType::STORAGE_BUFFER, comp)],
-        )
-        .expect("pipeline"),
+    let fill = compute_pipeline(
+        &ctx,
+        "test/indirect_fill.comp",
+        &[vk::DescriptorType::STORAGE_BUFFER],
     );
     let mut g = GraphBuilder::new();
     let declared = g.buffer("declared", 64, vk::BufferUsageFlags::STORAGE_BUFFER);
@@ -487,16 +509,7 @@ fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
             ctx.bind(&fill, &[Descriptor::Buffer(0, forgotten)]);
             ctx.dispatch(1, 1, 1);
         });
-    g.copy_buffer(
-        "keep",
-        declared,
-        keep,
-        &[vk::BufferCopy {
-            src_offset: 0,
-            dst_offset: 0,
-            size: 64,
-        }],
-    );
+    g.copy_buffer("keep", declared, keep, &whole(64));
     let mut graph = g.compile(&ctx).expect("compile");
     let cmd = ctx.allocate_command_buffer().expect("cmd");
     // SAFETY: a fresh command buffer; it is freed without being submitted.
@@ -524,17 +537,13 @@ fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
 #[test]
 fn mip_range_views_with_a_linear_sampler_see_only_their_levels() {
     let ctx = common::context();
-    let comp = vk::ShaderStageFlags::COMPUTE;
-    let sample = Arc::new(
-        Pipeline::compute(
-            &ctx,
-            "test/sample_mips.comp",
-            &[
-                Binding::new(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, comp),
-                Binding::new(1, vk::DescriptorType::STORAGE_BUFFER, comp),
-            ],
-        )
-        .expect("pipeline"),
+    let sample = compute_pipeline(
+        &ctx,
+        "test/sample_mips.comp",
+        &[
+            vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+            vk::DescriptorType::STORAGE_BUFFER,
+        ],
     );
     let host = host_buffer(&ctx, "texels", 48);
     let mut g = GraphBuilder::new();
@@ -576,19 +585,8 @@ fn mip_range_views_with_a_linear_sampler_see_only_their_levels() {
             );
             ctx.dispatch(1, 1, 1);
         });
-    g.copy_buffer(
-        "download",
-        texels,
-        host_id,
-        &[vk::BufferCopy {
-            src_offset: 0,
-            dst_offset: 0,
-            size: 48,
-        }],
-    );
-    g.pass("host")
-        .buffer(host_id, Access::HostRead)
-        .record(|_| {});
+    g.copy_buffer("download", texels, host_id, &whole(48));
+    host_pass(&mut g, host_id);
     let mut graph = g.compile(&ctx).expect("compile");
     run_frames(&ctx, &mut graph, &[false; 2], |f| {
         let red: Vec<f32> = host
@@ -619,11 +617,11 @@ fn mip_range_views_with_a_linear_sampler_see_only_their_levels() {
 #[test]
 fn indirect_draws_read_their_arguments_and_count_from_buffers() {
     let ctx = common::context();
-    if !ctx.caps.draw_indirect_count {
-        eprintln!(
-            "note: {} lacks drawIndirectCount; test skipped",
-            ctx.caps.device_name
-        );
+    if skipped(
+        &ctx,
+        ctx.caps.draw_indirect_count,
+        "lacks drawIndirectCount",
+    ) {
         return;
     }
     let format = vk::Format::R8G8B8A8_UNORM;
@@ -640,28 +638,15 @@ fn indirect_draws_read_their_arguments_and_count_from_buffers() {
     );
     let host = host_buffer(&ctx, "pixels", 8 * 8 * 4);
     let mut g = GraphBuilder::new();
-    let target = g.image(
-        "target",
-        ImageDesc {
-            format,
-            width: 8,
-            height: 8,
-            mip_levels: 1,
-            usage: vk::ImageUsageFlags::empty(),
-        },
-    );
+    let target = target_8x8(&mut g, format);
     let args = g.buffer("args", 32, vk::BufferUsageFlags::empty());
     let count = g.buffer("count", 4, vk::BufferUsageFlags::empty());
     let host_id = g.import_buffer("pixels", host.clone());
     // Draw 0: the right half (first vertex 6); draw 1: the left half (first vertex 0).
-    let commands: Vec<u8> = [6u32, 1, 6, 0, 6, 1, 0, 0]
-        .iter()
-        .flat_map(|w| w.to_ne_bytes())
-        .collect();
-    g.update_buffer("args", args, 0, &commands);
+    g.update_buffer("args", args, 0, &u32_bytes(&[6, 1, 6, 0, 6, 1, 0, 0]));
     g.update_buffer("count", count, 0, &1u32.to_ne_bytes());
-    let color = |c: [f32; 4]| -> Vec<u8> { c.iter().flat_map(|x| x.to_ne_bytes()).collect() };
-    let (red, blue) = (color([1.0, 0.0, 0.0, 1.0]), color([0.0, 0.0, 1.0, 1.0]));
+    let red = f32_bytes(&[1.0, 0.0, 0.0, 1.0]);
+    let blue = f32_bytes(&[0.0, 0.0, 1.0, 1.0]);
     let p = pipeline.clone();
     g.pass("left")
         .buffer_range(args, BufferRange::new(16, 16), Access::IndirectRead)
@@ -681,24 +666,10 @@ fn indirect_draws_read_their_arguments_and_count_from_buffers() {
             ctx.push(&pipeline, &blue);
             ctx.draw_indirect_count(args, 0, count, 0, 2, 16);
         });
-    g.pass("download")
-        .image(target, Access::TransferSrc)
-        .buffer(host_id, Access::TransferDst)
-        .record(move |ctx| ctx.copy_image_to_buffer(target, 0, host_id));
-    g.pass("host")
-        .buffer(host_id, Access::HostRead)
-        .record(|_| {});
+    download(&mut g, target, host_id);
     let mut graph = g.compile(&ctx).expect("compile");
     run_frames(&ctx, &mut graph, &[false; 2], |f| {
-        let pixels = host.mapped().expect("mapped");
-        for (i, px) in pixels.chunks(4).enumerate() {
-            let expected: [u8; 4] = if i % 8 < 4 {
-                [255, 0, 0, 255]
-            } else {
-                [0, 0, 255, 255]
-            };
-            assert_eq!(px, expected, "frame {f}, pixel ({}, {})", i % 8, i / 8);
-        }
+        assert_halves(host.mapped().expect("mapped"), f);
     });
     drop(graph);
     common::assert_clean(&ctx);

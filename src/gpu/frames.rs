@@ -97,17 +97,8 @@ impl FrameRing {
     /// Blocks until `slot`'s submitted frame (if any) has finished.
     pub fn wait(&mut self, slot: usize) -> Result<()> {
         let s = &mut self.slots[slot];
-        if s.pending {
-            // SAFETY: the fence was submitted with this slot's command buffer.
-            unsafe {
-                self.ctx
-                    .device
-                    .wait_for_fences(&[s.fence], true, u64::MAX)
-                    .context("waiting for a frame failed (device lost?)")?
-            };
-            s.pending = false;
-        }
-        Ok(())
+        wait_and_reset(&self.ctx.device, s.fence, &mut s.pending)
+            .context("waiting for a frame failed (device lost?)")
     }
 
     /// Blocks until every submitted frame has finished.
@@ -119,17 +110,9 @@ impl FrameRing {
     pub fn begin(&mut self) -> Result<vk::CommandBuffer> {
         let s = &self.slots[self.current];
         debug_assert!(!s.pending, "recording a slot whose frame is in flight");
-        let d = &self.ctx.device;
         // SAFETY: the slot's previous submission has completed (`advance` waited on its
         // fence), so its command buffer may be reset and re-recorded.
-        unsafe {
-            d.reset_command_buffer(s.cmd, vk::CommandBufferResetFlags::empty())?;
-            d.begin_command_buffer(
-                s.cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )?;
-        }
+        unsafe { begin_one_time(&self.ctx.device, s.cmd)? };
         Ok(s.cmd)
     }
 
@@ -168,11 +151,10 @@ impl FrameRing {
             .command_buffer_infos(&cmds)
             .wait_semaphore_infos(waits.as_slice())
             .signal_semaphore_infos(signals.as_slice())];
-        // SAFETY: the command buffer is fully recorded; the fence is not in use (the slot's
-        // previous frame was waited on), so it may be reset; the renderer submits from one
-        // thread, which keeps the queue externally synchronized.
+        // SAFETY: the command buffer is fully recorded; the fence is unsignalled (created so,
+        // and reset when the slot's previous frame was waited on); the renderer submits from
+        // one thread, which keeps the queue externally synchronized.
         unsafe {
-            self.ctx.device.reset_fences(&[s.fence])?;
             self.ctx
                 .device
                 .queue_submit2(self.ctx.queue, &submit, s.fence)
@@ -181,6 +163,38 @@ impl FrameRing {
         s.pending = true;
         Ok(())
     }
+}
+
+/// When `pending` (a submission signals `fence`), blocks until `fence` signals, resets it
+/// for the next submission and clears `pending`.
+pub(super) fn wait_and_reset(
+    device: &ash::Device,
+    fence: vk::Fence,
+    pending: &mut bool,
+) -> Result<()> {
+    if *pending {
+        // SAFETY: waiting has no precondition beyond a valid fence; once it has signalled, no
+        // pending submission uses it, so it may be reset.
+        unsafe {
+            device.wait_for_fences(&[fence], true, u64::MAX)?;
+            device.reset_fences(&[fence])?;
+        }
+        *pending = false;
+    }
+    Ok(())
+}
+
+/// Resets `cmd` and begins recording it for one submission.
+///
+/// # Safety
+/// No pending submission may use `cmd`, and its pool must allow resetting single buffers.
+pub(super) unsafe fn begin_one_time(device: &ash::Device, cmd: vk::CommandBuffer) -> Result<()> {
+    device.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())?;
+    device.begin_command_buffer(
+        cmd,
+        &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+    )?;
+    Ok(())
 }
 
 impl Drop for FrameRing {

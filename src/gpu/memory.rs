@@ -197,6 +197,32 @@ pub fn aspect_of(format: vk::Format) -> vk::ImageAspectFlags {
     }
 }
 
+/// Creates a 2D view of mips `base..base + count` of `raw` (described by `desc`).
+///
+/// # Safety
+/// `raw` must be a live image created from `desc` with a usage that allows views, and the
+/// range must lie within its mip chain. The caller destroys the view before the image.
+pub unsafe fn create_view(
+    device: &ash::Device,
+    raw: vk::Image,
+    desc: &ImageDesc,
+    base: u32,
+    count: u32,
+) -> ash::prelude::VkResult<vk::ImageView> {
+    let info = vk::ImageViewCreateInfo::default()
+        .image(raw)
+        .view_type(vk::ImageViewType::TYPE_2D)
+        .format(desc.format)
+        .subresource_range(vk::ImageSubresourceRange {
+            aspect_mask: desc.aspect(),
+            base_mip_level: base,
+            level_count: count,
+            base_array_layer: 0,
+            layer_count: 1,
+        });
+    device.create_image_view(&info, None)
+}
+
 /// A 2D image with a view of the whole mip chain and one view per mip level (no views for
 /// transfer-only images).
 pub struct Image {
@@ -247,20 +273,8 @@ impl Image {
             };
             ctx.device
                 .bind_image_memory(raw, allocation.memory(), allocation.offset())?;
-            let make_view = |base: u32, count: u32| {
-                let view = vk::ImageViewCreateInfo::default()
-                    .image(raw)
-                    .view_type(vk::ImageViewType::TYPE_2D)
-                    .format(desc.format)
-                    .subresource_range(vk::ImageSubresourceRange {
-                        aspect_mask: desc.aspect(),
-                        base_mip_level: base,
-                        level_count: count,
-                        base_array_layer: 0,
-                        layer_count: 1,
-                    });
-                ctx.device.create_image_view(&view, None)
-            };
+            let make_view =
+                |base: u32, count: u32| create_view(&ctx.device, raw, &desc, base, count);
             // Transfer-only images cannot have views.
             let viewable = desc.usage.intersects(
                 vk::ImageUsageFlags::SAMPLED

@@ -8,6 +8,7 @@ use anyhow::{Context as _, Result};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+use super::frames::{begin_one_time, wait_and_reset};
 use super::{Buffer, Context};
 
 /// One copy from the current staging chunk into a destination buffer.
@@ -75,18 +76,8 @@ impl Uploader {
 
     fn wait(&mut self, slot: usize) -> Result<()> {
         let s = &mut self.slots[slot];
-        if s.pending {
-            // SAFETY: the fence was submitted with this slot's command buffer.
-            unsafe {
-                self.ctx
-                    .device
-                    .wait_for_fences(&[s.fence], true, u64::MAX)
-                    .context("waiting for an upload (device lost?)")?;
-                self.ctx.device.reset_fences(&[s.fence])?;
-            }
-            s.pending = false;
-        }
-        Ok(())
+        wait_and_reset(&self.ctx.device, s.fence, &mut s.pending)
+            .context("waiting for an upload (device lost?)")
     }
 
     /// Lets `fill` write the next chunk (at most `chunk()` bytes), then submits `copies` out
@@ -125,12 +116,7 @@ impl Uploader {
         // buffer and staging memory may be reused; copies stay within both buffers (callers
         // size them from the same layout) and the fence is unsignalled.
         unsafe {
-            d.reset_command_buffer(s.cmd, vk::CommandBufferResetFlags::empty())?;
-            d.begin_command_buffer(
-                s.cmd,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )?;
+            begin_one_time(d, s.cmd)?;
             for (dst, region) in &regions {
                 d.cmd_copy_buffer(s.cmd, s.staging.raw, *dst, std::slice::from_ref(region));
             }

@@ -14,6 +14,7 @@ use super::sync::StageSupport;
 use super::{
     Access, BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, PassDecl, Subresource,
 };
+use crate::gpu::memory::create_view;
 use crate::gpu::{Buffer, Context, Image, ImageDesc, Profiler};
 
 pub(super) enum ImageSlot {
@@ -101,26 +102,25 @@ impl BarrierBatch {
     }
 
     fn patch_image(&mut self, id: ImageId, raw: vk::Image) {
-        for (b, _) in self
-            .images
-            .iter_mut()
-            .zip(&self.image_ids)
-            .filter(|(_, i)| **i == id)
-        {
-            b.image = raw;
-        }
+        entries_of(&mut self.images, &self.image_ids, id).for_each(|b| b.image = raw);
     }
 
     fn patch_buffer(&mut self, id: BufferId, raw: vk::Buffer) {
-        for (b, _) in self
-            .buffers
-            .iter_mut()
-            .zip(&self.buffer_ids)
-            .filter(|(_, i)| **i == id)
-        {
-            b.buffer = raw;
-        }
+        entries_of(&mut self.buffers, &self.buffer_ids, id).for_each(|b| b.buffer = raw);
     }
+}
+
+/// The barriers among `barriers` whose graph resource (the same entry of `ids`) is `id`.
+fn entries_of<'a, B, I: PartialEq>(
+    barriers: &'a mut [B],
+    ids: &'a [I],
+    id: I,
+) -> impl Iterator<Item = &'a mut B> {
+    barriers
+        .iter_mut()
+        .zip(ids)
+        .filter(move |(_, i)| **i == id)
+        .map(|(b, _)| b)
 }
 
 pub(super) struct CompiledPass {
@@ -293,22 +293,10 @@ impl GraphBuilder {
             graph.samplers[i] = unsafe { ctx.device.create_sampler(&info, None)? };
         }
         for (id, base, count) in ranges {
-            let raw = graph.image_raw(id);
-            let desc = graph.image_desc(id);
-            let info = vk::ImageViewCreateInfo::default()
-                .image(raw)
-                .view_type(vk::ImageViewType::TYPE_2D)
-                .format(desc.format)
-                .subresource_range(vk::ImageSubresourceRange {
-                    aspect_mask: desc.aspect(),
-                    base_mip_level: base,
-                    level_count: count,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                });
+            let (raw, desc) = (graph.image_raw(id), graph.image_desc(id));
             // SAFETY: the image is sampled (validated usage), the range lies within its mip
             // chain (validated); destroyed in Drop.
-            let view = unsafe { ctx.device.create_image_view(&info, None)? };
+            let view = unsafe { create_view(&ctx.device, raw, &desc, base, count)? };
             graph.range_views.insert((id, base, count), view);
         }
         let mut scope = 0;

@@ -260,7 +260,7 @@ impl PassContext<'_> {
         what: impl fmt::Display,
         id: BufferId,
         range: BufferRange,
-        needs: &str,
+        needs: impl fmt::Display,
         ok: impl Fn(Access) -> bool,
     ) {
         let size = self.graph.buffer_raw(id).1;
@@ -279,7 +279,7 @@ impl PassContext<'_> {
         id: ImageId,
         base: u32,
         count: u32,
-        needs: &str,
+        needs: impl fmt::Display,
         ok: impl Fn(Access) -> bool,
     ) {
         if !mips_declared(&self.pass.uses, id, base, count, ok) {
@@ -293,6 +293,11 @@ impl PassContext<'_> {
         }
     }
 
+    /// `check_buffer` for commands that need exactly the access `needs`.
+    fn check_buffer_is(&self, what: &str, id: BufferId, range: BufferRange, needs: Access) {
+        self.check_buffer(what, id, range, format_args!("{needs:?}"), |a| a == needs);
+    }
+
     fn check_indirect(
         &self,
         what: &str,
@@ -304,12 +309,11 @@ impl PassContext<'_> {
     ) {
         if count > 0 {
             let size = u64::from(count - 1) * u64::from(stride) + bytes;
-            self.check_buffer(
+            self.check_buffer_is(
                 what,
                 id,
                 BufferRange::new(offset, size),
-                "IndirectRead",
-                |a| a == Access::IndirectRead,
+                Access::IndirectRead,
             );
         }
     }
@@ -458,12 +462,11 @@ impl PassContext<'_> {
     }
 
     fn bind_index_buffer(&self, index_buffer: BufferId, bytes: u64) {
-        self.check_buffer(
+        self.check_buffer_is(
             "the index buffer",
             index_buffer,
             BufferRange::new(0, bytes),
-            "IndexRead",
-            |a| a == Access::IndexRead,
+            Access::IndexRead,
         );
         // SAFETY: recording; the buffer was declared IndexRead (checked above).
         unsafe {
@@ -632,12 +635,22 @@ impl PassContext<'_> {
     }
 
     fn check_transfer(&self, what: &str, id: ImageId, mip: u32, dst: bool) {
-        let (needs, name) = if dst {
-            (Access::TransferDst, "TransferDst")
+        let needs = if dst {
+            Access::TransferDst
         } else {
-            (Access::TransferSrc, "TransferSrc")
+            Access::TransferSrc
         };
-        self.check_mips(what, id, mip, 1, name, |a| a == needs);
+        self.check_mips(what, id, mip, 1, format_args!("{needs:?}"), |a| a == needs);
+    }
+
+    /// The size of mip `mip` of `id` as a copy extent.
+    fn mip_extent(&self, id: ImageId, mip: u32) -> vk::Extent3D {
+        let (width, height) = self.desc(id).level_extent(mip);
+        vk::Extent3D {
+            width,
+            height,
+            depth: 1,
+        }
     }
 
     /// Scales mip `src_mip` of `src` onto mip `dst_mip` of `dst` (declared TransferSrc /
@@ -657,9 +670,9 @@ impl PassContext<'_> {
             ]
         };
         let region = vk::ImageBlit::default()
-            .src_subresource(color_layers(src_mip))
+            .src_subresource(layers(vk::ImageAspectFlags::COLOR, src_mip))
             .src_offsets(corner(self.desc(src), src_mip))
-            .dst_subresource(color_layers(dst_mip))
+            .dst_subresource(layers(vk::ImageAspectFlags::COLOR, dst_mip))
             .dst_offsets(corner(self.desc(dst), dst_mip));
         // SAFETY: layouts match the declared transfer accesses.
         unsafe {
@@ -680,15 +693,10 @@ impl PassContext<'_> {
     pub fn copy_mip(&self, src: ImageId, dst: ImageId, mip: u32) {
         self.check_transfer("copy_mip", src, mip, false);
         self.check_transfer("copy_mip", dst, mip, true);
-        let (width, height) = self.desc(src).level_extent(mip);
         let region = vk::ImageCopy::default()
-            .src_subresource(color_layers(mip))
-            .dst_subresource(color_layers(mip))
-            .extent(vk::Extent3D {
-                width,
-                height,
-                depth: 1,
-            });
+            .src_subresource(layers(vk::ImageAspectFlags::COLOR, mip))
+            .dst_subresource(layers(vk::ImageAspectFlags::COLOR, mip))
+            .extent(self.mip_extent(src, mip));
         // SAFETY: the pass declared TransferSrc/TransferDst on `mip` of both images.
         unsafe {
             self.ctx.device.cmd_copy_image(
@@ -728,27 +736,15 @@ impl PassContext<'_> {
     /// TransferSrc on the level, TransferDst on the buffer).
     pub fn copy_image_to_buffer(&self, image: ImageId, mip: u32, buffer: BufferId) {
         self.check_transfer("copy_image_to_buffer", image, mip, false);
-        self.check_buffer(
+        self.check_buffer_is(
             "copy_image_to_buffer",
             buffer,
             BufferRange::new(0, 1),
-            "TransferDst",
-            |a| a == Access::TransferDst,
+            Access::TransferDst,
         );
-        let desc = self.desc(image);
-        let (width, height) = desc.level_extent(mip);
         let region = vk::BufferImageCopy::default()
-            .image_subresource(vk::ImageSubresourceLayers {
-                aspect_mask: desc.aspect(),
-                mip_level: mip,
-                base_array_layer: 0,
-                layer_count: 1,
-            })
-            .image_extent(vk::Extent3D {
-                width,
-                height,
-                depth: 1,
-            });
+            .image_subresource(layers(self.desc(image).aspect(), mip))
+            .image_extent(self.mip_extent(image, mip));
         // SAFETY: the pass declared TransferSrc on the image and TransferDst on the buffer.
         unsafe {
             self.ctx.device.cmd_copy_image_to_buffer(
@@ -763,9 +759,7 @@ impl PassContext<'_> {
 
     /// Fills `range` of `buffer` (declared TransferDst) with the 32-bit `value`.
     pub fn fill_buffer(&self, buffer: BufferId, range: BufferRange, value: u32) {
-        self.check_buffer("fill_buffer", buffer, range, "TransferDst", |a| {
-            a == Access::TransferDst
-        });
+        self.check_buffer_is("fill_buffer", buffer, range, Access::TransferDst);
         // SAFETY: recording outside rendering; the range was declared TransferDst.
         unsafe {
             self.ctx.device.cmd_fill_buffer(
@@ -781,19 +775,17 @@ impl PassContext<'_> {
     /// Copies `regions` from `src` (declared TransferSrc) to `dst` (declared TransferDst).
     pub fn copy_buffer(&self, src: BufferId, dst: BufferId, regions: &[vk::BufferCopy]) {
         for r in regions {
-            self.check_buffer(
+            self.check_buffer_is(
                 "copy_buffer",
                 src,
                 BufferRange::new(r.src_offset, r.size),
-                "TransferSrc",
-                |a| a == Access::TransferSrc,
+                Access::TransferSrc,
             );
-            self.check_buffer(
+            self.check_buffer_is(
                 "copy_buffer",
                 dst,
                 BufferRange::new(r.dst_offset, r.size),
-                "TransferDst",
-                |a| a == Access::TransferDst,
+                Access::TransferDst,
             );
         }
         // SAFETY: recording outside rendering; both sides declared (checked above).
@@ -807,12 +799,11 @@ impl PassContext<'_> {
     /// Writes `bytes` (a multiple of 4, at most 65536) into `buffer` at `offset` (declared
     /// TransferDst).
     pub fn update_buffer(&self, buffer: BufferId, offset: u64, bytes: &[u8]) {
-        self.check_buffer(
+        self.check_buffer_is(
             "update_buffer",
             buffer,
             BufferRange::new(offset, bytes.len() as u64),
-            "TransferDst",
-            |a| a == Access::TransferDst,
+            Access::TransferDst,
         );
         // SAFETY: recording outside rendering; the bytes were declared TransferDst.
         unsafe {
@@ -823,9 +814,9 @@ impl PassContext<'_> {
     }
 }
 
-fn color_layers(mip: u32) -> vk::ImageSubresourceLayers {
+fn layers(aspect_mask: vk::ImageAspectFlags, mip: u32) -> vk::ImageSubresourceLayers {
     vk::ImageSubresourceLayers {
-        aspect_mask: vk::ImageAspectFlags::COLOR,
+        aspect_mask,
         mip_level: mip,
         base_array_layer: 0,
         layer_count: 1,
