@@ -12,7 +12,12 @@ pub fn oct_encode(n: Vec3) -> u32 {
         let sign = Vec2::new(p.x.signum(), p.y.signum());
         p = (Vec2::ONE - Vec2::new(p.y.abs(), p.x.abs())) * sign;
     }
-    let q = |v: f32| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32;
+    // Round half away from zero by truncation: `f32::round` is a libm call on baseline x86-64,
+    // and this runs once per point on upload.
+    let q = |v: f32| {
+        let x = v.clamp(-1.0, 1.0) * 32767.0;
+        ((x + 0.5f32.copysign(x)) as i16) as u16 as u32
+    };
     q(p.x) | (q(p.y) << 16)
 }
 
