@@ -56,6 +56,58 @@ fn compute_matches_hardware_points_on_the_bunny() {
 }
 
 #[test]
+fn culled_and_clipped_batches_match_hardware_points_from_inside_the_cloud() {
+    // The eye inside the bounding sphere, looking across the bunny: batches lie behind the
+    // camera, beside the frustum and across the near plane.
+    let cloud = bunny();
+    let inside = |c: Vec3, r: f32| surfel::scene::Camera::orbit_at(c, r, 40.0, 10.0, 0.3);
+    let opts = UploadOptions::default;
+    let points = common::render_view(&cloud, "points:size=1", 192, opts(), inside);
+    let exact = common::render_view(&cloud, "compute:quantized=0", 192, opts(), inside);
+    let quantized = common::render_view(&cloud, "compute", 192, opts(), inside);
+    let covered = (0..points.pixels()).filter(|&i| points.covered(i)).count();
+    assert!(
+        covered > 2_000 && covered < points.pixels() * 9 / 10,
+        "a partial view: {covered} px"
+    );
+    let (coverage, depth) = compare(&points, &exact);
+    assert_eq!(
+        coverage, 0,
+        "coverage differs in {coverage} of {covered} px"
+    );
+    assert!(depth < 1e-5, "relative depth differs by {depth}");
+    // Close batches read few enough quantized words that a cell spans up to a pixel: points
+    // move by less than a pixel, so every pixel the quantized render covers has a covered
+    // neighbour (or itself) in the exact render, and coverage stays within a few percent.
+    let w = points.width as i64;
+    let near_exact = |i: usize| {
+        let (x, y) = (i as i64 % w, i as i64 / w);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (nx, ny) = (x + dx, y + dy);
+                (0..w).contains(&nx)
+                    && (0..w).contains(&ny)
+                    && exact.covered((ny * w + nx) as usize)
+            })
+        })
+    };
+    let moved = (0..quantized.pixels())
+        .filter(|&i| quantized.covered(i) && !near_exact(i))
+        .count();
+    assert_eq!(
+        moved, 0,
+        "{moved} px farther than a pixel from the exact render"
+    );
+    let q = (0..quantized.pixels())
+        .filter(|&i| quantized.covered(i))
+        .count();
+    assert!(
+        q.abs_diff(covered) * 20 < covered,
+        "coverage {q} vs {covered}"
+    );
+}
+
+#[test]
 fn segments_and_quantized_positions_leave_the_image_unchanged() {
     let cloud = bunny();
     let whole = render(&cloud, "compute:quantized=0", 192);

@@ -60,11 +60,13 @@ void main() {
     if (any(all_out_xy) || all_out_near) {
         return;
     }
-    // Words of precision: the fewest whose cell is at most one pixel on screen.
+    // Words of precision: the fewest whose cell spans at most half a pixel of the box's
+    // projected extent (perspective magnifies the near side of a deep box beyond its average,
+    // so the margin keeps every point within a pixel of its exact position).
     uint words = 3u;
     if (!behind) {
         vec2 px = (smax - smin) * 0.5 * frame.u.viewport.xy;
-        float extent = max(px.x, px.y);
+        float extent = 2.0 * max(px.x, px.y);
         words = extent <= float(1u << QUANT_BITS) ? 1u
               : extent <= float(1u << (2u * QUANT_BITS)) ? 2u : 3u;
     }

@@ -61,13 +61,15 @@ pub fn coverage(frame: &surfel::eval::Frame) -> f64 {
 }
 
 /// Renders `cloud` with `method` at `size`² in a validated context (streams uploaded with
-/// `options`): one frame with the first-frame barriers, then a read-back frame with the
-/// steady-state ones. Fails on any validation error.
-pub fn render_with(
+/// `options`, camera from the bounding sphere's centre and radius): one frame with the
+/// first-frame barriers, then a read-back frame with the steady-state ones. Fails on any
+/// validation error.
+pub fn render_view(
     cloud: &Cloud,
     method: &str,
     size: u32,
     options: surfel::streams::UploadOptions,
+    camera: impl Fn(Vec3, f32) -> surfel::scene::Camera,
 ) -> surfel::eval::Frame {
     use surfel::render::{upload_with, Extras, Renderer, View};
     let ctx = context();
@@ -87,7 +89,7 @@ pub fn render_with(
     )
     .expect("renderer");
     let view = View {
-        camera: surfel::scene::Camera::framing(info.centre, info.radius),
+        camera: camera(info.centre, info.radius),
         lights: vec![surfel::scene::Light::headlight()],
         use_color: true,
         time: 0.0,
@@ -97,6 +99,16 @@ pub fn render_with(
     drop(r);
     assert_clean(&ctx);
     frame
+}
+
+/// `render_view` framing the cloud.
+pub fn render_with(
+    cloud: &Cloud,
+    method: &str,
+    size: u32,
+    options: surfel::streams::UploadOptions,
+) -> surfel::eval::Frame {
+    render_view(cloud, method, size, options, surfel::scene::Camera::framing)
 }
 
 /// `render_with` the default upload options.
