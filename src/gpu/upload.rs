@@ -32,7 +32,6 @@ pub struct Uploader {
     ctx: Arc<Context>,
     slots: Vec<Slot>,
     next: usize,
-    chunk: u64,
 }
 
 impl Uploader {
@@ -65,13 +64,7 @@ impl Uploader {
             ctx: ctx.clone(),
             slots,
             next: 0,
-            chunk,
         })
-    }
-
-    /// Bytes one chunk holds.
-    pub fn chunk(&self) -> u64 {
-        self.chunk
     }
 
     fn wait(&mut self, slot: usize) -> Result<()> {
@@ -80,7 +73,7 @@ impl Uploader {
             .context("waiting for an upload (device lost?)")
     }
 
-    /// Lets `fill` write the next chunk (at most `chunk()` bytes), then submits `copies` out
+    /// Lets `fill` write the next chunk (at most the chunk size given to `new`), then submits `copies` out
     /// of it without waiting; the chunk is reused two calls later.
     pub fn upload(
         &mut self,

@@ -175,14 +175,6 @@ impl StreamLayout {
         }
     }
 
-    /// GPU bytes of every stream (whole cloud), plus the batch table.
-    pub fn gpu_bytes(&self) -> Vec<(Stream, u64)> {
-        self.streams
-            .iter()
-            .map(|&s| (s, Self::stream_bytes(s, self.len())))
-            .collect()
-    }
-
     /// Cloud index → stream index (for remapping triangle indices).
     pub fn inverse(&self) -> Vec<u32> {
         let mut inv = vec![0u32; self.order.len()];

@@ -42,16 +42,6 @@ pub struct GpuStreams {
     pub point_count: u32,
     pub batch_count: u32,
     pub segment_points: u32,
-    /// Bytes of each stream over the whole cloud.
-    pub bytes: Vec<(Stream, u64)>,
-}
-
-impl GpuStreams {
-    /// Bytes per point summed over the streams (the batch table excluded).
-    pub fn bytes_per_point(&self) -> f64 {
-        let total: u64 = self.bytes.iter().map(|(_, b)| b).sum();
-        total as f64 / f64::from(self.point_count.max(1))
-    }
 }
 
 /// The segment size fitting every stream into one storage-buffer range of `ctx`'s device.
@@ -173,6 +163,5 @@ pub fn upload(
         point_count: layout.len() as u32,
         batch_count: layout.batches.len() as u32,
         segment_points: layout.segment_points,
-        bytes: layout.gpu_bytes(),
     })
 }
