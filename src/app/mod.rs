@@ -20,13 +20,16 @@ use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::{Camera, Cloud, Light};
+use crate::scene::camera::{orbit_angles, orbit_direction};
+use crate::scene::{Camera, Cloud, Light, Up};
 
 /// What the viewer shows.
 pub struct ViewerOptions {
     pub title: String,
     pub method: MethodConfig,
     pub camera: Camera,
+    /// The axis the drag orbit turns about.
+    pub up: Up,
     pub lights: Vec<Light>,
     pub width: u32,
     pub height: u32,
@@ -35,31 +38,32 @@ pub struct ViewerOptions {
     pub validation: bool,
 }
 
-/// Orbit state around a target.
+/// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
 struct Orbit {
     target: Vec3,
     distance: f32,
     azimuth: f32,
     elevation: f32,
+    up: Up,
     home: Camera,
 }
 
 impl Orbit {
-    fn from_camera(c: &Camera) -> Self {
+    fn from_camera(c: &Camera, up: Up) -> Self {
         let d = c.eye - c.target;
-        let distance = d.length().max(1e-6);
+        let (azimuth, elevation) = orbit_angles(up, d);
         Self {
             target: c.target,
-            distance,
-            azimuth: d.x.atan2(d.z),
-            elevation: (d.y / distance).clamp(-1.0, 1.0).asin(),
+            distance: d.length().max(1e-6),
+            azimuth,
+            elevation,
+            up,
             home: *c,
         }
     }
 
     fn camera(&self) -> Camera {
-        let (az, el) = (self.azimuth, self.elevation);
-        let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        let dir = orbit_direction(self.up, self.azimuth, self.elevation);
         Camera {
             eye: self.target + dir * self.distance,
             target: self.target,
@@ -108,7 +112,7 @@ pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
         .position(|m| m.name == opts.method.method.name)
         .unwrap_or(0);
     let mut viewer = Viewer {
-        orbit: Orbit::from_camera(&opts.camera),
+        orbit: Orbit::from_camera(&opts.camera, opts.up),
         opts,
         cloud,
         ctx: None,
@@ -325,7 +329,7 @@ impl ApplicationHandler for Viewer {
                         Ok(())
                     }
                     Key::Character("r") => {
-                        self.orbit = Orbit::from_camera(&self.orbit.home);
+                        self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up);
                         Ok(())
                     }
                     _ => Ok(()),
