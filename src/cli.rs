@@ -372,7 +372,7 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     let view = View {
         camera: settings.camera(info.centre, info.radius, info.up),
-        lights: settings.lights.clone(),
+        lights: settings.lights,
         use_color: !a.camera.no_color,
         time: 0.0,
     };
