@@ -62,11 +62,19 @@ impl Orbit {
         }
     }
 
+    /// The camera at the current angles: the up axis points up, except while looking straight
+    /// along it (a home pose at ±90°, before any vertical drag), which keeps the home up vector.
     fn camera(&self) -> Camera {
         let dir = orbit_direction(self.up, self.azimuth, self.elevation);
+        let along_axis = (self.elevation.abs() - std::f32::consts::FRAC_PI_2).abs() < 1e-4;
         Camera {
             eye: self.target + dir * self.distance,
             target: self.target,
+            up: if along_axis {
+                self.home.up
+            } else {
+                self.up.vector()
+            },
             ..self.home
         }
     }
@@ -386,5 +394,40 @@ impl ApplicationHandler for Viewer {
         if let Some(gpu) = &self.gpu {
             gpu.window.request_redraw();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drag_orbit_turns_about_the_up_axis_and_resets_home() {
+        for up in [Up::Y, Up::Z] {
+            let home = Camera::orbit_about(up, Vec3::ONE, 2.0, 30.0, 35.0, 1.0);
+            let mut orbit = Orbit::from_camera(&home, up);
+            let start = orbit.camera();
+            assert!((start.eye - home.eye).length() < 1e-4, "{up}");
+            assert_eq!(start.up, home.up);
+            orbit.azimuth += 1.0;
+            let turned = orbit.camera();
+            let axis = up.vector();
+            let expected =
+                Vec3::ONE + glam::Quat::from_axis_angle(axis, 1.0) * (home.eye - Vec3::ONE);
+            assert!(
+                (turned.eye - expected).length() < 1e-4,
+                "{up}: {}",
+                turned.eye
+            );
+            assert_eq!(turned.up, axis);
+            assert_eq!(Orbit::from_camera(&orbit.home, up).camera().eye, start.eye);
+        }
+        // Down from straight above a z-up scene, then to the horizon: +z stays up in the image.
+        let top = Camera::orbit_about(Up::Z, Vec3::ZERO, 1.0, 0.0, 90.0, 1.0);
+        let mut orbit = Orbit::from_camera(&top, Up::Z);
+        assert_eq!(orbit.camera().up, top.up);
+        orbit.azimuth = 1.5;
+        orbit.elevation = 0.0;
+        assert_eq!(orbit.camera().up, Vec3::Z);
     }
 }
