@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{upload, Extras, Renderer, View};
-use crate::scene::camera::{parse_vec3, Pose};
+use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{load_prepared, Light, LoadOptions};
@@ -110,7 +110,11 @@ pub struct CameraArgs {
         requires = "eye"
     )]
     pub target: Option<String>,
-    /// Scene file (TOML/JSON) with a camera pose and lights.
+    /// The axis pointing up in the data (x, y, z, -x, -y, -z): orbits turn about it. Default:
+    /// z for LAS, LAZ and PCD, y for the other formats.
+    #[arg(long, value_name = "AXIS", allow_hyphen_values = true, value_parser = parse_up)]
+    pub up: Option<Up>,
+    /// Scene file (TOML/JSON) with an up axis, a camera pose and lights.
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
     /// Render with the base color instead of the points' colors.
@@ -230,28 +234,62 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// The pose and lights from the camera options (scene file first, flags override).
-pub fn view_settings(cam: &CameraArgs) -> Result<(Pose, Vec<Light>)> {
+/// Parses `--up`.
+fn parse_up(s: &str) -> Result<Up, String> {
+    s.parse()
+}
+
+/// What the camera options select; unset fields fall back to the loaded cloud's defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewSettings {
+    /// The pose, `None` for the up axis's default pose.
+    pub pose: Option<Pose>,
+    /// The up axis, `None` for the input format's.
+    pub up: Option<Up>,
+    pub lights: Vec<Light>,
+}
+
+impl ViewSettings {
+    /// The up axis for a cloud whose format uses `format_up`.
+    pub fn up(&self, format_up: Up) -> Up {
+        self.up.unwrap_or(format_up)
+    }
+
+    /// The camera for a cloud with this bounding sphere whose format uses `format_up`.
+    pub fn camera(&self, centre: glam::Vec3, radius: f32, format_up: Up) -> crate::scene::Camera {
+        let up = self.up(format_up);
+        self.pose
+            .unwrap_or_else(|| up.default_pose())
+            .camera(centre, radius, up)
+    }
+}
+
+/// The view settings from the camera options (scene file first, flags override).
+pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
     let file = match &cam.scene {
         Some(p) => SceneFile::load(p)?,
         None => SceneFile::default(),
     };
-    let mut pose = file.camera.unwrap_or_default();
+    let mut pose = file.camera;
     if let Some(o) = &cam.orbit {
         pose = Pose::parse_orbit(o).map_err(anyhow::Error::msg)?;
     }
     if let (Some(eye), Some(target)) = (&cam.eye, &cam.target) {
-        pose = Pose::LookAt {
+        pose = Some(Pose::LookAt {
             eye: parse_vec3(eye).map_err(anyhow::Error::msg)?,
             target: parse_vec3(target).map_err(anyhow::Error::msg)?,
-        };
+        });
     }
     let lights = if file.lights.is_empty() {
         vec![Light::headlight()]
     } else {
         file.lights
     };
-    Ok((pose, lights))
+    Ok(ViewSettings {
+        pose,
+        up: cam.up.or(file.up),
+        lights,
+    })
 }
 
 fn context(validation: bool) -> Result<Arc<Context>> {
@@ -301,7 +339,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let file = a.file.context("FILE is required")?;
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = parse_size(&a.size)?;
-    let (pose, lights) = view_settings(&a.camera)?;
+    let settings = view_settings(&a.camera)?;
     let start = std::time::Instant::now();
     let mut lap = start;
     let mut since = || {
@@ -333,8 +371,8 @@ fn render(a: RenderArgs) -> Result<()> {
         print!("{}", renderer.schedule());
     }
     let view = View {
-        camera: pose.camera(info.centre, info.radius),
-        lights,
+        camera: settings.camera(info.centre, info.radius, info.up),
+        lights: settings.lights,
         use_color: !a.camera.no_color,
         time: 0.0,
     };
@@ -419,16 +457,18 @@ fn render(a: RenderArgs) -> Result<()> {
 fn view(a: ViewArgs) -> Result<()> {
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = parse_size(&a.size)?;
-    let (pose, lights) = view_settings(&a.camera)?;
+    let settings = view_settings(&a.camera)?;
     let cloud = load_prepared(&a.file, &a.input.options())?;
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+    let up = settings.up(cloud.up);
     crate::app::run(
         cloud,
         crate::app::ViewerOptions {
             title: format!("surfel - {}", a.file.display()),
             method: config,
-            camera: pose.camera(centre, radius),
-            lights,
+            camera: settings.camera(centre, radius, up),
+            up,
+            lights: settings.lights,
             width,
             height,
             frames: a.frames,
@@ -533,4 +573,40 @@ fn report(a: ReportArgs) -> Result<()> {
     let path = crate::eval::report::write_report(&results, &a.results, &out)?;
     eprintln!("report -> {}", path.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Camera;
+    use glam::Vec3;
+
+    fn camera_args(orbit: Option<&str>, up: Option<Up>) -> CameraArgs {
+        CameraArgs {
+            orbit: orbit.map(str::to_owned),
+            eye: None,
+            target: None,
+            up,
+            scene: None,
+            no_color: false,
+        }
+    }
+
+    #[test]
+    fn the_up_axis_picks_the_default_pose_and_an_explicit_choice_wins() {
+        let (c, r) = (Vec3::new(1.0, 2.0, 3.0), 4.0);
+        let none = view_settings(&camera_args(None, None)).expect("settings");
+        assert_eq!(none.camera(c, r, Up::Y), Camera::framing(c, r));
+        assert_eq!(
+            none.camera(c, r, Up::Z),
+            Camera::orbit_about(Up::Z, c, r, 30.0, 35.0, 1.0)
+        );
+        let forced = view_settings(&camera_args(Some("default"), Some(Up::Y))).expect("settings");
+        assert_eq!(forced.camera(c, r, Up::Z), Camera::framing(c, r));
+        let orbit = view_settings(&camera_args(Some("0,84"), Some(Up::Z))).expect("settings");
+        assert_eq!(
+            orbit.camera(c, r, Up::Y),
+            Camera::orbit_about(Up::Z, c, r, 0.0, 84.0, 1.0)
+        );
+    }
 }

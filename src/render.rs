@@ -17,7 +17,7 @@ use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
-use crate::scene::{lights, Camera, Cloud, Light};
+use crate::scene::{lights, Camera, Cloud, Light, Up};
 use crate::streams::{upload, StreamLayout, UploadOptions};
 
 /// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
@@ -31,6 +31,8 @@ pub struct SceneInfo {
     pub points: u32,
     pub has_colors: bool,
     pub has_normals: bool,
+    /// The cloud's up axis.
+    pub up: Up,
 }
 
 /// Uploads `cloud` as point streams (Morton-ordered batches, segments fitted to the device)
@@ -85,6 +87,7 @@ pub fn upload_with(
             points: point_count,
             has_colors: cloud.colors.is_some(),
             has_normals: cloud.normals.is_some(),
+            up: cloud.up,
         },
     ))
 }

@@ -138,6 +138,13 @@ fn bad_arguments_are_explained() {
     let o = surfel(&["render", b, "--orbit", "1,x"]);
     assert!(stderr(&o).contains("expected a number"), "{}", stderr(&o));
     assert!(!o.status.success());
+    let o = surfel(&["render", b, "--up", "w"]);
+    let e = stderr(&o);
+    assert!(
+        e.contains("--up") && e.contains("\"w\"") && e.contains("x, y, z, -x, -y or -z"),
+        "{e}"
+    );
+    assert!(!o.status.success());
 }
 
 #[test]

@@ -112,3 +112,33 @@ fn degenerate_clouds_render_without_nan_or_errors() {
         assert!(report.is_clean(), "{report:?}");
     }
 }
+
+/// Coverage of a flat z = 0 plane (a LAS-like terrain tile, +z up) seen from the orbit `pose`
+/// about the cloud's up axis.
+fn plane_coverage(up: surfel::scene::Up, pose: &str) -> f64 {
+    let mut cloud = common::square(160);
+    cloud.up = up;
+    let pose = surfel::scene::Pose::parse_orbit(pose)
+        .expect("orbit")
+        .expect("not default");
+    let frame = common::render_view(&cloud, "points", 64, Default::default(), |c, r| {
+        pose.camera(c, r, cloud.up)
+    });
+    common::coverage(&frame)
+}
+
+#[test]
+fn a_z_up_plane_is_seen_from_above_at_high_elevation() {
+    use surfel::scene::Up;
+    let (fraction, _) = square_fraction();
+    // About +z, elevation 84 looks down on the plane (foreshortened by sin 84); elevation 0
+    // sees it edge-on.
+    let above = plane_coverage(Up::Z, "0,84");
+    assert!(above > 0.9 * fraction, "{above} vs {fraction}");
+    let edge_on = plane_coverage(Up::Z, "0,0");
+    assert!(edge_on < 0.1 * fraction, "{edge_on} vs {fraction}");
+    // About +y (before up axes, and still for y-up formats) the same orbit turned the plane
+    // edge-on.
+    let y_up = plane_coverage(Up::Y, "0,84");
+    assert!(y_up < 0.25 * fraction, "{y_up} vs {fraction}");
+}

@@ -20,13 +20,16 @@ use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::{Camera, Cloud, Light};
+use crate::scene::camera::{orbit_angles, orbit_direction};
+use crate::scene::{Camera, Cloud, Light, Up};
 
 /// What the viewer shows.
 pub struct ViewerOptions {
     pub title: String,
     pub method: MethodConfig,
     pub camera: Camera,
+    /// The axis the drag orbit turns about.
+    pub up: Up,
     pub lights: Vec<Light>,
     pub width: u32,
     pub height: u32,
@@ -35,34 +38,43 @@ pub struct ViewerOptions {
     pub validation: bool,
 }
 
-/// Orbit state around a target.
+/// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
 struct Orbit {
     target: Vec3,
     distance: f32,
     azimuth: f32,
     elevation: f32,
+    up: Up,
     home: Camera,
 }
 
 impl Orbit {
-    fn from_camera(c: &Camera) -> Self {
+    fn from_camera(c: &Camera, up: Up) -> Self {
         let d = c.eye - c.target;
-        let distance = d.length().max(1e-6);
+        let (azimuth, elevation) = orbit_angles(up, d);
         Self {
             target: c.target,
-            distance,
-            azimuth: d.x.atan2(d.z),
-            elevation: (d.y / distance).clamp(-1.0, 1.0).asin(),
+            distance: d.length().max(1e-6),
+            azimuth,
+            elevation,
+            up,
             home: *c,
         }
     }
 
+    /// The camera at the current angles: the up axis points up, except while looking straight
+    /// along it (a home pose at ±90°, before any vertical drag), which keeps the home up vector.
     fn camera(&self) -> Camera {
-        let (az, el) = (self.azimuth, self.elevation);
-        let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        let dir = orbit_direction(self.up, self.azimuth, self.elevation);
+        let along_axis = (self.elevation.abs() - std::f32::consts::FRAC_PI_2).abs() < 1e-4;
         Camera {
             eye: self.target + dir * self.distance,
             target: self.target,
+            up: if along_axis {
+                self.home.up
+            } else {
+                self.up.vector()
+            },
             ..self.home
         }
     }
@@ -108,7 +120,7 @@ pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
         .position(|m| m.name == opts.method.method.name)
         .unwrap_or(0);
     let mut viewer = Viewer {
-        orbit: Orbit::from_camera(&opts.camera),
+        orbit: Orbit::from_camera(&opts.camera, opts.up),
         opts,
         cloud,
         ctx: None,
@@ -325,7 +337,7 @@ impl ApplicationHandler for Viewer {
                         Ok(())
                     }
                     Key::Character("r") => {
-                        self.orbit = Orbit::from_camera(&self.orbit.home);
+                        self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up);
                         Ok(())
                     }
                     _ => Ok(()),
@@ -382,5 +394,40 @@ impl ApplicationHandler for Viewer {
         if let Some(gpu) = &self.gpu {
             gpu.window.request_redraw();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drag_orbit_turns_about_the_up_axis_and_resets_home() {
+        for up in [Up::Y, Up::Z] {
+            let home = Camera::orbit_about(up, Vec3::ONE, 2.0, 30.0, 35.0, 1.0);
+            let mut orbit = Orbit::from_camera(&home, up);
+            let start = orbit.camera();
+            assert!((start.eye - home.eye).length() < 1e-4, "{up}");
+            assert_eq!(start.up, home.up);
+            orbit.azimuth += 1.0;
+            let turned = orbit.camera();
+            let axis = up.vector();
+            let expected =
+                Vec3::ONE + glam::Quat::from_axis_angle(axis, 1.0) * (home.eye - Vec3::ONE);
+            assert!(
+                (turned.eye - expected).length() < 1e-4,
+                "{up}: {}",
+                turned.eye
+            );
+            assert_eq!(turned.up, axis);
+            assert_eq!(Orbit::from_camera(&orbit.home, up).camera().eye, start.eye);
+        }
+        // Down from straight above a z-up scene, then to the horizon: +z stays up in the image.
+        let top = Camera::orbit_about(Up::Z, Vec3::ZERO, 1.0, 0.0, 90.0, 1.0);
+        let mut orbit = Orbit::from_camera(&top, Up::Z);
+        assert_eq!(orbit.camera().up, top.up);
+        orbit.azimuth = 1.5;
+        orbit.elevation = 0.0;
+        assert_eq!(orbit.camera().up, Vec3::Z);
     }
 }

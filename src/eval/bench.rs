@@ -44,7 +44,7 @@ fn load_gpu(ctx: &Arc<Context>, cloud: Cloud) -> Result<Loaded> {
 /// The camera of a job: its pose, or the pose changed by a camera-side stress.
 fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
     let base = match &job.pose.pose {
-        PoseSpec::Default => Pose::default(),
+        PoseSpec::Default => info.up.default_pose(),
         PoseSpec::Orbit {
             azimuth,
             elevation,
@@ -58,7 +58,7 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
             target: *target,
         },
     };
-    let camera = base.camera(info.centre, info.radius);
+    let camera = base.camera(info.centre, info.radius, info.up);
     let Some((kind, value)) = job.stress else {
         return camera;
     };
@@ -76,7 +76,14 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
                 Pose::Orbit { orbit, .. } => (orbit[0], orbit[1]),
                 Pose::LookAt { .. } => (0.0, 0.0),
             };
-            Camera::orbit(info.centre, info.radius, az, (el + value).min(89.0))
+            Camera::orbit_about(
+                info.up,
+                info.centre,
+                info.radius,
+                az,
+                (el + value).min(89.0),
+                1.0,
+            )
         }
         // Move in until the mean point spacing covers `value` pixels.
         StressKind::Magnification => {

@@ -83,6 +83,7 @@ fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) ->
         scalars: cloud.scalars.clone(),
         faces: None,
         sensor: cloud.sensor,
+        up: cloud.up,
         origin: cloud.origin,
         stats: cloud.stats.clone(),
     };

@@ -1,9 +1,115 @@
-//! Camera: deterministic default framing, orbit poses, eye/target poses, reversed-Z projection.
+//! Camera: deterministic default framing, orbit poses about the scene's up axis, eye/target
+//! poses, reversed-Z projection.
+
+use std::fmt;
+use std::str::FromStr;
 
 use glam::{Mat4, Vec3};
 
 /// Default vertical field of view in degrees.
 pub const DEFAULT_FOV_Y_DEG: f32 = 45.0;
+
+/// The default orbit (azimuth, elevation in degrees) for data whose up axis is not +y: an
+/// oblique view from above.
+pub const OBLIQUE_ORBIT_DEG: [f32; 2] = [30.0, 35.0];
+
+/// The world axis that points up in a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Up {
+    #[serde(rename = "x")]
+    X,
+    #[default]
+    #[serde(rename = "y")]
+    Y,
+    #[serde(rename = "z")]
+    Z,
+    #[serde(rename = "-x")]
+    NegX,
+    #[serde(rename = "-y")]
+    NegY,
+    #[serde(rename = "-z")]
+    NegZ,
+}
+
+impl Up {
+    /// Every axis, in the order of its names.
+    pub const ALL: [Up; 6] = [Up::X, Up::Y, Up::Z, Up::NegX, Up::NegY, Up::NegZ];
+
+    /// The name used on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Up::X => "x",
+            Up::Y => "y",
+            Up::Z => "z",
+            Up::NegX => "-x",
+            Up::NegY => "-y",
+            Up::NegZ => "-z",
+        }
+    }
+
+    /// The unit vector of the axis.
+    pub fn vector(self) -> Vec3 {
+        match self {
+            Up::X => Vec3::X,
+            Up::Y => Vec3::Y,
+            Up::Z => Vec3::Z,
+            Up::NegX => Vec3::NEG_X,
+            Up::NegY => Vec3::NEG_Y,
+            Up::NegZ => Vec3::NEG_Z,
+        }
+    }
+
+    /// Where the eye sits at azimuth 0 and elevation 0: +z for +y up (today's default view),
+    /// -y for +z up (looking north along +y); the image of +z under the rotation taking +y to
+    /// this axis.
+    pub fn front(self) -> Vec3 {
+        match self {
+            Up::X | Up::Y | Up::NegX => Vec3::Z,
+            Up::Z => Vec3::NEG_Y,
+            Up::NegY => Vec3::NEG_Z,
+            Up::NegZ => Vec3::Y,
+        }
+    }
+
+    /// The camera's up vector when looking straight along the axis: +z for a y axis (as
+    /// before), +y for a z axis (north at the top of a view from above), +z for an x axis.
+    fn perpendicular(self) -> Vec3 {
+        match self {
+            Up::Z | Up::NegZ => Vec3::Y,
+            Up::X | Up::Y | Up::NegX | Up::NegY => Vec3::Z,
+        }
+    }
+
+    /// The default pose for data with this up axis: today's front view for +y, an oblique
+    /// view from above otherwise.
+    pub fn default_pose(self) -> Pose {
+        match self {
+            Up::Y => Pose::default(),
+            _ => Pose::Orbit {
+                orbit: OBLIQUE_ORBIT_DEG,
+                distance: 1.0,
+            },
+        }
+    }
+}
+
+impl fmt::Display for Up {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Up {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let t = s.trim().to_ascii_lowercase();
+        Up::ALL
+            .into_iter()
+            .find(|u| u.name() == t)
+            .ok_or_else(|| format!("unknown up axis {s:?}: expected x, y, z, -x, -y or -z"))
+    }
+}
 
 /// A perspective camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,8 +130,8 @@ impl Camera {
         Self::orbit(centre, radius, 0.0, 0.0)
     }
 
-    /// Orbits the bounding-sphere centre: azimuth around +y from +z, elevation towards +y,
-    /// both in degrees, at the framing distance.
+    /// Orbits the bounding-sphere centre of +y-up data: azimuth around +y from +z, elevation
+    /// towards +y, both in degrees, at the framing distance.
     pub fn orbit(centre: Vec3, radius: f32, azimuth_deg: f32, elevation_deg: f32) -> Self {
         Self::orbit_at(centre, radius, azimuth_deg, elevation_deg, 1.0)
     }
@@ -38,27 +144,52 @@ impl Camera {
         elevation_deg: f32,
         distance_scale: f32,
     ) -> Self {
+        Self::orbit_about(
+            Up::Y,
+            centre,
+            radius,
+            azimuth_deg,
+            elevation_deg,
+            distance_scale,
+        )
+    }
+
+    /// Like `orbit_at` about the axis `up`: azimuth around `up` from `up.front()`, elevation
+    /// towards `up`.
+    pub fn orbit_about(
+        up: Up,
+        centre: Vec3,
+        radius: f32,
+        azimuth_deg: f32,
+        elevation_deg: f32,
+        distance_scale: f32,
+    ) -> Self {
         let fov_y = DEFAULT_FOV_Y_DEG.to_radians();
         let radius = radius.max(1e-6);
         let distance = radius / (fov_y * 0.5).sin() * distance_scale;
-        let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
-        let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        let dir = orbit_direction(up, azimuth_deg.to_radians(), elevation_deg.to_radians());
         Self {
             eye: centre + dir * distance,
             target: centre,
-            up: up_for(dir),
+            up: up_for(dir, up),
             fov_y,
             near: radius * 1e-3,
         }
     }
 
-    /// A camera at `eye` looking at `target`; `scale` (the scene radius) sets the near plane.
+    /// A camera at `eye` looking at `target` with +y up; `scale` (the scene radius) sets the
+    /// near plane.
     pub fn look_at(eye: Vec3, target: Vec3, scale: f32) -> Self {
+        Self::look_at_up(Up::Y, eye, target, scale)
+    }
+
+    /// Like `look_at` with `up` pointing up in the image.
+    pub fn look_at_up(up: Up, eye: Vec3, target: Vec3, scale: f32) -> Self {
         let dir = (eye - target).normalize_or(Vec3::Z);
         Self {
             eye,
             target,
-            up: up_for(dir),
+            up: up_for(dir, up),
             fov_y: DEFAULT_FOV_Y_DEG.to_radians(),
             near: scale.max(1e-6) * 1e-3,
         }
@@ -83,12 +214,32 @@ impl Camera {
     }
 }
 
-/// +y unless the view direction is (nearly) vertical, then +z.
-fn up_for(dir: Vec3) -> Vec3 {
-    if dir.normalize_or(Vec3::Z).dot(Vec3::Y).abs() > 0.999 {
-        Vec3::Z
+/// The unit direction from the orbit centre to the eye: azimuth (radians) around `up` from
+/// `up.front()`, elevation (radians) towards `up`.
+pub fn orbit_direction(up: Up, azimuth: f32, elevation: f32) -> Vec3 {
+    let (u, front) = (up.vector(), up.front());
+    let right = u.cross(front);
+    (right * azimuth.sin() + front * azimuth.cos()) * elevation.cos() + u * elevation.sin()
+}
+
+/// The azimuth and elevation (radians) of the direction `d` about `up`; inverse of
+/// `orbit_direction`.
+pub fn orbit_angles(up: Up, d: Vec3) -> (f32, f32) {
+    let (u, front) = (up.vector(), up.front());
+    let right = u.cross(front);
+    let d = d.normalize_or(front);
+    (
+        d.dot(right).atan2(d.dot(front)),
+        d.dot(u).clamp(-1.0, 1.0).asin(),
+    )
+}
+
+/// The up axis unless the view direction is (nearly) along it, then a perpendicular axis.
+fn up_for(dir: Vec3, up: Up) -> Vec3 {
+    if dir.normalize_or(Vec3::Z).dot(up.vector()).abs() > 0.999 {
+        up.perpendicular()
     } else {
-        Vec3::Y
+        up.vector()
     }
 }
 
@@ -129,6 +280,89 @@ mod tests {
         assert_eq!(b.up, Vec3::Z);
         assert!((a.distance() - b.distance()).abs() < 1e-5);
     }
+
+    /// The orbit formula before up axes existed, for +y-up data.
+    fn old_y_up_eye(centre: Vec3, radius: f32, az: f32, el: f32, scale: f32) -> Vec3 {
+        let distance = radius / (DEFAULT_FOV_Y_DEG.to_radians() * 0.5).sin() * scale;
+        let (az, el) = (az.to_radians(), el.to_radians());
+        centre + Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos()) * distance
+    }
+
+    #[test]
+    fn y_up_orbits_match_the_old_formula() {
+        let centre = Vec3::new(1.0, -2.0, 0.5);
+        for (az, el, scale) in [
+            (0.0, 0.0, 1.0),
+            (30.0, 15.0, 1.0),
+            (-120.0, 60.0, 0.4),
+            (200.0, -45.0, 2.0),
+            (10.0, 90.0, 1.0),
+        ] {
+            let c = Camera::orbit_about(Up::Y, centre, 3.0, az, el, scale);
+            let old = old_y_up_eye(centre, 3.0, az, el, scale);
+            assert!(
+                (c.eye - old).length() < 1e-4,
+                "{az},{el}: {} vs {old}",
+                c.eye
+            );
+            let up = if el == 90.0 { Vec3::Z } else { Vec3::Y };
+            assert_eq!(c.up, up);
+        }
+        assert_eq!(Up::Y.default_pose(), Pose::default());
+        assert_eq!(
+            Pose::default().camera(centre, 3.0, Up::Y),
+            Camera::framing(centre, 3.0)
+        );
+    }
+
+    #[test]
+    fn z_up_elevation_90_looks_straight_down() {
+        let c = Camera::orbit_about(Up::Z, Vec3::new(5.0, 6.0, 7.0), 2.0, 37.0, 90.0, 1.0);
+        let forward = (c.target - c.eye).normalize();
+        assert!((forward - Vec3::NEG_Z).length() < 1e-5, "{forward}");
+        // The up vector is perpendicular to the view: north (+y) at the top of the image.
+        assert_eq!(c.up, Vec3::Y);
+        let clip = c.projection(1.0) * c.view() * Vec3::new(5.0, 6.5, 7.0).extend(1.0);
+        assert!(clip.y / clip.w < 0.0, "+y must map to the top of the image");
+    }
+
+    #[test]
+    fn azimuth_rotates_about_the_up_axis() {
+        for up in Up::ALL {
+            let u = up.vector();
+            let base = Camera::orbit_about(up, Vec3::ZERO, 1.0, 0.0, 20.0, 1.0);
+            for az in [45.0f32, 90.0, 180.0, -30.0] {
+                let c = Camera::orbit_about(up, Vec3::ZERO, 1.0, az, 20.0, 1.0);
+                // Same height along the axis, same distance, rotated by `az` about it.
+                assert!((c.eye.dot(u) - base.eye.dot(u)).abs() < 1e-4, "{up} {az}");
+                let expected = glam::Quat::from_axis_angle(u, az.to_radians()) * base.eye;
+                assert!((c.eye - expected).length() < 1e-4, "{up} {az}: {}", c.eye);
+                assert_eq!(c.up, u);
+            }
+            let (az, el) = orbit_angles(up, orbit_direction(up, 0.7, -0.3));
+            assert!((az - 0.7).abs() < 1e-5 && (el + 0.3).abs() < 1e-5, "{up}");
+        }
+        // Elevation rises towards the axis.
+        let c = Camera::orbit_about(Up::Z, Vec3::ZERO, 1.0, 0.0, 35.0, 1.0);
+        assert!(c.eye.z > 0.0 && c.eye.y < 0.0 && c.eye.x.abs() < 1e-5);
+    }
+
+    #[test]
+    fn up_axes_parse_by_name_and_reject_others() {
+        for up in Up::ALL {
+            assert_eq!(up.name().parse::<Up>(), Ok(up));
+        }
+        assert_eq!(" Z ".parse::<Up>(), Ok(Up::Z));
+        let e = "w".parse::<Up>().unwrap_err();
+        assert!(e.contains("\"w\"") && e.contains("-z"), "{e}");
+        assert_eq!(
+            Up::Z.default_pose(),
+            Pose::Orbit {
+                orbit: OBLIQUE_ORBIT_DEG,
+                distance: 1.0
+            }
+        );
+    }
 }
 
 /// A named camera pose relative to the scene's bounding sphere.
@@ -159,31 +393,34 @@ impl Default for Pose {
 }
 
 impl Pose {
-    /// The camera for a scene with this bounding sphere.
-    pub fn camera(&self, centre: Vec3, radius: f32) -> Camera {
+    /// The camera for a scene with this bounding sphere and up axis.
+    pub fn camera(&self, centre: Vec3, radius: f32, up: Up) -> Camera {
         match *self {
-            Pose::LookAt { eye, target } => Camera::look_at(eye.into(), target.into(), radius),
+            Pose::LookAt { eye, target } => {
+                Camera::look_at_up(up, eye.into(), target.into(), radius)
+            }
             Pose::Orbit { orbit, distance } => {
-                Camera::orbit_at(centre, radius, orbit[0], orbit[1], distance)
+                Camera::orbit_about(up, centre, radius, orbit[0], orbit[1], distance)
             }
         }
     }
 
-    /// Parses `default`, `AZ,EL` or `AZ,EL,DIST` (an orbit).
-    pub fn parse_orbit(s: &str) -> Result<Self, String> {
+    /// Parses `default` (`None`: the up axis's default pose), `AZ,EL` or `AZ,EL,DIST` (an
+    /// orbit).
+    pub fn parse_orbit(s: &str) -> Result<Option<Self>, String> {
         if s == "default" {
-            return Ok(Self::default());
+            return Ok(None);
         }
         let v = parse_floats(s)?;
         match v.as_slice() {
-            [az, el] => Ok(Pose::Orbit {
+            [az, el] => Ok(Some(Pose::Orbit {
                 orbit: [*az, *el],
                 distance: 1.0,
-            }),
-            [az, el, d] if *d > 0.0 => Ok(Pose::Orbit {
+            })),
+            [az, el, d] if *d > 0.0 => Ok(Some(Pose::Orbit {
                 orbit: [*az, *el],
                 distance: *d,
-            }),
+            })),
             _ => Err(format!(
                 "expected AZ,EL or AZ,EL,DISTANCE (degrees), got {s:?}"
             )),

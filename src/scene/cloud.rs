@@ -3,6 +3,8 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use super::camera::Up;
+
 /// A named per-point scalar attribute (LAS intensity, classification, PLY confidence, ...).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scalar {
@@ -74,6 +76,9 @@ pub struct Cloud {
     /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
     /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
     pub sensor: Option<Vec3>,
+    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ
+    /// and PCD; +y otherwise); cameras orbit about it.
+    pub up: Up,
 }
 
 impl Cloud {

@@ -21,7 +21,7 @@ pub mod xyz;
 
 use std::path::Path;
 
-pub use camera::{Camera, Pose};
+pub use camera::{Camera, Pose, Up};
 pub use cloud::{Cloud, LoadStats, Scalar};
 pub use error::{LoadError, Location};
 pub use input::{load_prepared, LoadOptions};
@@ -29,13 +29,15 @@ pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):
 /// `ply`, `obj`, `pcd`, `las`, `laz`, `xyz`, `txt`, `pts`. Points with a non-finite coordinate
-/// are dropped and counted in `stats.dropped_non_finite`.
+/// are dropped and counted in `stats.dropped_non_finite`. The cloud's `up` is the format's
+/// convention: +z for the survey formats (LAS, LAZ, PCD), +y for the others.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    match extension.as_str() {
+    let up = format_up(&extension);
+    let mut cloud = match extension.as_str() {
         "ply" => ply::load(path),
         "obj" => obj::load(path),
         "pcd" => pcd::load(path),
@@ -45,6 +47,16 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
             file: path.display().to_string(),
             extension,
         }),
+    }?;
+    cloud.up = up;
+    Ok(cloud)
+}
+
+/// The up axis a file format conventionally uses, from its lower-case extension.
+pub fn format_up(extension: &str) -> Up {
+    match extension {
+        "las" | "laz" | "pcd" => Up::Z,
+        _ => Up::Y,
     }
 }
 
@@ -54,4 +66,19 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, LoadError> {
         file: path.display().to_string(),
         source,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn survey_formats_are_z_up_and_the_others_y_up() {
+        for ext in ["las", "laz", "pcd"] {
+            assert_eq!(format_up(ext), Up::Z, "{ext}");
+        }
+        for ext in ["ply", "obj", "xyz", "txt", "pts"] {
+            assert_eq!(format_up(ext), Up::Y, "{ext}");
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! Scene files (TOML or JSON): a camera pose and lights.
 //!
 //! ```toml
+//! up = "z"                 # x | y | z | -x | -y | -z (default: from the file format)
 //! [camera]
 //! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
 //! [[lights]]
@@ -14,13 +15,15 @@ use std::path::Path;
 use anyhow::{bail, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
-use super::camera::Pose;
+use super::camera::{Pose, Up};
 use super::lights::Light;
 
 /// The parsed file.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
+    /// The up axis, overriding the input format's convention.
+    pub up: Option<Up>,
     pub camera: Option<Pose>,
     #[serde(default)]
     pub lights: Vec<Light>,
@@ -74,6 +77,11 @@ mod tests {
         )
         .expect("valid json");
         assert!(matches!(j.camera, Some(Pose::LookAt { .. })));
+        assert_eq!(j.up, None);
+        let u = SceneFile::parse("up = \"-z\"\n", Path::new("u.toml")).expect("valid up");
+        assert_eq!(u.up, Some(Up::NegZ));
+        let j = SceneFile::parse(r#"{"up": "x"}"#, Path::new("u.json")).expect("valid up");
+        assert_eq!(j.up, Some(Up::X));
     }
 
     #[test]
@@ -81,5 +89,7 @@ mod tests {
         let e = SceneFile::parse("[camra]\n", Path::new("bad.toml")).unwrap_err();
         assert!(format!("{e:#}").contains("bad.toml"));
         assert!(SceneFile::parse("{}", Path::new("s.yaml")).is_err());
+        let e = SceneFile::parse("up = \"w\"\n", Path::new("up.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("`w`"), "{e:#}");
     }
 }
