@@ -481,7 +481,8 @@ mod tests {
     /// The parallel decoder, in memory and streamed in blocks of several sizes, against the
     /// `las` crate's point reader.
     fn assert_matches_crate(name: &str, bytes: Vec<u8>) {
-        let reference = read_with_crate(name, Cursor::new(bytes.clone()), bytes.len()).unwrap();
+        let reference =
+            read_with_crate(name, Cursor::new(bytes.clone()), bytes.len(), false).unwrap();
         assert_eq!(
             parse(name, bytes.clone()).unwrap(),
             reference,
