@@ -298,10 +298,10 @@ fn io_error(file: &str, source: std::io::Error) -> LoadError {
     }
 }
 
-/// Reads a LAZ file of `size` bytes with `header`, from the first point record. The chunk table is written
-/// after the points; when it lies past the end (a truncated file), the file is read into memory
-/// with an empty chunk table appended, so the points that are there decode and the error names
-/// the first that is not.
+/// Reads a LAZ file of `size` bytes with `header`, from the first point record. The chunk table
+/// is written after the points; when it lies past the end (a truncated file), the file is read
+/// into memory with an empty chunk table appended, so the points that are there decode and the
+/// error names the first that is not.
 fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
     file: &str,
     mut read: R,
