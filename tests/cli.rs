@@ -282,3 +282,67 @@ fn a_missing_file_reports_the_os_error_once() {
         assert!(e.contains(args[1]), "{e}");
     }
 }
+
+#[test]
+fn a_directory_as_input_reports_the_os_error_once() {
+    let dir = tmp("directories");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let os_error = std::fs::read(&dir).expect_err("directory").to_string();
+    let cloud = dir.join("points.xyz");
+    std::fs::write(&cloud, "0 0 0\n1 0 0\n0 1 0\n1 1 0\n0 0 1\n").expect("write cloud");
+    let png = dir.join("out.png");
+    let subdir = |name: &str| {
+        let path = dir.join(name);
+        std::fs::create_dir_all(&path).expect("subdirectory");
+        path.to_str().expect("utf8").to_owned()
+    };
+    let mut cases = Vec::new();
+    for ext in ["ply", "obj", "pcd", "las", "laz", "xyz"] {
+        let model = subdir(&format!("model.{ext}"));
+        cases.push((
+            vec!["info".into(), model.clone(), "--no-device".into()],
+            format!("{model}: cannot read file"),
+        ));
+    }
+    let (cloud, png) = (cloud.to_str().expect("utf8"), png.to_str().expect("utf8"));
+    let model = subdir("render.laz");
+    cases.push((
+        vec!["render".into(), model.clone(), "-o".into(), png.into()],
+        format!("{model}: cannot read file"),
+    ));
+    let scene = subdir("scene.json");
+    cases.push((
+        vec![
+            "render".into(),
+            cloud.into(),
+            "--scene".into(),
+            scene.clone(),
+            "-o".into(),
+            png.into(),
+        ],
+        format!("{scene}: cannot read scene file"),
+    ));
+    let cache = subdir("points.xyz.surfel-cache");
+    cases.push((
+        vec![
+            "render".into(),
+            cloud.into(),
+            "--cache".into(),
+            "-o".into(),
+            png.into(),
+        ],
+        format!("{cache}: cannot write the cache"),
+    ));
+    for (args, context) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = surfel(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let e = stderr(&o);
+        assert_eq!(e.matches(&os_error).count(), 1, "{os_error:?} in {e}");
+        assert_eq!(
+            e.lines().last(),
+            Some(format!("error: {context}: {os_error}").as_str()),
+            "{args:?}"
+        );
+    }
+}

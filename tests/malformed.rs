@@ -127,13 +127,80 @@ fn face_index_out_of_range() {
             "expected 0..3",
         ],
     );
-    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n";
-    assert_contains(
-        &error("faces.obj", obj.as_bytes()),
-        &["face 0", "out of range", "1..=3"],
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n# comment\nf 1 2 4\n";
+    assert!(error("faces.obj", obj.as_bytes())
+        .ends_with(": line 6: face index 4 is out of range (the file has 3 vertices)"),);
+    let obj = "v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 0 1 0\n";
+    assert!(error("neg.obj", obj.as_bytes())
+        .ends_with(": line 3: face index -3 is out of range (the file has 3 vertices)"));
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n";
+    assert!(error("normals.obj", obj.as_bytes())
+        .ends_with(": line 5: face normal index 2 is out of range (the file has 1 normals)"));
+}
+
+/// The first `len` bytes of a file in the shared test data.
+fn cut(rel: &str, len: impl Fn(usize) -> usize) -> Vec<u8> {
+    let root = std::env::var_os("SURFEL_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    let mut bytes = std::fs::read(root.join(rel)).unwrap();
+    bytes.truncate(len(bytes.len()));
+    bytes
+}
+
+#[test]
+fn truncated_laz_names_the_point_record_and_the_end() {
+    let half = cut("lidar/autzen_trim.laz", |n| n / 2);
+    let m = error("half.laz", &half);
+    let (record, end) = m
+        .strip_suffix(" ends past the end of the file at byte 301676 (truncated file?)")
+        .and_then(|m| m.split_once(": point record "))
+        .map(|(_, rest)| rest.split_once(" of ").unwrap())
+        .unwrap_or_else(|| panic!("{m}"));
+    assert_eq!(end, "110000", "{m}");
+    // About half of the points decode before the data runs out.
+    let record: u64 = record.parse().unwrap();
+    assert!((45_000..60_000).contains(&record), "{m}");
+    let header_only = cut("lidar/autzen_trim.laz", |_| 300);
+    assert!(error("header.laz", &header_only).ends_with(
+        ": invalid LAS header: the file ends at byte 300, inside the header (truncated file?)"
+    ));
+}
+
+#[test]
+fn truncated_las_names_the_point_record_and_the_end() {
+    // 110,000 records of 34 bytes after a 2,038-byte header: (1,871,019 - 2,038) / 34 = 54,970
+    // whole records.
+    let half = cut("lidar/autzen_trim.las", |n| n / 2);
+    assert!(error("half.las", &half).ends_with(
+        ": point record 54970 of 110000 ends past the end of the file at byte 1871019 (truncated file?)"
+    ));
+}
+
+#[test]
+fn control_bytes_in_file_text_are_escaped() {
+    let ply =
+        b"ply\nformat ascii 1.0\nelement vertex 1\nproperty dbl n\x1b[31m\x07ame\nend_header\n0\n";
+    let m = error("control.ply", ply);
+    assert!(
+        m.ends_with(": line 4: expected \"property <type> <name>\" or \"property list <count type> <item type> <name>\", found \"property dbl n\\u{1b}[31m\\u{7}ame\""),
+        "{m}"
     );
-    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -7\n";
-    assert_contains(&error("neg.obj", obj.as_bytes()), &["out of range"]);
+    assert!(!m.chars().any(char::is_control), "{m:?}");
+    let long = format!("{}\x01\n", "7".repeat(200));
+    let m = error("long.xyz", long.as_bytes());
+    assert!(
+        m.ends_with(&format!(
+            ": line 1: expected a number in column 1, found \"{}…\"",
+            "7".repeat(80)
+        )),
+        "{m}"
+    );
+    let m = error("control.obj", b"v 0 0 0\nv 1 \x1bx 0\n");
+    assert!(
+        m.ends_with(r#": line 2: expected numbers, found "1" "\u{1b}x" "0""#),
+        "{m}"
+    );
 }
 
 #[test]

@@ -2,6 +2,31 @@
 
 use std::fmt;
 
+/// At most this many characters of file text are shown in a message.
+const SHOWN_CHARS: usize = 80;
+
+/// File text (a line, a token, a name) for an error message: invalid UTF-8 is replaced, control
+/// characters are escaped (`\t`, `\u{1b}`), and text longer than [`SHOWN_CHARS`] characters is
+/// cut, ending in `…`.
+pub(crate) fn show(text: impl AsRef<[u8]>) -> String {
+    let bytes = text.as_ref();
+    let head = &bytes[..bytes.len().min(4 * SHOWN_CHARS)];
+    let head_text = String::from_utf8_lossy(head);
+    let mut chars = head_text.chars();
+    let mut shown = String::new();
+    for c in chars.by_ref().take(SHOWN_CHARS) {
+        if c.is_control() {
+            shown.extend(c.escape_default());
+        } else {
+            shown.push(c);
+        }
+    }
+    if chars.next().is_some() || head.len() < bytes.len() {
+        shown.push('…');
+    }
+    shown
+}
+
 /// Where in a file a problem was found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Location {
@@ -83,5 +108,23 @@ impl LoadError {
     /// A parse error without a known location.
     pub fn whole(file: &str, message: impl Into<String>) -> Self {
         Self::parse(file, Location::Unknown, message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn show_escapes_control_characters_and_bounds_length() {
+        assert_eq!(show("plain text"), "plain text");
+        assert_eq!(
+            show(b"a\tb\x1b[31mc\r\n\x00"),
+            "a\\tb\\u{1b}[31mc\\r\\n\\u{0}"
+        );
+        assert_eq!(show(b"bad \xff utf-8"), "bad \u{fffd} utf-8");
+        let long = "x".repeat(200);
+        assert_eq!(show(&long), format!("{}…", "x".repeat(SHOWN_CHARS)));
+        assert_eq!(show("x".repeat(SHOWN_CHARS)), "x".repeat(SHOWN_CHARS));
     }
 }

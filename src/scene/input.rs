@@ -52,8 +52,12 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
     preprocess::preprocess(&mut cloud, &preprocess_options);
     if options.cache {
         if let (Some(n), Some(r)) = (&cloud.normals, &cloud.radii) {
-            preprocess::save_cache(path, &preprocess_options, n, r)
-                .with_context(|| format!("{}: cannot write the cache", path.display()))?;
+            preprocess::save_cache(path, &preprocess_options, n, r).with_context(|| {
+                format!(
+                    "{}: cannot write the cache",
+                    preprocess::cache_path(path).display()
+                )
+            })?;
         }
     }
     Ok(cloud)

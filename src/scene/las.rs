@@ -10,7 +10,7 @@
 //! 12, "overlap", reads as 1, "unclassified", as in the crate).
 
 use std::fs::File;
-use std::io::{BufReader, Cursor, Read, Seek};
+use std::io::{BufReader, Cursor, ErrorKind, Read, Seek};
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
@@ -24,9 +24,33 @@ use super::records::{self, Span};
 /// The LAS classification code for overlap points, which the `las` crate reads as unclassified.
 const OVERLAP: u8 = 12;
 
-/// Reads the header and VLRs, leaving `read` at the first point record.
-fn read_header<R: Read + Seek>(file: &str, read: &mut R) -> Result<las::Header, LoadError> {
-    las::Header::new(read).map_err(|e| LoadError::whole(file, format!("invalid LAS header: {e}")))
+/// Reads the header and VLRs of a file of `size` bytes, leaving `read` at the first point record.
+fn read_header<R: Read + Seek>(
+    file: &str,
+    read: &mut R,
+    size: usize,
+) -> Result<las::Header, LoadError> {
+    las::Header::new(read).map_err(|e| header_error(file, e, size))
+}
+
+/// The error for a header the `las` crate rejects: an operating-system failure is
+/// [`LoadError::Io`], an early end of the file says where the file ends.
+fn header_error(file: &str, err: las::Error, size: usize) -> LoadError {
+    match err {
+        las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => LoadError::whole(
+            file,
+            format!("invalid LAS header: the file ends at byte {size}, inside the header (truncated file?)"),
+        ),
+        las::Error::Io(source) => io_error(file, source),
+        e => LoadError::whole(file, format!("invalid LAS header: {e}")),
+    }
+}
+
+/// The message for point record `index` of `declared` that a file of `size` bytes cuts short.
+fn truncated(index: u64, declared: u64, size: usize) -> String {
+    format!(
+        "point record {index} of {declared} ends past the end of the file at byte {size} (truncated file?)"
+    )
 }
 
 /// Where the fields of an uncompressed point record are, and how coordinates are scaled.
@@ -50,13 +74,8 @@ impl Layout {
         let declared = header.number_of_points();
         let needed = u128::from(declared) * stride as u128 + at as u128;
         if needed > size as u128 {
-            return Err(LoadError::at_byte(
-                file,
-                at,
-                format!(
-                    "header declares {declared} points of {stride} bytes, which need {needed} bytes, but the file has only {size} bytes"
-                ),
-            ));
+            let whole = (size.saturating_sub(at) / stride) as u64;
+            return Err(LoadError::whole(file, truncated(whole, declared, size)));
         }
         // Fixed part: X, Y, Z, intensity, flags (2 bytes, or 3 in formats 6-10), then scan
         // angle, user data and point source id; GPS time and colors follow.
@@ -221,10 +240,9 @@ fn scalars(intensity: Vec<f32>, class: Vec<f32>) -> Vec<Scalar> {
 pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     let size = data.len();
     let mut cursor = Cursor::new(data);
-    let header = read_header(file, &mut cursor)?;
+    let header = read_header(file, &mut cursor, size)?;
     if header.point_format().is_compressed {
-        cursor.rewind().map_err(|source| io_error(file, source))?;
-        return read_with_crate(file, cursor, size);
+        return read_compressed(file, cursor, &header, size);
     }
     let at = cursor.position() as usize;
     let layout = Layout::new(file, &header, at, size)?;
@@ -251,10 +269,9 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
         .len();
     let size = usize::try_from(size).unwrap_or(usize::MAX);
     let mut read = BufReader::new(open);
-    let header = read_header(&file, &mut read)?;
+    let header = read_header(&file, &mut read, size)?;
     if header.point_format().is_compressed {
-        read.rewind().map_err(|source| io_error(&file, source))?;
-        return read_with_crate(&file, read, size);
+        return read_compressed(&file, read, &header, size);
     }
     let at = read
         .stream_position()
@@ -281,15 +298,52 @@ fn io_error(file: &str, source: std::io::Error) -> LoadError {
     }
 }
 
+/// Reads a LAZ file of `size` bytes with `header`, from the first point record. The chunk table
+/// is written after the points; when it lies past the end (a truncated file), the file is read
+/// into memory with an empty chunk table appended, so the points that are there decode and the
+/// error names the first that is not.
+fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
+    file: &str,
+    mut read: R,
+    header: &las::Header,
+    size: usize,
+) -> Result<Cloud, LoadError> {
+    let at = read
+        .stream_position()
+        .map_err(|source| io_error(file, source))? as usize;
+    let mut offset = [0; 8];
+    read.read_exact(&mut offset).map_err(|source| {
+        if source.kind() == ErrorKind::UnexpectedEof {
+            LoadError::whole(file, truncated(0, header.number_of_points(), size))
+        } else {
+            io_error(file, source)
+        }
+    })?;
+    let table = i64::from_le_bytes(offset);
+    let table_past_end = table > at as i64 && table.saturating_add(8) > size as i64;
+    read.rewind().map_err(|source| io_error(file, source))?;
+    if !table_past_end {
+        return read_with_crate(file, read, size, false);
+    }
+    let mut data = Vec::with_capacity(size + 8);
+    read.read_to_end(&mut data)
+        .map_err(|source| io_error(file, source))?;
+    let end = data.len() as i64;
+    data[at..at + 8].copy_from_slice(&end.to_le_bytes());
+    // Chunk table version 0 with no chunks.
+    data.extend_from_slice(&[0; 8]);
+    read_with_crate(file, Cursor::new(data), size, true)
+}
+
 /// Reads the points with the `las` crate (used for LAZ), from the start of a file of `size`
-/// bytes.
+/// bytes; `truncated_file` says the file is known to be cut short.
 fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
     file: &str,
     read: R,
     size: usize,
+    truncated_file: bool,
 ) -> Result<Cloud, LoadError> {
-    let mut reader = las::Reader::new(read)
-        .map_err(|e| LoadError::whole(file, format!("invalid LAS header: {e}")))?;
+    let mut reader = las::Reader::new(read).map_err(|e| header_error(file, e, size))?;
     let declared = reader.header().number_of_points();
     // Compressed records bound the count only loosely: reserve at most one point per two
     // bytes and let honest files that compress better grow the vectors.
@@ -301,10 +355,16 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
     let mut intensity = Vec::with_capacity(capacity);
     let mut class = Vec::with_capacity(capacity);
     let mut index = 0u64;
-    while let Some(point) = reader
-        .read_point()
-        .map_err(|e| LoadError::whole(file, format!("point {index} of {declared}: {e}")))?
-    {
+    while let Some(point) = reader.read_point().map_err(|e| {
+        let message = match e {
+            _ if truncated_file => truncated(index, declared, size),
+            las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => {
+                truncated(index, declared, size)
+            }
+            e => format!("point record {index} of {declared}: {e}"),
+        };
+        LoadError::whole(file, message)
+    })? {
         world.push(DVec3::new(point.x, point.y, point.z));
         if let Some(c) = point.color {
             rgb16.push([c.red, c.green, c.blue]);
@@ -421,7 +481,8 @@ mod tests {
     /// The parallel decoder, in memory and streamed in blocks of several sizes, against the
     /// `las` crate's point reader.
     fn assert_matches_crate(name: &str, bytes: Vec<u8>) {
-        let reference = read_with_crate(name, Cursor::new(bytes.clone()), bytes.len()).unwrap();
+        let reference =
+            read_with_crate(name, Cursor::new(bytes.clone()), bytes.len(), false).unwrap();
         assert_eq!(
             parse(name, bytes.clone()).unwrap(),
             reference,

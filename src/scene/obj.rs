@@ -11,7 +11,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats};
-use super::error::LoadError;
+use super::error::{show, LoadError};
 
 fn map_error(file: &str, err: obj::ObjError) -> LoadError {
     use obj::ObjError as E;
@@ -21,12 +21,15 @@ fn map_error(file: &str, err: obj::ObjError) -> LoadError {
         E::MalformedFaceGroup { line_number, group } => LoadError::at_line(
             file,
             line_number + 1,
-            format!("expected a face vertex like 3, 3/1, 3//2 or 3/1/2, found \"{group}\""),
+            format!(
+                "expected a face vertex like 3, 3/1, 3//2 or 3/1/2, found \"{}\"",
+                show(group)
+            ),
         ),
         E::ArgumentListFailure { line_number, list } => LoadError::at_line(
             file,
             line_number + 1,
-            format!("expected numbers, found {list}"),
+            format!("expected numbers, found {}", show(list)),
         ),
         E::UnexpectedCommand {
             line_number,
@@ -34,7 +37,7 @@ fn map_error(file: &str, err: obj::ObjError) -> LoadError {
         } => LoadError::at_line(
             file,
             line_number + 1,
-            format!("expected an OBJ command, found \"{command}\""),
+            format!("expected an OBJ command, found \"{}\"", show(command)),
         ),
         E::MissingMTLName { line_number } => {
             LoadError::at_line(file, line_number + 1, "expected a file name after mtllib")
@@ -45,6 +48,91 @@ fn map_error(file: &str, err: obj::ObjError) -> LoadError {
             "expected a 1-based or negative vertex index, found 0",
         ),
     }
+}
+
+/// The kind of index in a face corner (`v/vt/vn`) that was out of range.
+#[derive(Clone, Copy)]
+enum FaceIndex {
+    Vertex,
+    Normal,
+}
+
+impl FaceIndex {
+    /// The corner field holding the index, and the command that defines what it indexes.
+    fn field_and_command(self) -> (usize, &'static [u8]) {
+        match self {
+            FaceIndex::Vertex => (0, b"v"),
+            FaceIndex::Normal => (2, b"vn"),
+        }
+    }
+
+    fn noun(self) -> &'static str {
+        match self {
+            FaceIndex::Vertex => "vertices",
+            FaceIndex::Normal => "normals",
+        }
+    }
+}
+
+/// The error for the first `kind` index in `data` that is out of range for a file with `count`
+/// of them. The `obj` crate resolves indices without keeping lines or values, so the text is
+/// scanned again for the line (indices are 1-based, negative ones count back from the last
+/// definition so far); `face_index` is named when the scan finds nothing.
+fn out_of_range(
+    file: &str,
+    data: &[u8],
+    kind: FaceIndex,
+    count: usize,
+    face_index: usize,
+) -> LoadError {
+    let (field, command) = kind.field_and_command();
+    let mut defined = 0i64;
+    for (line, text) in data.split(|&b| b == b'\n').enumerate() {
+        let mut words = text
+            .split(u8::is_ascii_whitespace)
+            .filter(|w| !w.is_empty());
+        match words.next() {
+            Some(c) if c == command => defined += 1,
+            Some(b"f") => {
+                for corner in words {
+                    let Some(index) = corner
+                        .split(|&b| b == b'/')
+                        .nth(field)
+                        .and_then(|v| std::str::from_utf8(v).ok()?.parse::<i64>().ok())
+                    else {
+                        continue;
+                    };
+                    let resolved = if index < 0 {
+                        defined + index
+                    } else {
+                        index - 1
+                    };
+                    if resolved < 0 || resolved >= count as i64 {
+                        let what = match kind {
+                            FaceIndex::Vertex => "face index",
+                            FaceIndex::Normal => "face normal index",
+                        };
+                        return LoadError::at_line(
+                            file,
+                            line + 1,
+                            format!(
+                                "{what} {index} is out of range (the file has {count} {})",
+                                kind.noun()
+                            ),
+                        );
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    LoadError::whole(
+        file,
+        format!(
+            "face {face_index}: an index is out of range (the file has {count} {})",
+            kind.noun()
+        ),
+    )
 }
 
 /// Parses OBJ text held in memory. `file` names it in error messages.
@@ -70,21 +158,16 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
             for tuple in &poly.0 {
                 let p = tuple.0;
                 if p >= n {
-                    return Err(LoadError::whole(
-                        file,
-                        format!(
-                            "face {face_index}: position index is out of range; expected 1..={n} (or a negative relative index)"
-                        ),
-                    ));
+                    return Err(out_of_range(file, data, FaceIndex::Vertex, n, face_index));
                 }
                 if let Some(vn) = tuple.2 {
                     let normal = parsed.normal.get(vn).ok_or_else(|| {
-                        LoadError::whole(
+                        out_of_range(
                             file,
-                            format!(
-                                "face {face_index}: normal index is out of range; expected 1..={}",
-                                parsed.normal.len()
-                            ),
+                            data,
+                            FaceIndex::Normal,
+                            parsed.normal.len(),
+                            face_index,
                         )
                     })?;
                     let normal = Vec3::from(*normal).normalize_or_zero();

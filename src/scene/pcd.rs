@@ -11,7 +11,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats, Scalar};
-use super::error::LoadError;
+use super::error::{show, LoadError};
 use super::text::{self, Lines};
 
 /// Largest output an LZF stream can produce per input byte (a 3-byte back-reference copies
@@ -185,10 +185,7 @@ fn parse_header(file: &str, bytes: &[u8]) -> Result<Header, LoadError> {
             LoadError::at_line(
                 file,
                 n,
-                format!(
-                    "expected {what}, found \"{}\"",
-                    text::show(line.trim_ascii())
-                ),
+                format!("expected {what}, found \"{}\"", show(line.trim_ascii())),
             )
         };
         let uints = |what: &str| -> Result<Vec<usize>, LoadError> {
@@ -284,7 +281,8 @@ fn parse_header(file: &str, bytes: &[u8]) -> Result<Header, LoadError> {
             file,
             format!(
                 "field {} is a float of size {}; expected size 4 or 8",
-                f.name, f.size
+                show(&f.name),
+                f.size
             ),
         ));
     }
@@ -462,7 +460,7 @@ fn parse_ascii(
                 line_no,
                 format!(
                     "expected {values_per_point} numbers for point {point}, found \"{}\"",
-                    text::show(line.trim_ascii())
+                    show(line.trim_ascii())
                 ),
             )
         };

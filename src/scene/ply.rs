@@ -16,7 +16,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
-use super::error::LoadError;
+use super::error::{show, LoadError};
 use super::progress::Progress;
 use super::records;
 use super::text::{self, Lines};
@@ -229,10 +229,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
             return Err(LoadError::at_line(
                 file,
                 1,
-                format!(
-                    "expected the magic line \"ply\", found \"{}\"",
-                    text::show(l)
-                ),
+                format!("expected the magic line \"ply\", found \"{}\"", show(l)),
             ))
         }
         None => return Err(LoadError::whole(file, "empty file; expected a PLY header")),
@@ -261,7 +258,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
                     other => {
                         return Err(err(format!(
                             "expected format ascii, binary_little_endian or binary_big_endian, found \"{}\"",
-                            text::show(other.unwrap_or_default())
+                            show(other.unwrap_or_default())
                         )))
                     }
                 });
@@ -270,7 +267,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
                 let (Some(name), Some(count)) = (words.get(1), words.get(2)) else {
                     return Err(err(format!(
                         "expected \"element <name> <count>\", found \"{}\"",
-                        text::show(line)
+                        show(line)
                     )));
                 };
                 let count = text::parse_i64(count)
@@ -278,7 +275,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
                     .ok_or_else(|| {
                         err(format!(
                             "expected a non-negative element count, found \"{}\"",
-                            text::show(count)
+                            show(count)
                         ))
                     })?;
                 elements.push(Element {
@@ -294,7 +291,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
                 let bad = || {
                     err(format!(
                         "expected \"property <type> <name>\" or \"property list <count type> <item type> <name>\", found \"{}\"",
-                        text::show(line)
+                        show(line)
                     ))
                 };
                 let (kind, name) = if words.get(1).copied() == Some(b"list") {
@@ -318,7 +315,7 @@ fn parse_header(file: &str, data: &[u8], file_len: usize) -> Result<Header, Load
             Some(other) => {
                 return Err(err(format!(
                     "expected a header keyword (format, element, property, comment, end_header), found \"{}\"",
-                    text::show(other)
+                    show(other)
                 )))
             }
         }
@@ -354,7 +351,7 @@ fn check_counts(file: &str, header: &Header, body_len: usize) -> Result<(), Load
                 header.body,
                 format!(
                     "header declares {} {} records, which need at least {} bytes, but only {} bytes follow the header",
-                    e.count, e.name, needed, body_len
+                    e.count, show(&e.name), needed, body_len
                 ),
             ));
         }
@@ -418,7 +415,8 @@ impl<'a> Body<'a> {
                 self.base + self.pos,
                 format!(
                     "unexpected end of file; expected {n} more bytes for {} {index} of {}",
-                    element.name, element.count
+                    show(&element.name),
+                    element.count
                 ),
             )),
         }
@@ -456,7 +454,7 @@ impl<'a> Body<'a> {
                             at,
                             format!(
                                 "expected a non-negative list length for {} of {} {index}, found {n}",
-                                prop.name, element.name
+                                show(&prop.name), show(&element.name)
                             ),
                         ));
                     }
@@ -489,7 +487,8 @@ impl<'a> Body<'a> {
                         self.line_base + self.lines.line() + 1,
                         format!(
                             "unexpected end of file; expected {} {index} of {}",
-                            element.name, element.count
+                            show(&element.name),
+                            element.count
                         ),
                     ))
                 }
@@ -505,8 +504,8 @@ impl<'a> Body<'a> {
                 line_no,
                 format!(
                     "expected {expected} {what} for {} {index}, found \"{}\"",
-                    element.name,
-                    text::show(line.trim_ascii())
+                    show(&element.name),
+                    show(line.trim_ascii())
                 ),
             )
         };

@@ -118,17 +118,6 @@ pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
     Some(if negative { -value } else { value })
 }
 
-/// A token for an error message: lossy UTF-8, shortened to a readable length.
-pub(crate) fn show(bytes: &[u8]) -> String {
-    const MAX: usize = 60;
-    let text = String::from_utf8_lossy(&bytes[..bytes.len().min(MAX)]).into_owned();
-    if bytes.len() > MAX {
-        format!("{text}...")
-    } else {
-        text
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -20,7 +20,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats, Scalar};
-use super::error::LoadError;
+use super::error::{show, LoadError};
 use super::text::{self, Lines};
 
 /// Parses point-list text held in memory. `file` names it in error messages.
@@ -45,7 +45,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
                     format!(
                         "expected a number in column {}, found \"{}\"",
                         count + 1,
-                        text::show(token)
+                        show(token)
                     ),
                 )
             })?;
@@ -64,7 +64,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
                     n,
                     format!(
                         "expected at least 3 numbers (x y z), found {count}: \"{}\"",
-                        text::show(trimmed)
+                        show(trimmed)
                     ),
                 ));
             }
@@ -75,7 +75,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
                 n,
                 format!(
                     "expected {columns} numbers like the first data line, found {count}: \"{}\"",
-                    text::show(trimmed)
+                    show(trimmed)
                 ),
             ));
         }
