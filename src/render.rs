@@ -457,16 +457,7 @@ fn add_readback(
     height: u32,
 ) -> Result<Readback> {
     let n = width as u64 * height as u64;
-    let host = |name: &str, bytes: u64| {
-        Buffer::new(
-            ctx,
-            name,
-            bytes,
-            vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuToCpu,
-        )
-        .map(Arc::new)
-    };
+    let host = |name: &str, bytes: u64| Buffer::readback(ctx, name, bytes).map(Arc::new);
     let rb = Readback {
         color: host("readback.color", n * 4)?,
         depth: host("readback.depth", n * 4)?,

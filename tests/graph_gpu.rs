@@ -11,7 +11,6 @@ use std::rc::Rc;
 use std::sync::Arc;
 
 use ash::vk;
-use gpu_allocator::MemoryLocation;
 use surfel::gpu::{Binding, Buffer, Context, FrameRing, GraphicsDesc, Image, ImageDesc, Pipeline};
 use surfel::graph::{
     Access, BarrierTarget, BufferId, BufferRange, CompiledGraph, Descriptor, GraphBuilder, ImageId,
@@ -40,16 +39,7 @@ fn run_frames(
 }
 
 fn host_buffer(ctx: &Arc<Context>, name: &str, bytes: u64) -> Arc<Buffer> {
-    Arc::new(
-        Buffer::new(
-            ctx,
-            name,
-            bytes,
-            vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuToCpu,
-        )
-        .expect("buffer"),
-    )
+    Arc::new(Buffer::readback(ctx, name, bytes).expect("buffer"))
 }
 
 fn words(buffer: &Buffer) -> Vec<u32> {

@@ -65,6 +65,17 @@ impl Buffer {
         }
     }
 
+    /// A host-visible buffer the GPU copies results into (readback).
+    pub fn readback(ctx: &Arc<Context>, name: &str, size: u64) -> Result<Self> {
+        Self::new(
+            ctx,
+            name,
+            size,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )
+    }
+
     /// Host-visible bytes of a CpuToGpu/GpuToCpu buffer.
     pub fn mapped(&self) -> Result<&[u8]> {
         self.allocation
