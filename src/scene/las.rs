@@ -207,33 +207,49 @@ impl Columns {
             let raw: [i32; 3] = bytemuck::cast(*p);
             *p = (layout.world(raw) - origin).as_vec3();
         });
-        let mut cloud = Cloud {
+        finish(
             positions,
-            colors: self.colors.filter(|c| !c.is_empty()),
-            scalars: scalars(self.intensity, self.class),
+            self.colors.filter(|c| !c.is_empty()),
+            self.intensity,
+            self.class,
             origin,
-            stats: LoadStats {
-                records: usize::try_from(declared).unwrap_or(usize::MAX),
-                dropped_non_finite: 0,
-            },
-            ..Cloud::default()
-        };
-        cloud.retain_finite();
-        cloud
+            declared,
+        )
     }
 }
 
-fn scalars(intensity: Vec<f32>, class: Vec<f32>) -> Vec<Scalar> {
-    vec![
-        Scalar {
-            name: "intensity".into(),
-            values: intensity,
+/// The cloud of a decoded LAS/LAZ file (both decoders): intensity and classification as
+/// scalars, `declared` header records, non-finite points dropped.
+fn finish(
+    positions: Vec<Vec3>,
+    colors: Option<Vec<[u8; 4]>>,
+    intensity: Vec<f32>,
+    class: Vec<f32>,
+    origin: DVec3,
+    declared: u64,
+) -> Cloud {
+    let mut cloud = Cloud {
+        positions,
+        colors,
+        scalars: vec![
+            Scalar {
+                name: "intensity".into(),
+                values: intensity,
+            },
+            Scalar {
+                name: "classification".into(),
+                values: class,
+            },
+        ],
+        origin,
+        stats: LoadStats {
+            records: usize::try_from(declared).unwrap_or(usize::MAX),
+            dropped_non_finite: 0,
         },
-        Scalar {
-            name: "classification".into(),
-            values: class,
-        },
-    ]
+        ..Cloud::default()
+    };
+    cloud.retain_finite();
+    cloud
 }
 
 /// Parses a LAS or LAZ file held in memory. `file` names it in error messages.
@@ -388,19 +404,10 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
             })
             .collect()
     });
-    let mut cloud = Cloud {
-        positions: world.iter().map(|p| (*p - origin).as_vec3()).collect(),
-        colors,
-        scalars: scalars(intensity, class),
-        origin,
-        stats: LoadStats {
-            records: usize::try_from(declared).unwrap_or(usize::MAX),
-            dropped_non_finite: 0,
-        },
-        ..Cloud::default()
-    };
-    cloud.retain_finite();
-    Ok(cloud)
+    let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
+    Ok(finish(
+        positions, colors, intensity, class, origin, declared,
+    ))
 }
 
 #[cfg(test)]
