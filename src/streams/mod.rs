@@ -28,6 +28,14 @@ pub use upload::{GpuStreams, UploadOptions};
 /// Bits of a full quantized coordinate (three words of `QUANT_BITS`).
 pub const QUANT_FULL_BITS: u32 = 3 * QUANT_BITS;
 
+/// The position streams every layout starts with, encoded together.
+const POSITION_STREAMS: [Stream; 4] = [
+    Stream::Position,
+    Stream::Coarse,
+    Stream::Medium,
+    Stream::Fine,
+];
+
 /// One per-point stream and its element size in bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Stream {
@@ -134,14 +142,8 @@ impl StreamLayout {
     /// The streams a cloud needs: positions (f32 and quantized), normals, radii, colors when
     /// it has them, and its first `MAX_SCALAR_STREAMS` scalars.
     pub fn streams_for(cloud: &Cloud) -> Vec<Stream> {
-        let mut streams = vec![
-            Stream::Position,
-            Stream::Coarse,
-            Stream::Medium,
-            Stream::Fine,
-            Stream::Normal,
-            Stream::Radius,
-        ];
+        let mut streams = POSITION_STREAMS.to_vec();
+        streams.extend([Stream::Normal, Stream::Radius]);
         if cloud.colors.is_some() {
             streams.push(Stream::Color);
         }
@@ -197,23 +199,15 @@ impl StreamLayout {
             slices.push((stream, head));
             rest = tail;
         }
-        let position = |s: Stream| slices.iter().position(|(t, _)| *t == s);
-        let fused = [
-            Stream::Position,
-            Stream::Coarse,
-            Stream::Medium,
-            Stream::Fine,
-        ];
-        if let [Some(0), Some(1), Some(2), Some(3)] = fused.map(position) {
-            let (pos, quant) = slices.split_at_mut(1);
-            let [(_, coarse), (_, medium), (_, fine)] = &mut quant[..3] else {
-                unreachable!("three quantized streams follow the positions");
-            };
-            self.encode_positions(cloud, range.clone(), pos[0].1, [coarse, medium, fine]);
-            slices.drain(..4);
-        }
-        for (stream, slice) in slices {
-            self.encode(cloud, stream, range.clone(), slice);
+        // Every layout starts with the four position streams (`streams_for`).
+        let (positions, others) = slices.split_at_mut(POSITION_STREAMS.len());
+        debug_assert!(positions.iter().map(|(s, _)| *s).eq(POSITION_STREAMS));
+        let [(_, exact), (_, coarse), (_, medium), (_, fine)] = positions else {
+            unreachable!("four position streams");
+        };
+        self.encode_positions(cloud, range.clone(), exact, [coarse, medium, fine]);
+        for (stream, slice) in others {
+            self.encode(cloud, *stream, range.clone(), slice);
         }
     }
 
