@@ -28,15 +28,26 @@ impl CompiledGraph {
         self.check_externals_bound();
         self.profiler.reset(cmd, slot);
         let first = self.first_frame;
+        // Scopes follow each other: a regular pass's boundary stamp, written before its
+        // barriers, ends the previous pass's scope, and the frame ends before the first
+        // on-demand pass (validation keeps those last) or after the last pass. The time a
+        // pass's barriers wait for earlier work counts to the waiting pass.
+        let scopes = self.profiler.scopes_len();
+        let mut frame_open = scopes > 0;
         for pass in &self.passes {
             if pass.decl.on_demand && !on_demand {
                 continue;
             }
             self.ctx.begin_label(cmd, &pass.label);
-            self.emit_barriers(cmd, if first { &pass.first } else { &pass.steady });
-            if let Some(scope) = pass.scope {
-                self.profiler.stamp(cmd, slot, scope, false);
+            match pass.scope {
+                Some(scope) => self.profiler.stamp(cmd, slot, scope),
+                None if frame_open => {
+                    self.profiler.stamp(cmd, slot, scopes);
+                    frame_open = false;
+                }
+                None => {}
             }
+            self.emit_barriers(cmd, if first { &pass.first } else { &pass.steady });
             let extent = self.begin_rendering(cmd, &pass.decl);
             (pass.decl.record)(&PassContext {
                 ctx: &self.ctx,
@@ -49,10 +60,10 @@ impl CompiledGraph {
                 // SAFETY: matches begin_rendering above.
                 unsafe { self.ctx.device.cmd_end_rendering(cmd) };
             }
-            if let Some(scope) = pass.scope {
-                self.profiler.stamp(cmd, slot, scope, true);
-            }
             self.ctx.end_label(cmd);
+        }
+        if frame_open {
+            self.profiler.stamp(cmd, slot, scopes);
         }
         self.first_frame = false;
     }
