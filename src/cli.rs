@@ -182,6 +182,9 @@ pub struct InfoArgs {
     /// Skip the GPU capability report.
     #[arg(long)]
     pub no_device: bool,
+    /// The axis pointing up in the data (x, y, z, -x, -y, -z). Default: the format's.
+    #[arg(long, value_name = "AXIS", allow_hyphen_values = true, value_parser = parse_up)]
+    pub up: Option<Up>,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -499,6 +502,11 @@ fn info(a: InfoArgs) -> Result<()> {
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
         println!("bounds (local)    {lo:.6} .. {hi:.6}");
     }
+    let (up, source) = match a.up {
+        Some(up) => (up, "--up"),
+        None => (cloud.up, "format default"),
+    };
+    println!("up axis           {} ({source})", up.name());
     let n = cloud.len() as u64;
     let streams = crate::streams::StreamLayout::streams_for(&cloud);
     let mut total = 0;

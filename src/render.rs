@@ -327,8 +327,8 @@ impl Renderer {
         let resolved = lights::resolve(
             &view.lights,
             v,
-            self.info.centre,
-            self.info.radius,
+            (self.info.centre, self.info.radius),
+            self.info.up,
             view.time,
         );
         for (slot, light) in block.lights.iter_mut().zip(resolved) {

@@ -166,6 +166,19 @@ fn info_reports_counts_attributes_and_memory() {
     assert!(s.contains("color rgba8                4"), "{s}");
     assert!(s.contains("34.00 bytes/point"), "{s}");
     assert!(s.contains("in 7 batches of 10240 points"), "{s}");
+    assert!(s.contains("up axis           y"), "{s}");
+}
+
+#[test]
+fn info_prints_the_up_axis_of_the_format_or_the_override() {
+    let las = data("lidar/autzen_trim.las");
+    let las = las.to_str().expect("utf8");
+    let o = surfel(&["info", las, "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("up axis           z"));
+    let o = surfel(&["info", las, "--no-device", "--up", "-x"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("up axis           -x"));
 }
 
 #[test]
@@ -209,6 +222,24 @@ fn bench_quick_runs_outside_the_repository_and_report_reads_it() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let out = cwd.join("bench");
+    // Every announced job is either a record or a skipped job with its reason.
+    let results =
+        surfel::eval::results::Results::read_json(&out.join("results.json")).expect("results");
+    let (measured, skipped) = (results.records.len(), results.skipped.len());
+    assert!(
+        stderr(&o).contains(&format!(
+            "{} jobs: {measured} measured, {skipped} skipped",
+            measured + skipped
+        )),
+        "{}",
+        stderr(&o)
+    );
+    // The quick sweep asks for `mesh` on resampled clouds, which have no faces.
+    assert!(skipped > 0);
+    assert!(results
+        .skipped
+        .iter()
+        .all(|s| s.method == "mesh" && s.reason.contains("needs triangle faces")));
     for f in [
         "results.json",
         "results.csv",

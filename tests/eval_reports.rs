@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use surfel::eval::charts::{write_charts, CHART_SIZE};
 use surfel::eval::metrics::Scores;
 use surfel::eval::report::write_report;
-use surfel::eval::results::{PassTiming, Record, Results};
+use surfel::eval::results::{PassTiming, Record, Results, Skipped};
 
 const DEVICE: &str = "Test GPU 9000";
 
@@ -117,6 +117,15 @@ fn synthetic() -> Results {
         driver: "drv 1.2.3".into(),
         created: "2026-01-02T03:04:05Z".into(),
         records,
+        skipped: vec![Skipped {
+            model: "bunny".into(),
+            method: "mesh".into(),
+            width: 128,
+            height: 128,
+            variant: "points=5000".into(),
+            reason: "method 'mesh' needs triangle faces; this resampled or stressed cloud has none"
+                .into(),
+        }],
     }
 }
 
@@ -230,6 +239,12 @@ fn report_lists_methods_pareto_set_and_stability() {
     let md = std::fs::read_to_string(&path).unwrap();
     assert!(md.contains(DEVICE) && md.contains("drv 1.2.3") && md.contains("2026-01-02"));
     assert!(md.contains("[../results.json](../results.json)"));
+    assert!(md.contains("; jobs skipped: 1"));
+    let skipped = md.split("## Skipped jobs").nth(1).expect("skipped section");
+    assert!(skipped.contains(
+        "| bunny | mesh | 128x128 | points=5000 | method 'mesh' needs triangle faces; this \
+         resampled or stressed cloud has none |"
+    ));
     for (m, (method, ..)) in METHODS.iter().enumerate() {
         assert!(md.contains(&format!("| {method} |")), "{}", label(m));
     }

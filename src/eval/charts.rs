@@ -15,7 +15,9 @@
 //! - metric vs stress, per model and stress kind: hole ratio (with the
 //!   [`BREAK_HOLE_RATIO`] threshold and each method's first breaking value marked) and PSNR.
 //!
-//! A chart with fewer than two data points is skipped.
+//! A chart with fewer than two data points (line charts: two distinct x values) is skipped.
+//! A method configuration has the same color in every chart of one results set, and so does
+//! a pass ([`Colors`]).
 
 use std::collections::BTreeMap;
 use std::error::Error;
@@ -25,6 +27,7 @@ use std::sync::OnceLock;
 use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::metrics::BREAK_HOLE_RATIO;
 use super::results::{pareto_front, stability, MetricFn, Record, Results};
@@ -59,6 +62,45 @@ trait Chart {
 
     /// Data points drawn; charts with fewer than two are skipped.
     fn points(&self) -> usize;
+}
+
+/// One color per method configuration ([`Record::label`]) and per pass name, the same in every
+/// chart of a results set: indices into plotters' 99-color palette in sorted name order.
+#[derive(Clone, Debug, Default)]
+pub struct Colors {
+    labels: Vec<String>,
+    passes: Vec<String>,
+}
+
+impl Colors {
+    pub fn new(results: &Results) -> Self {
+        let mut labels: Vec<String> = results.records.iter().map(Record::label).collect();
+        labels.sort();
+        labels.dedup();
+        let mut passes: Vec<String> = results
+            .records
+            .iter()
+            .flat_map(|r| r.passes.iter().map(|p| p.name.clone()))
+            .collect();
+        passes.sort();
+        passes.dedup();
+        Self { labels, passes }
+    }
+
+    fn pick(names: &[String], name: &str) -> RGBAColor {
+        let i = names.binary_search_by(|n| n.as_str().cmp(name));
+        Palette99::pick(i.unwrap_or_else(|i| i)).to_rgba()
+    }
+
+    /// The color of method configuration `label`.
+    pub fn label(&self, label: &str) -> RGBAColor {
+        Self::pick(&self.labels, label)
+    }
+
+    /// The color of pass `name`.
+    pub fn pass(&self, name: &str) -> RGBAColor {
+        Self::pick(&self.passes, name)
+    }
 }
 
 /// Draws the series legend in the style every chart shares.
@@ -115,7 +157,8 @@ fn slug(s: &str) -> String {
         .collect()
 }
 
-/// `[lo, hi]` of the values padded by 5 % (or by 1 for a single value).
+/// `[lo, hi]` of the values padded by 5 % (a single value by 5 % of its magnitude, at least 1,
+/// so the axis keeps readable ticks).
 fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
@@ -125,7 +168,11 @@ fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     if lo > hi {
         return (0.0, 1.0);
     }
-    let pad = if hi > lo { (hi - lo) * 0.05 } else { 1.0 };
+    let pad = if hi > lo {
+        (hi - lo) * 0.05
+    } else {
+        (lo.abs() * 0.05).max(1.0)
+    };
     (lo - pad, hi + pad)
 }
 
@@ -224,6 +271,7 @@ struct ParetoChart {
     points: Vec<(String, f64, f64)>,
     /// `(label, ms)` of the reference configurations, named in the legend, not plotted.
     references: Vec<(String, f64)>,
+    colors: Colors,
 }
 
 impl Chart for ParetoChart {
@@ -279,12 +327,21 @@ impl Chart for ParetoChart {
                 .iter()
                 .map(|&i| Circle::new(xy[i], 9, RED.stroke_width(2))),
         )?;
-        for (k, ((label, ..), &at)) in self.points.iter().zip(&xy).enumerate() {
-            let color = Palette99::pick(k).to_rgba();
+        for ((label, ..), &at) in self.points.iter().zip(&xy) {
+            let color = self.colors.label(label);
+            // Labels of points in the right third end at the point, so none runs off the plot.
+            let right = at.0 > x0 + (x1 - x0) * 2.0 / 3.0;
+            let (offset, anchor) = if right {
+                ((-8, -14), HPos::Right)
+            } else {
+                ((8, -14), HPos::Left)
+            };
+            let style =
+                TextStyle::from(("sans-serif", 14).into_font()).pos(Pos::new(anchor, VPos::Top));
             chart.draw_series(std::iter::once(
                 EmptyElement::at(at)
                     + Circle::new((0, 0), 5, color.filled())
-                    + Text::new(label.clone(), (8, -14), ("sans-serif", 14)),
+                    + Text::new(label.clone(), offset, style),
             ))?;
         }
         for (label, ms) in &self.references {
@@ -304,6 +361,7 @@ struct StackedPassChart {
     passes: Vec<String>,
     /// `ms[label][pass]`.
     ms: Vec<Vec<f64>>,
+    colors: Colors,
 }
 
 impl Chart for StackedPassChart {
@@ -350,7 +408,7 @@ impl Chart for StackedPassChart {
             .x_desc("GPU time per frame (ms)")
             .draw()?;
         for (p, pass) in self.passes.iter().enumerate() {
-            let color = Palette99::pick(p).to_rgba();
+            let color = self.colors.pass(pass);
             let bars = self.ms.iter().enumerate().map(|(row, times)| {
                 let start: f64 = times[..p].iter().sum();
                 let y = row as i32;
@@ -387,11 +445,20 @@ struct LineChart {
     threshold: Option<(f64, String)>,
     /// Points to highlight, `(x, y, note)`.
     marks: Vec<(f64, f64, String)>,
+    colors: Colors,
 }
 
 impl Chart for LineChart {
+    /// Distinct x values: lines over a single x show nothing.
     fn points(&self) -> usize {
-        self.series.iter().map(|(_, pts)| pts.len()).sum()
+        let mut xs: Vec<u64> = self
+            .series
+            .iter()
+            .flat_map(|(_, pts)| pts.iter().map(|p| p.0.to_bits()))
+            .collect();
+        xs.sort_unstable();
+        xs.dedup();
+        xs.len()
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
@@ -427,8 +494,8 @@ impl Chart for LineChart {
             .y_desc(self.y_desc.as_str())
             .x_label_formatter(&x_fmt)
             .draw()?;
-        for (k, (name, pts)) in self.series.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
+        for (name, pts) in &self.series {
+            let color = self.colors.label(name);
             let pts: Vec<(f64, f64)> = pts.iter().map(|&(x, y)| (tx(x), y)).collect();
             chart
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
@@ -593,6 +660,7 @@ pub fn write_charts_by_model(
     } else {
         results.device.as_str()
     };
+    let colors = Colors::new(results);
     let mut written = Vec::new();
     for model in models(results) {
         let head = headline_records(results, &model);
@@ -608,6 +676,7 @@ pub fn write_charts_by_model(
                 y_desc: desc.to_string(),
                 points: speed_accuracy(&head, metric),
                 references: reference_times(&head),
+                colors: colors.clone(),
             };
             written.extend(tag(write_both(
                 &chart,
@@ -643,6 +712,7 @@ pub fn write_charts_by_model(
             labels: groups.into_iter().map(|(l, _)| l).collect(),
             passes,
             ms,
+            colors: colors.clone(),
         };
         written.extend(tag(write_both(
             &chart,
@@ -667,6 +737,7 @@ pub fn write_charts_by_model(
                 series: time_series(&slice, Record::pixels),
                 threshold: None,
                 marks: Vec::new(),
+                colors: colors.clone(),
             };
             written.extend(tag(write_both(
                 &chart,
@@ -690,6 +761,7 @@ pub fn write_charts_by_model(
             series: time_series(&slice, |r| r.points),
             threshold: None,
             marks: Vec::new(),
+            colors: colors.clone(),
         };
         written.extend(
             write_both(&chart, dir, "time_vs_points")?
@@ -698,7 +770,7 @@ pub fn write_charts_by_model(
         );
     }
 
-    written.extend(write_stress_charts(results, dir, device)?);
+    written.extend(write_stress_charts(results, dir, device, &colors)?);
     Ok(written)
 }
 
@@ -706,6 +778,7 @@ fn write_stress_charts(
     results: &Results,
     dir: &Path,
     device: &str,
+    colors: &Colors,
 ) -> Result<Vec<(Option<String>, PathBuf)>> {
     let mut written = Vec::new();
     let stab = stability(results);
@@ -751,6 +824,7 @@ fn write_stress_charts(
                 format!("breaks above {}%", BREAK_HOLE_RATIO * 100.0),
             )),
             marks,
+            colors: colors.clone(),
         };
         let tag = |paths: Vec<PathBuf>| paths.into_iter().map(|p| (Some(model.clone()), p));
         written.extend(tag(write_both(&chart, dir, &format!("{stem}_holes"))?));
@@ -785,6 +859,7 @@ fn write_stress_charts(
             series,
             threshold: None,
             marks: Vec::new(),
+            colors: colors.clone(),
         };
         written.extend(tag(write_both(&chart, dir, &format!("{stem}_psnr"))?));
     }
@@ -905,6 +980,51 @@ mod tests {
         assert_eq!(padded_range([2.0].into_iter()), (1.0, 3.0));
         let (lo, hi) = padded_range([0.0, 10.0, f64::NAN].into_iter());
         assert_eq!((lo, hi), (-0.5, 10.5));
+    }
+
+    #[test]
+    fn a_single_large_value_gets_a_readable_range() {
+        // One resolution (256x256 = 65,536 pixels) used to give ticks 65.53k..65.54k.
+        let (lo, hi) = padded_range([65_536.0].into_iter());
+        assert!((lo - 62_259.2).abs() < 1e-6 && (hi - 68_812.8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn line_charts_need_two_distinct_x_values() {
+        let chart = |xs: &[f64]| LineChart {
+            caption: String::new(),
+            x_desc: String::new(),
+            y_desc: String::new(),
+            log_x: false,
+            series: vec![
+                ("a".into(), xs.iter().map(|&x| (x, 1.0)).collect()),
+                ("b".into(), xs.iter().map(|&x| (x, 2.0)).collect()),
+            ],
+            threshold: None,
+            marks: Vec::new(),
+            colors: Colors::default(),
+        };
+        assert_eq!(chart(&[65_536.0]).points(), 1);
+        assert_eq!(chart(&[65_536.0, 262_144.0]).points(), 2);
+    }
+
+    #[test]
+    fn a_method_keeps_its_color_across_charts_and_result_sets() {
+        let mut results = Results::default();
+        for (method, size) in [("points", "1"), ("points", "2"), ("compute", "")] {
+            results.records.push(record(method, size, 1.0, 30.0));
+        }
+        let colors = Colors::new(&results);
+        let labels: Vec<String> = results.records.iter().map(Record::label).collect();
+        let picked: Vec<RGBAColor> = labels.iter().map(|l| colors.label(l)).collect();
+        assert_ne!(picked[0], picked[1]);
+        assert_ne!(picked[1], picked[2]);
+        // Record order does not matter: the palette follows sorted labels.
+        results.records.reverse();
+        let again = Colors::new(&results);
+        for (l, c) in labels.iter().zip(&picked) {
+            assert_eq!(again.label(l), *c, "{l}");
+        }
     }
 
     #[test]

@@ -107,9 +107,15 @@ fn render(
     let _ = writeln!(md, "- Driver: {}", or_unknown(&results.driver));
     let _ = writeln!(md, "- Date: {}", or_unknown(&results.created));
     let _ = writeln!(md, "- Results: [{results_link}]({results_link})");
-    let _ = writeln!(md, "- Records: {}\n", results.records.len());
+    let _ = writeln!(
+        md,
+        "- Records: {}; jobs skipped: {}\n",
+        results.records.len(),
+        results.skipped.len()
+    );
     if results.records.is_empty() {
-        let _ = writeln!(md, "No records.");
+        let _ = writeln!(md, "No records.\n");
+        skipped_section(&mut md, results);
         return md;
     }
     let chart_link = |path: &PathBuf| {
@@ -140,7 +146,35 @@ fn render(
         let _ = writeln!(md, "## Cross-model charts\n");
         embed(&mut md, None);
     }
+    skipped_section(&mut md, results);
     md
+}
+
+/// The jobs that produced no record, with the reason.
+fn skipped_section(md: &mut String, results: &Results) {
+    if results.skipped.is_empty() {
+        return;
+    }
+    let _ = writeln!(md, "## Skipped jobs\n");
+    let _ = writeln!(md, "| model | method | resolution | variant | reason |");
+    let _ = writeln!(md, "|---|---|---|---|---|");
+    for s in &results.skipped {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {}x{} | {} | {} |",
+            cell(&s.model),
+            cell(&s.method),
+            s.width,
+            s.height,
+            if s.variant.is_empty() {
+                "–".to_string()
+            } else {
+                cell(&s.variant)
+            },
+            cell(&s.reason)
+        );
+    }
+    let _ = writeln!(md);
 }
 
 fn model_table(md: &mut String, results: &Results, model: &str) {

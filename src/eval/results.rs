@@ -105,6 +105,22 @@ pub struct Results {
     /// When the sweep ran (free-form, e.g. RFC 3339).
     pub created: String,
     pub records: Vec<Record>,
+    /// Jobs of the sweep that produced no record, with the reason.
+    #[serde(default)]
+    pub skipped: Vec<Skipped>,
+}
+
+/// A sweep job that was not run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Skipped {
+    pub model: String,
+    /// Method label with parameters, e.g. `points(size=2)`.
+    pub method: String,
+    pub width: u32,
+    pub height: u32,
+    /// `points=N` or `KIND=VALUE` for resampled and stressed jobs, empty otherwise.
+    pub variant: String,
+    pub reason: String,
 }
 
 impl Results {

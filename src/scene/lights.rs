@@ -3,6 +3,7 @@
 use glam::{Mat4, Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
+use super::Up;
 use crate::gpu::layout::{GpuLight, LIGHT_CAMERA, LIGHT_ORBIT, LIGHT_STATIC, MAX_LIGHTS};
 
 /// Where a light lives.
@@ -13,8 +14,9 @@ pub enum LightKind {
     Camera,
     /// Fixed world position.
     Static,
-    /// Circles the model centre in the horizontal plane at `position[0]` scene radii and height
-    /// `position[1]` radii, `position[2]` degrees per second.
+    /// Circles the model centre in the plane perpendicular to the data's up axis at
+    /// `position[0]` scene radii and height `position[1]` radii along the up axis,
+    /// `position[2]` degrees per second.
     Orbit,
 }
 
@@ -58,14 +60,17 @@ pub fn ring(count: u32, radius: f32) -> Vec<Light> {
         .collect()
 }
 
-/// Resolves lights to view space for a frame at `time` seconds. At most `MAX_LIGHTS`.
+/// Resolves lights to view space for a frame at `time` seconds; orbiting lights circle `up`.
+/// At most `MAX_LIGHTS`.
 pub fn resolve(
     lights: &[Light],
     view: Mat4,
-    centre: Vec3,
-    radius: f32,
+    (centre, radius): (Vec3, f32),
+    up: Up,
     time: f32,
 ) -> impl Iterator<Item = GpuLight> + '_ {
+    let (u, front) = (up.vector(), up.front());
+    let right = u.cross(front);
     lights.iter().take(MAX_LIGHTS as usize).map(move |l| {
         let p = Vec3::from(l.position);
         let (view_pos, kind) = match l.kind {
@@ -74,11 +79,8 @@ pub fn resolve(
             LightKind::Orbit => {
                 let angle = (p.z * time).to_radians();
                 let world = centre
-                    + Vec3::new(
-                        angle.cos() * p.x * radius,
-                        p.y * radius,
-                        angle.sin() * p.x * radius,
-                    );
+                    + (right * angle.cos() + front * angle.sin()) * (p.x * radius)
+                    + u * (p.y * radius);
                 (view.transform_point3(world), LIGHT_ORBIT)
             }
         };
@@ -104,7 +106,7 @@ mod tests {
                 color: [1.0; 3],
             },
         ];
-        let g: Vec<_> = resolve(&lights, view, Vec3::ZERO, 1.0, 0.0).collect();
+        let g: Vec<_> = resolve(&lights, view, (Vec3::ZERO, 1.0), Up::Y, 0.0).collect();
         assert_eq!(g[0].position.truncate(), Vec3::ZERO);
         assert_eq!(g[1].position.truncate(), Vec3::new(1.0, 0.0, -5.0));
         assert_eq!(g[1].color_kind.w, LIGHT_STATIC as f32);
@@ -116,7 +118,14 @@ mod tests {
         let total: f32 = r.iter().map(|l| l.color[0]).sum();
         assert!((total - 1.0).abs() < 1e-5);
         assert_eq!(
-            resolve(&ring(40, 1.0), Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0).count(),
+            resolve(
+                &ring(40, 1.0),
+                Mat4::IDENTITY,
+                (Vec3::ZERO, 1.0),
+                Up::Y,
+                0.0
+            )
+            .count(),
             MAX_LIGHTS as usize
         );
     }
@@ -128,14 +137,36 @@ mod tests {
             position: [2.0, 0.0, 90.0],
             color: [1.0; 3],
         }];
-        let a = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 0.0)
-            .next()
-            .expect("light")
-            .position;
-        let b = resolve(&l, Mat4::IDENTITY, Vec3::ZERO, 1.0, 1.0)
-            .next()
-            .expect("light")
-            .position;
-        assert!((a.x - 2.0).abs() < 1e-5 && (b.z - 2.0).abs() < 1e-5);
+        let at = |up, time| {
+            resolve(&l, Mat4::IDENTITY, (Vec3::ZERO, 1.0), up, time)
+                .next()
+                .expect("light")
+                .position
+                .truncate()
+        };
+        assert!(at(Up::Y, 0.0).abs_diff_eq(Vec3::new(2.0, 0.0, 0.0), 1e-5));
+        assert!(at(Up::Y, 1.0).abs_diff_eq(Vec3::new(0.0, 0.0, 2.0), 1e-5));
+        // Z-up data (LAS): the light stays in the xy plane, never leaving the ground's level.
+        for t in [0.0, 0.5, 1.0, 2.5] {
+            let p = at(Up::Z, t);
+            assert!(p.z.abs() < 1e-5 && (p.length() - 2.0).abs() < 1e-5, "{p}");
+        }
+    }
+
+    #[test]
+    fn orbit_light_height_is_along_the_up_axis() {
+        let l = [Light {
+            kind: LightKind::Orbit,
+            position: [1.0, 3.0, 0.0],
+            color: [1.0; 3],
+        }];
+        for up in Up::ALL {
+            let p = resolve(&l, Mat4::IDENTITY, (Vec3::ZERO, 2.0), up, 0.0)
+                .next()
+                .expect("light")
+                .position
+                .truncate();
+            assert!((p.dot(up.vector()) - 6.0).abs() < 1e-5, "{up:?}: {p}");
+        }
     }
 }
