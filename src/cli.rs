@@ -486,6 +486,10 @@ fn view(a: ViewArgs) -> Result<()> {
         cloud,
         crate::app::ViewerOptions {
             title: format!("surfel - {}", a.file.display()),
+            file: a.file.file_name().map_or_else(
+                || a.file.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
             method: config,
             camera: settings.camera(centre, radius, up),
             up,

@@ -160,7 +160,7 @@ impl Hud {
             let mut help = Panel::new(Corner::TopRight);
             help.line("Keys", HudLine::HEADING);
             for (key, what) in KEYS {
-                help.line(format!("{key:<10}  {what}"), HudLine::TEXT);
+                help.line(format!("{key}\t{what}"), HudLine::TEXT);
             }
             out.push(help);
         }
@@ -224,7 +224,7 @@ mod tests {
                 panels[1]
                     .lines
                     .iter()
-                    .any(|l| l.text.starts_with(&format!("{key} "))),
+                    .any(|l| l.text.starts_with(&format!("{key}\t"))),
                 "{key} missing"
             );
         }

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{Context as _, Result};
+use anyhow::{bail, Context as _, Result};
 use glam::{Vec2, Vec3};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -36,6 +36,8 @@ use script::{Next, Runner, Script, ViewerKey};
 /// What the viewer shows.
 pub struct ViewerOptions {
     pub title: String,
+    /// The input's name, shown in the HUD.
+    pub file: String,
     pub method: MethodConfig,
     pub camera: Camera,
     /// The axis the drag orbit turns about.
@@ -133,6 +135,8 @@ struct Viewer {
     /// GPU allocator bytes (allocated, reserved), sampled with the frame rate.
     memory: Option<(u64, u64)>,
     script: Option<Runner>,
+    /// A script's `size` step: the size asked for and the frames rendered since.
+    resizing: Option<(PhysicalSize<u32>, u32)>,
     /// Write the next frame to this PNG.
     screenshot: Option<PathBuf>,
     quit: bool,
@@ -169,6 +173,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
         rate: FrameRate::new(Instant::now()),
         memory: None,
         script,
+        resizing: None,
         screenshot: None,
         quit: false,
         drag: None,
@@ -189,6 +194,9 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     }
     viewer.error.map_or(Ok(()), Err)
 }
+
+/// Frames a script's `size` step waits for the window to take its size.
+const RESIZE_FRAMES: u32 = 500;
 
 /// 80 % of the current (else the primary, else any) monitor; 1280x720 when none is known.
 fn default_window_size(event_loop: &ActiveEventLoop) -> PhysicalSize<u32> {
@@ -457,7 +465,7 @@ impl Viewer {
         let hud = Hud::new(
             &Stats {
                 method: &label,
-                file: &self.opts.title,
+                file: &self.opts.file,
                 passes: &passes,
                 points: u64::from(gpu.renderer.info.points),
                 width: gpu.renderer.width,
@@ -486,12 +494,39 @@ impl Viewer {
 
     /// Runs script steps up to the next frame; returns false when the script is over.
     fn run_script(&mut self) -> Result<bool> {
+        if let (Some((size, waited)), Some(gpu)) = (self.resizing.as_mut(), self.gpu.as_ref()) {
+            let now = gpu.window.inner_size();
+            if now != *size {
+                // The window system resizes asynchronously: keep rendering meanwhile.
+                *waited += 1;
+                if *waited > RESIZE_FRAMES {
+                    bail!(
+                        "the window did not resize to {}x{} within {RESIZE_FRAMES} frames (it is {}x{})",
+                        size.width,
+                        size.height,
+                        now.width,
+                        now.height
+                    );
+                }
+                return Ok(true);
+            }
+            self.resizing = None;
+        }
         while let Some(runner) = self.script.as_mut() {
             match runner.next() {
                 Next::Key(k) => self.press(k)?,
                 Next::Orbit(az, el) => {
                     self.orbit.azimuth = az.to_radians();
                     self.orbit.elevation = el.to_radians().clamp(-1.55, 1.55);
+                }
+                Next::Size(w, h) => {
+                    let size = PhysicalSize::new(w, h);
+                    if let Some(gpu) = &self.gpu {
+                        // `None`: the size is applied later, reported by a `Resized` event.
+                        let _ = gpu.window.request_inner_size(size);
+                    }
+                    self.resizing = Some((size, 0));
+                    return self.run_script();
                 }
                 Next::Frame(shot) => {
                     if shot.is_some() {

@@ -7,6 +7,7 @@
 //! frames 3               # render 3 frames
 //! key Tab                # a letter, Tab, F11 or Esc
 //! orbit 30,20            # azimuth, elevation in degrees about the orbit target
+//! size 640x480           # resize the window (waits until the window has that size)
 //! screenshot hud.png     # render one frame and write it as PNG
 //! quit                   # (the viewer also quits at the end of the script)
 //! ```
@@ -69,6 +70,8 @@ pub enum Step {
     Screenshot(PathBuf),
     /// Set the orbit's azimuth and elevation (degrees).
     Orbit(f32, f32),
+    /// Resize the window.
+    Size(u32, u32),
     Quit,
 }
 
@@ -125,10 +128,13 @@ fn parse_step(command: &str, arg: &str) -> Result<Step, String> {
                 "expected `orbit AZ,EL` in degrees (elevation within -90..=90), got {arg:?}"
             )),
         },
+        "size" => crate::cli::parse_size(arg)
+            .map(|(w, h)| Step::Size(w, h))
+            .map_err(|e| format!("expected `size WxH`: {e}")),
         "quit" if arg.is_empty() => Ok(Step::Quit),
         "quit" => Err(format!("expected `quit` alone, got {arg:?} after it")),
         _ => Err(format!(
-            "expected key, frames, screenshot, orbit or quit, got {command:?}"
+            "expected key, frames, screenshot, orbit, size or quit, got {command:?}"
         )),
     }
 }
@@ -140,6 +146,8 @@ pub enum Next {
     Key(ViewerKey),
     /// Set the orbit angles, then ask again.
     Orbit(f32, f32),
+    /// Resize the window, render until it has that size, then ask again.
+    Size(u32, u32),
     /// Render a frame (writing it to the path when given).
     Frame(Option<PathBuf>),
     /// The script is over.
@@ -176,6 +184,7 @@ impl Runner {
         match step {
             Step::Key(k) => Next::Key(*k),
             Step::Orbit(az, el) => Next::Orbit(*az, *el),
+            Step::Size(w, h) => Next::Size(*w, *h),
             Step::Frames(n) => {
                 self.frames_left = n - 1;
                 Next::Frame(None)
@@ -207,7 +216,7 @@ mod tests {
     #[test]
     fn parses_every_command_with_comments_and_blank_lines() {
         let s = Script::parse(
-            "# tour\n\nframes 3\nkey Tab   # hide\nkey h\nkey F11\nkey esc\norbit 30,-20.5\n\
+            "# tour\n\nframes 3\nkey Tab   # hide\nkey h\nkey F11\nkey esc\norbit 30,-20.5\nsize 64x48\n\
              screenshot out/a b.png\nquit\n",
             Path::new("t.txt"),
         )
@@ -221,6 +230,7 @@ mod tests {
                 Step::Key(ViewerKey::F11),
                 Step::Key(ViewerKey::Escape),
                 Step::Orbit(30.0, -20.5),
+                Step::Size(64, 48),
                 Step::Screenshot(PathBuf::from("out/a b.png")),
                 Step::Quit,
             ]
@@ -247,9 +257,11 @@ mod tests {
             ("orbit 30\n", "s.txt:1: expected `orbit AZ,EL`"),
             ("orbit 0,95\n", "s.txt:1: expected `orbit AZ,EL`"),
             ("quit now\n", "s.txt:1: expected `quit` alone"),
+            ("size 64\n", "s.txt:1: expected `size WxH`"),
+            ("size 0x10\n", "s.txt:1: expected `size WxH`"),
             (
                 "jump 3\n",
-                "s.txt:1: expected key, frames, screenshot, orbit or quit, got \"jump\"",
+                "s.txt:1: expected key, frames, screenshot, orbit, size or quit, got \"jump\"",
             ),
         ];
         for (text, expected) in cases {
@@ -261,7 +273,7 @@ mod tests {
     #[test]
     fn the_runner_renders_frames_between_keys_and_quits_at_the_end() {
         let s = Script::parse(
-            "key m\nframes 2\nscreenshot a.png\norbit 1,2\n",
+            "key m\nframes 2\nscreenshot a.png\norbit 1,2\nsize 8x9\n",
             Path::new("s"),
         )
         .expect("valid");
@@ -271,6 +283,7 @@ mod tests {
         assert_eq!(r.next(), Next::Frame(None));
         assert_eq!(r.next(), Next::Frame(Some(PathBuf::from("a.png"))));
         assert_eq!(r.next(), Next::Orbit(1.0, 2.0));
+        assert_eq!(r.next(), Next::Size(8, 9));
         assert_eq!(r.next(), Next::Quit);
         assert_eq!(r.next(), Next::Quit);
         let mut q = Runner::new(Script::parse("quit\nframes 5\n", Path::new("s")).expect("ok"));

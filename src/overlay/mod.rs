@@ -26,6 +26,8 @@ pub const CAPACITY: usize = 8192;
 pub const MARGIN: f32 = 8.0;
 /// Space between a panel's edge and its text, in pixels.
 pub const PADDING: f32 = 6.0;
+/// Tab stops (`\t` moves the pen to the next multiple from the line's start), in pixels.
+pub const TAB: f32 = 88.0;
 /// Panel background: dark blue-grey, about 75 % opaque.
 pub const PANEL_COLOR: [u8; 4] = [16, 20, 30, 190];
 
@@ -64,7 +66,8 @@ impl Atlas {
             .map_err(|e| anyhow!("the embedded DejaVu Sans font is invalid: {e}"))?;
         let scaled = font.as_scaled(PxScale::from(px));
         let ascent = scaled.ascent().ceil();
-        let line_height = (scaled.ascent() - scaled.descent() + scaled.line_gap()).ceil();
+        // Two pixels more than the font's spacing: `_` and `|` reach a pixel past it.
+        let line_height = (scaled.ascent() - scaled.descent() + scaled.line_gap()).ceil() + 2.0;
         let width = OVERLAY_ATLAS_WIDTH;
         let mut glyphs = [GlyphInfo::default(); (LAST - FIRST + 1) as usize];
         // Shelf packing with one texel of space between glyphs, so no glyph reads a
@@ -107,7 +110,7 @@ impl Atlas {
         })
     }
 
-    /// The glyph drawn for `c` (`?` for characters outside printable ASCII).
+    /// The glyph drawn for `c` (`?` for characters outside printable ASCII; layout handles tabs).
     pub fn glyph(&self, c: char) -> &GlyphInfo {
         let b = u8::try_from(c)
             .ok()
@@ -116,9 +119,18 @@ impl Atlas {
         &self.glyphs[(b - FIRST) as usize]
     }
 
-    /// Width of `text` in pixels (the sum of its advances).
+    /// The pen position after `c`, from `pen` (pixels from the line's start).
+    pub fn advance(&self, pen: f32, c: char) -> f32 {
+        if c == '\t' {
+            (pen / TAB).floor() * TAB + TAB
+        } else {
+            pen + self.glyph(c).advance
+        }
+    }
+
+    /// Width of `text` in pixels (where its last advance ends).
     pub fn text_width(&self, text: &str) -> f32 {
-        text.chars().map(|c| self.glyph(c).advance).sum()
+        text.chars().fold(0.0, |pen, c| self.advance(pen, c))
     }
 }
 
@@ -189,8 +201,9 @@ fn pack(color: [u8; 4]) -> u32 {
 }
 
 /// Lays `panels` out in a window `width` pixels wide into `out`: per panel a background quad,
-/// then one quad per visible glyph. Returns the quads written; text that does not fit in `out`
-/// is cut.
+/// then one quad per visible glyph. Panels hang from their corner `MARGIN` pixels from the
+/// edges; one that would overlap an earlier panel goes below it instead. Returns the quads
+/// written; text that does not fit in `out` is cut.
 pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph]) -> usize {
     let mut n = 0;
     let mut push = |q: GpuGlyph| {
@@ -202,7 +215,9 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
             false
         }
     };
-    for panel in panels {
+    // Panels placed so far: (left, right, bottom).
+    let mut placed = [(0.0f32, 0.0f32, 0.0f32); 8];
+    for (index, panel) in panels.iter().enumerate() {
         let text_w = panel
             .lines
             .iter()
@@ -215,7 +230,14 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
             Corner::TopLeft => MARGIN,
             Corner::TopRight => (width as f32 - MARGIN - w).max(0.0).round(),
         };
-        let y = MARGIN;
+        let y = placed[..index.min(placed.len())]
+            .iter()
+            .filter(|(l, r, _)| x < r + MARGIN && *l < x + w + MARGIN)
+            .map(|(_, _, bottom)| bottom + MARGIN)
+            .fold(MARGIN, f32::max);
+        if let Some(slot) = placed.get_mut(index) {
+            *slot = (x, x + w, y + h);
+        }
         if !push(GpuGlyph {
             rect: Vec4::new(x, y, x + w, y + h),
             color: pack(PANEL_COLOR),
@@ -226,11 +248,12 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
         }
         for (i, line) in panel.lines.iter().enumerate() {
             let top = y + PADDING + i as f32 * atlas.line_height;
-            let mut pen = x + PADDING;
+            let left = x + PADDING;
+            let mut pen = 0.0;
             for c in line.text.chars() {
                 let g = atlas.glyph(c);
-                if g.size[0] > 0 && g.size[1] > 0 {
-                    let x0 = pen.round() + g.offset[0] as f32;
+                if c != '\t' && g.size[0] > 0 && g.size[1] > 0 {
+                    let x0 = (left + pen).round() + g.offset[0] as f32;
                     let y0 = top + g.offset[1] as f32;
                     if !push(GpuGlyph {
                         rect: Vec4::new(x0, y0, x0 + g.size[0] as f32, y0 + g.size[1] as f32),
@@ -242,7 +265,7 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
                         return n;
                     }
                 }
-                pen += g.advance;
+                pen = atlas.advance(pen, c);
             }
         }
     }
@@ -277,7 +300,10 @@ mod tests {
             assert!(g.size[0] > 0 && g.size[1] > 0, "{c:?} has no texels");
             assert!(g.atlas[0] + g.size[0] <= a.width && g.atlas[1] + g.size[1] <= a.height);
             // Glyphs sit between the line's top and the next line's top.
-            assert!(g.offset[1] >= -1 && g.offset[1] + g.size[1] as i32 <= a.line_height as i32);
+            assert!(
+                g.offset[1] >= 0 && g.offset[1] + g.size[1] as i32 <= a.line_height as i32,
+                "{c:?}: {g:?}"
+            );
             let texels = (0..g.size[1])
                 .flat_map(|y| (0..g.size[0]).map(move |x| (x, y)))
                 .map(|(x, y)| a.texels[((g.atlas[1] + y) * a.width + g.atlas[0] + x) as usize]);
@@ -365,6 +391,52 @@ mod tests {
         assert_eq!(panel.flags, OVERLAY_SOLID);
         assert_eq!(panel.rect.z, 640.0 - MARGIN);
         assert!(out[4].rect.x > panel.rect.x && out[4].rect.z < panel.rect.z);
+    }
+
+    #[test]
+    fn a_panel_that_would_overlap_goes_below() {
+        let a = atlas().expect("atlas");
+        let mut left = Panel::new(Corner::TopLeft);
+        left.line("a fairly long line of statistics", HudLine::TEXT);
+        let mut right = Panel::new(Corner::TopRight);
+        right.line("key help", HudLine::TEXT);
+        let panels = [left, right];
+        let mut out = vec![GpuGlyph::default(); 64];
+        let n = layout(a, &panels, 2000, &mut out);
+        let solid: Vec<Vec4> = out[..n]
+            .iter()
+            .filter(|q| q.flags == OVERLAY_SOLID)
+            .map(|q| q.rect)
+            .collect();
+        assert_eq!(solid[1].y, MARGIN, "side by side in a wide window");
+        let n = layout(a, &panels, 200, &mut out);
+        let solid: Vec<Vec4> = out[..n]
+            .iter()
+            .filter(|q| q.flags == OVERLAY_SOLID)
+            .map(|q| q.rect)
+            .collect();
+        assert_eq!(solid[1].y, solid[0].w + MARGIN, "stacked in a narrow one");
+        assert_eq!(solid[1].z, 200.0 - MARGIN);
+    }
+
+    #[test]
+    fn tabs_align_columns() {
+        let a = atlas().expect("atlas");
+        let mut p = Panel::new(Corner::TopLeft);
+        p.line("M\tx", HudLine::TEXT)
+            .line("Wide key\tx", HudLine::TEXT);
+        let mut out = vec![GpuGlyph::default(); 16];
+        let n = layout(a, &[p], 640, &mut out);
+        let x = a.glyph('x');
+        let column = |q: &GpuGlyph| q.rect.x - x.offset[0] as f32;
+        let xs: Vec<f32> = out[..n]
+            .iter()
+            .filter(|q| q.atlas_x == x.atlas[0] && q.atlas_y == x.atlas[1])
+            .map(column)
+            .collect();
+        assert_eq!(xs, vec![MARGIN + PADDING + TAB; 2]);
+        assert_eq!(a.text_width("M\tx"), TAB + x.advance);
+        assert_eq!(a.text_width("\t"), TAB);
     }
 
     #[test]
