@@ -513,7 +513,7 @@ impl Viewer {
             self.resizing = None;
         }
         while let Some(runner) = self.script.as_mut() {
-            match runner.next() {
+            match runner.step() {
                 Next::Key(k) => self.press(k)?,
                 Next::Orbit(az, el) => {
                     self.orbit.azimuth = az.to_radians();

@@ -172,7 +172,7 @@ impl Runner {
     }
 
     /// The next action; a frame action is counted as rendered.
-    pub fn next(&mut self) -> Next {
+    pub fn step(&mut self) -> Next {
         if self.frames_left > 0 {
             self.frames_left -= 1;
             return Next::Frame(None);
@@ -278,17 +278,17 @@ mod tests {
         )
         .expect("valid");
         let mut r = Runner::new(s);
-        assert_eq!(r.next(), Next::Key(ViewerKey::Char('m')));
-        assert_eq!(r.next(), Next::Frame(None));
-        assert_eq!(r.next(), Next::Frame(None));
-        assert_eq!(r.next(), Next::Frame(Some(PathBuf::from("a.png"))));
-        assert_eq!(r.next(), Next::Orbit(1.0, 2.0));
-        assert_eq!(r.next(), Next::Size(8, 9));
-        assert_eq!(r.next(), Next::Quit);
-        assert_eq!(r.next(), Next::Quit);
+        assert_eq!(r.step(), Next::Key(ViewerKey::Char('m')));
+        assert_eq!(r.step(), Next::Frame(None));
+        assert_eq!(r.step(), Next::Frame(None));
+        assert_eq!(r.step(), Next::Frame(Some(PathBuf::from("a.png"))));
+        assert_eq!(r.step(), Next::Orbit(1.0, 2.0));
+        assert_eq!(r.step(), Next::Size(8, 9));
+        assert_eq!(r.step(), Next::Quit);
+        assert_eq!(r.step(), Next::Quit);
         let mut q = Runner::new(Script::parse("quit\nframes 5\n", Path::new("s")).expect("ok"));
-        assert_eq!(q.next(), Next::Quit);
-        assert_eq!(q.next(), Next::Quit);
+        assert_eq!(q.step(), Next::Quit);
+        assert_eq!(q.step(), Next::Quit);
     }
 
     #[test]
