@@ -116,10 +116,11 @@ impl Hud {
         for (name, ms) in s.passes {
             stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
         }
-        // Every method submits every point each frame (batch culling in `compute` happens on
-        // the GPU and is not counted), so the points drawn per frame are the scene's points.
+        // Every method submits every point each frame; how many survive clipping and batch
+        // culling (`compute`) is decided on the GPU and not counted, so this is the number
+        // submitted, not the number that reached a pixel.
         stats.push(HudLine::new(
-            format!("points {} (all drawn each frame)", thousands(s.points)),
+            format!("points {} (all submitted each frame)", thousands(s.points)),
             HudLine::TEXT,
         ));
         stats.push(HudLine::new(
@@ -203,7 +204,7 @@ mod tests {
                 "GPU 1.75 ms per frame",
                 "  compute.project  1.25 ms",
                 "  compute.resolve  0.50 ms",
-                "points 110,000 (all drawn each frame)",
+                "points 110,000 (all submitted each frame)",
                 "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
                 "59.9 frames/s  800x600",
                 "H help   Tab hide HUD",
