@@ -162,14 +162,24 @@ pub struct ViewArgs {
     pub file: PathBuf,
     #[arg(long, short, default_value = "points")]
     pub method: String,
-    /// Initial window size WxH.
-    #[arg(long, default_value = "1024x768")]
-    pub size: String,
+    /// Initial window size WxH (default: 80 % of the monitor).
+    #[arg(long)]
+    pub size: Option<String>,
     /// Quit after N frames (smoke tests).
     #[arg(long)]
     pub frames: Option<u64>,
     #[arg(long)]
     pub validation: bool,
+    /// Run a tour: one command per line (`key NAME`, `frames N`, `screenshot PATH`,
+    /// `orbit AZ,EL`, `quit`), then quit.
+    #[arg(long)]
+    pub script: Option<PathBuf>,
+    /// Scene file where `K` saves and `L` loads the camera (.toml or .json).
+    #[arg(long, default_value = "surfel-camera.toml")]
+    pub camera_file: PathBuf,
+    /// Directory for `P` screenshots (surfel-<n>.png; default: the current directory).
+    #[arg(long)]
+    pub screenshot_dir: Option<PathBuf>,
     #[command(flatten)]
     pub input: InputArgs,
     #[command(flatten)]
@@ -459,8 +469,19 @@ fn render(a: RenderArgs) -> Result<()> {
 
 fn view(a: ViewArgs) -> Result<()> {
     let config = MethodConfig::parse(&a.method)?;
-    let (width, height) = parse_size(&a.size)?;
+    let size = a.size.as_deref().map(parse_size).transpose()?;
     let settings = view_settings(&a.camera)?;
+    let script = a
+        .script
+        .as_deref()
+        .map(crate::app::script::Script::load)
+        .transpose()?;
+    crate::app::script::check_camera_file(&a.camera_file)?;
+    if let Some(dir) = &a.screenshot_dir {
+        if !dir.is_dir() {
+            bail!("{}: the screenshot directory does not exist", dir.display());
+        }
+    }
     let cloud = load_prepared(&a.file, &a.input.options())?;
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let up = settings.up(cloud.up);
@@ -468,14 +489,20 @@ fn view(a: ViewArgs) -> Result<()> {
         cloud,
         crate::app::ViewerOptions {
             title: format!("surfel - {}", a.file.display()),
+            file: a.file.file_name().map_or_else(
+                || a.file.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
             method: config,
             camera: settings.camera(centre, radius, up),
             up,
             lights: settings.lights,
-            width,
-            height,
+            size,
             frames: a.frames,
             validation: a.validation || crate::gpu::context::validation_requested(),
+            script,
+            camera_file: a.camera_file,
+            screenshot_dir: a.screenshot_dir,
         },
     )
 }

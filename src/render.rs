@@ -17,6 +17,7 @@ use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
+use crate::overlay::{pass::OverlayPass, Panel};
 use crate::scene::{lights, Camera, Cloud, Light, Up};
 use crate::streams::{upload, StreamLayout, UploadOptions};
 
@@ -115,6 +116,9 @@ pub struct Extras {
     pub present: Option<ImageDesc>,
     /// Frame slots (command buffer, fence, timestamp pool, frame uniforms), at least 1.
     pub frames_in_flight: usize,
+    /// Draw the viewer's text overlay over the color target (before present and readback);
+    /// its text is set per frame with `Renderer::set_overlay`.
+    pub overlay: bool,
 }
 
 impl Default for Extras {
@@ -123,6 +127,7 @@ impl Default for Extras {
             readback: false,
             present: None,
             frames_in_flight: DEFAULT_FRAMES_IN_FLIGHT,
+            overlay: false,
         }
     }
 }
@@ -151,6 +156,7 @@ pub struct Renderer {
     uniforms: Vec<Buffer>,
     frame_id: BufferId,
     readback: Option<Readback>,
+    overlay: Option<OverlayPass>,
     /// The swapchain image slot when presenting.
     pub present_target: Option<ImageId>,
     pub width: u32,
@@ -234,6 +240,18 @@ impl Renderer {
             width,
             height,
         })?;
+        let overlay = if extras.overlay {
+            Some(OverlayPass::add(
+                ctx,
+                &mut g,
+                targets.color,
+                frame_id,
+                slots,
+                width,
+            )?)
+        } else {
+            None
+        };
         let present_target = extras
             .present
             .map(|desc| add_present(&mut g, targets.color, desc));
@@ -255,6 +273,7 @@ impl Renderer {
             uniforms,
             frame_id,
             readback,
+            overlay,
             present_target,
             width,
             height,
@@ -285,6 +304,9 @@ impl Renderer {
         self.graph.profiler().collect(slot)?;
         self.graph
             .bind_external_buffer(self.frame_id, &self.uniforms[slot]);
+        if let Some(overlay) = &self.overlay {
+            overlay.bind(&mut self.graph, slot);
+        }
         Ok(self.frames.acquire_semaphore())
     }
 
@@ -336,6 +358,16 @@ impl Renderer {
             block.u.light_count += 1;
         }
         self.uniforms[self.frames.current()].write(bytemuck::bytes_of(&block))
+    }
+
+    /// Sets the current slot's overlay text (after `begin_frame`, before `record`); returns the
+    /// quads drawn. A renderer built without `Extras::overlay` draws nothing and returns 0.
+    pub fn set_overlay(&mut self, panels: &[Panel]) -> Result<usize> {
+        let slot = self.frames.current();
+        match &mut self.overlay {
+            Some(overlay) => overlay.write(slot, panels),
+            None => Ok(0),
+        }
     }
 
     /// Records the frame into the current slot's command buffer.
@@ -408,7 +440,9 @@ impl Renderer {
         self.graph.profiler().last()
     }
 
-    fn read_frame(&self) -> Result<Frame> {
+    /// The frame read back by the last finished frame recorded with readback (built with
+    /// `Extras::readback`; call after `finish`).
+    pub fn read_frame(&self) -> Result<Frame> {
         let rb = self
             .readback
             .as_ref()

@@ -1,41 +1,59 @@
-//! The interactive viewer: a winit window, an ash swapchain, an orbit/pan/zoom camera, keys to
-//! switch methods and toggle color, and per-pass GPU milliseconds in the title.
+//! The interactive viewer: a winit window, an ash swapchain, an orbit/pan/zoom camera, a HUD
+//! drawn by the text overlay (method, per-pass GPU time, points, GPU memory, frame rate, key
+//! help), screenshots, camera files and scripted tours.
 //!
-//! Controls: left drag orbits, right (or middle) drag pans, the wheel zooms, `M`/`N` switch to
-//! the next/previous method, `C` toggles point colors, `R` resets the camera, `Esc` quits.
+//! Keys are listed in `hud::KEYS` (the help panel shows them); real key events and script
+//! `key` steps go through the same handler, `Viewer::press`.
 
+pub mod hud;
+pub mod script;
+
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::Instant;
 
-use anyhow::{Context as _, Result};
+use anyhow::{bail, Context as _, Result};
 use glam::{Vec2, Vec3};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
-use winit::keyboard::{Key, NamedKey};
 use winit::raw_window_handle::HasDisplayHandle;
-use winit::window::{Window, WindowId};
+use winit::window::{Fullscreen, Window, WindowId};
 
+use crate::frame::Frame;
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
+use crate::overlay::Panel;
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::camera::{orbit_angles, orbit_direction};
+use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
+use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
+use hud::{FrameRate, Hud, Stats};
+use script::{Next, Runner, Script, ViewerKey};
 
 /// What the viewer shows.
 pub struct ViewerOptions {
     pub title: String,
+    /// The input's name, shown in the HUD.
+    pub file: String,
     pub method: MethodConfig,
     pub camera: Camera,
     /// The axis the drag orbit turns about.
     pub up: Up,
     pub lights: Vec<Light>,
-    pub width: u32,
-    pub height: u32,
+    /// Initial window size; `None`: 80 % of the monitor (1280x720 when it is unknown).
+    pub size: Option<(u32, u32)>,
     /// Quit after this many frames (smoke tests); run until closed when `None`.
     pub frames: Option<u64>,
     pub validation: bool,
+    /// A tour to run instead of waiting for input; the viewer quits at its end.
+    pub script: Option<Script>,
+    /// Where `K` saves and `L` loads the camera (a scene file).
+    pub camera_file: PathBuf,
+    /// Where `P` writes `surfel-<n>.png` (the current directory when `None`).
+    pub screenshot_dir: Option<PathBuf>,
 }
 
 /// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
@@ -104,21 +122,40 @@ struct Viewer {
     orbit: Orbit,
     method: usize,
     use_color: bool,
+    /// The HUD is drawn (`Tab`).
+    hud_visible: bool,
+    /// The key help is shown (`H`).
+    help: bool,
+    /// The HUD's panels, rebuilt when `hud_dirty` (state changes, and twice a second).
+    panels: Vec<Panel>,
+    hud_dirty: bool,
+    /// The last action's outcome, shown in the HUD.
+    status: String,
+    rate: FrameRate,
+    /// GPU allocator bytes (allocated, reserved), sampled with the frame rate.
+    memory: Option<(u64, u64)>,
+    script: Option<Runner>,
+    /// A script's `size` step: the size asked for and the frames rendered since.
+    resizing: Option<(PhysicalSize<u32>, u32)>,
+    /// Write the next frame to this PNG.
+    screenshot: Option<PathBuf>,
+    quit: bool,
     drag: Option<(MouseButton, Vec2)>,
     cursor: Vec2,
     frames: u64,
-    start: std::time::Instant,
+    start: Instant,
     error: Option<anyhow::Error>,
 }
 
-/// Opens the viewer window on `cloud` and runs until it is closed.
-pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
+/// Opens the viewer window on `cloud` and runs until it is closed (or its script ends).
+pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     let event_loop =
         EventLoop::new().context("cannot open a window system connection (is DISPLAY set?)")?;
     let method = METHODS
         .iter()
         .position(|m| m.name == opts.method.method.name)
         .unwrap_or(0);
+    let script = opts.script.take().map(Runner::new);
     let mut viewer = Viewer {
         orbit: Orbit::from_camera(&opts.camera, opts.up),
         opts,
@@ -128,26 +165,122 @@ pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
         gpu: None,
         method,
         use_color: true,
+        hud_visible: true,
+        help: false,
+        panels: Vec::new(),
+        hud_dirty: true,
+        status: String::new(),
+        rate: FrameRate::new(Instant::now()),
+        memory: None,
+        script,
+        resizing: None,
+        screenshot: None,
+        quit: false,
         drag: None,
         cursor: Vec2::ZERO,
         frames: 0,
-        start: std::time::Instant::now(),
+        start: Instant::now(),
         error: None,
     };
     event_loop.run_app(&mut viewer)?;
     if let Some(ctx) = &viewer.ctx {
         if ctx.validation && ctx.validation_errors() > 0 {
-            anyhow::bail!("{} validation errors", ctx.validation_errors());
+            anyhow::bail!(
+                "{} validation errors: {:#?}",
+                ctx.validation_errors(),
+                ctx.first_validation_errors()
+            );
         }
     }
     viewer.error.map_or(Ok(()), Err)
 }
 
+/// Frames a script's `size` step waits for the window to take its size.
+const RESIZE_FRAMES: u32 = 500;
+
+/// 80 % of the current (else the primary, else any) monitor; 1280x720 when none is known.
+fn default_window_size(event_loop: &ActiveEventLoop) -> PhysicalSize<u32> {
+    event_loop
+        .primary_monitor()
+        .or_else(|| event_loop.available_monitors().next())
+        .map(|m| m.size())
+        .filter(|s| s.width > 0 && s.height > 0)
+        .map_or(PhysicalSize::new(1280, 720), |s| {
+            PhysicalSize::new((s.width * 4 / 5).max(1), (s.height * 4 / 5).max(1))
+        })
+}
+
+/// GPU memory in use and reserved by the context's allocator (every buffer and image).
+fn gpu_memory(ctx: &Context) -> Option<(u64, u64)> {
+    let guard = ctx.allocator.lock().ok()?;
+    let report = guard.as_ref()?.generate_report();
+    Some((report.total_allocated_bytes, report.total_capacity_bytes))
+}
+
+/// The first `surfel-<n>.png` (n = 1, 2, ...) that does not exist in `dir` (or the current
+/// directory).
+fn next_screenshot_path(dir: Option<&Path>) -> PathBuf {
+    let mut n = 1u64;
+    loop {
+        let name = format!("surfel-{n}.png");
+        let path = dir.map_or_else(|| PathBuf::from(&name), |d| d.join(&name));
+        if !path.exists() {
+            return path;
+        }
+        n += 1;
+    }
+}
+
+/// Writes the frame's color as an opaque RGB PNG (what the window shows).
+pub fn write_png(path: &Path, frame: &Frame) -> Result<()> {
+    let rgb: Vec<u8> = frame
+        .color
+        .iter()
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    image::save_buffer(
+        path,
+        &rgb,
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgb8,
+    )
+    .with_context(|| format!("{}: cannot write PNG", path.display()))
+}
+
+/// Saves `camera` (and the up axis and lights) as a scene file `--scene` reads back.
+pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Result<()> {
+    SceneFile {
+        up: Some(up),
+        camera: Some(Pose::LookAt {
+            eye: camera.eye.into(),
+            target: camera.target.into(),
+        }),
+        lights: lights.to_vec(),
+    }
+    .save(path)
+}
+
+/// The camera of the scene file at `path` for a scene with this bounding sphere, orbiting
+/// about `up` unless the file names its own up axis.
+pub fn load_camera(path: &Path, centre: Vec3, radius: f32, up: Up) -> Result<Camera> {
+    let file = SceneFile::load(path)?;
+    let pose = file
+        .camera
+        .with_context(|| format!("{}: the scene file has no camera", path.display()))?;
+    Ok(pose.camera(centre, radius, file.up.unwrap_or(up)))
+}
+
 impl Viewer {
     fn init(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        let size = self.opts.size.map_or_else(
+            || default_window_size(event_loop),
+            |(w, h)| PhysicalSize::new(w, h),
+        );
         let attrs = Window::default_attributes()
             .with_title(self.opts.title.clone())
-            .with_inner_size(PhysicalSize::new(self.opts.width, self.opts.height));
+            .with_inner_size(size)
+            .with_resizable(true);
         let window = Arc::new(event_loop.create_window(attrs)?);
         if self.ctx.is_none() {
             let display = event_loop.display_handle()?.as_raw();
@@ -204,8 +337,10 @@ impl Viewer {
             swapchain.extent.width,
             swapchain.extent.height,
             Extras {
-                readback: false,
+                // Screenshots read the color target back (after the overlay drew on it).
+                readback: true,
                 present: Some(desc),
+                overlay: true,
                 ..Extras::default()
             },
         )
@@ -224,6 +359,7 @@ impl Viewer {
             let renderer = self.build_renderer(&ctx, &gpu.swapchain)?;
             self.gpu = Some(Gpu { renderer, ..gpu });
         }
+        self.hud_dirty = true;
         Ok(())
     }
 
@@ -244,8 +380,178 @@ impl Viewer {
         self.rebuild()
     }
 
-    fn frame(&mut self) -> Result<()> {
+    /// Handles a key, from the window or from the script.
+    fn press(&mut self, key: ViewerKey) -> Result<()> {
+        self.hud_dirty = true;
+        match key {
+            ViewerKey::Escape => self.quit = true,
+            ViewerKey::Tab => self.hud_visible = !self.hud_visible,
+            ViewerKey::F11 => {
+                if let Some(gpu) = &self.gpu {
+                    let full = gpu.window.fullscreen().is_some();
+                    gpu.window
+                        .set_fullscreen((!full).then_some(Fullscreen::Borderless(None)));
+                }
+            }
+            ViewerKey::Char('m') => self.switch_method(1)?,
+            ViewerKey::Char('n') => self.switch_method(-1)?,
+            ViewerKey::Char('c') => self.use_color = !self.use_color,
+            ViewerKey::Char('r') => {
+                self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up)
+            }
+            ViewerKey::Char('h') => self.help = !self.help,
+            ViewerKey::Char('p') => {
+                self.screenshot = Some(next_screenshot_path(self.opts.screenshot_dir.as_deref()))
+            }
+            ViewerKey::Char('k') => {
+                let path = self.opts.camera_file.clone();
+                let saved = save_camera(
+                    &path,
+                    &self.orbit.camera(),
+                    self.orbit.up,
+                    &self.opts.lights,
+                );
+                self.outcome(saved.map(|()| format!("camera saved to {}", path.display())))?;
+            }
+            ViewerKey::Char('l') => {
+                let loaded = self.load_camera();
+                self.outcome(loaded)?;
+            }
+            ViewerKey::Char(_) => {}
+        }
+        Ok(())
+    }
+
+    fn load_camera(&mut self) -> Result<String> {
+        let (_, info) = self.scene.as_ref().context("scene not uploaded")?;
+        let path = &self.opts.camera_file;
+        let camera = load_camera(path, info.centre, info.radius, self.orbit.up)?;
+        let home = self.orbit.home;
+        self.orbit = Orbit::from_camera(&camera, self.orbit.up);
+        self.orbit.home = home;
+        Ok(format!("camera loaded from {}", path.display()))
+    }
+
+    /// Reports an action's outcome in the HUD and on stdout. A failure stops a script (its
+    /// error is the viewer's); interactively it is only reported.
+    fn outcome(&mut self, result: Result<String>) -> Result<()> {
+        match result {
+            Ok(message) => {
+                println!("{message}");
+                self.status = message;
+                Ok(())
+            }
+            Err(e) if self.script.is_none() => {
+                eprintln!("error: {e:#}");
+                self.status = format!("error: {e:#}");
+                Ok(())
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Rebuilds the HUD's panels and the window title from the newest figures.
+    fn refresh_hud(&mut self) {
         let Some(gpu) = self.gpu.as_mut() else {
+            return;
+        };
+        let passes: Vec<(String, f64)> = gpu
+            .renderer
+            .last_timings()
+            .into_iter()
+            .filter(|(n, _)| !n.starts_with("present"))
+            .collect();
+        let label = gpu.renderer.config.label();
+        let hud = Hud::new(
+            &Stats {
+                method: &label,
+                file: &self.opts.file,
+                passes: &passes,
+                points: u64::from(gpu.renderer.info.points),
+                width: gpu.renderer.width,
+                height: gpu.renderer.height,
+                fps: self.rate.fps,
+                memory: self.memory,
+                use_color: self.use_color,
+                status: &self.status,
+            },
+            self.help,
+        );
+        self.panels = hud.panels();
+        let ms: Vec<String> = passes
+            .iter()
+            .map(|(n, ms)| format!("{n} {ms:.2}"))
+            .collect();
+        gpu.window.set_title(&format!(
+            "{} - {} - {} ms{}",
+            self.opts.title,
+            label,
+            ms.join(" | "),
+            if self.use_color { "" } else { " (no color)" }
+        ));
+        self.hud_dirty = false;
+    }
+
+    /// Runs script steps up to the next frame; returns false when the script is over.
+    fn run_script(&mut self) -> Result<bool> {
+        if let (Some((size, waited)), Some(gpu)) = (self.resizing.as_mut(), self.gpu.as_ref()) {
+            let now = gpu.window.inner_size();
+            if now != *size {
+                // The window system resizes asynchronously: keep rendering meanwhile.
+                *waited += 1;
+                if *waited > RESIZE_FRAMES {
+                    bail!(
+                        "the window did not resize to {}x{} within {RESIZE_FRAMES} frames (it is {}x{})",
+                        size.width,
+                        size.height,
+                        now.width,
+                        now.height
+                    );
+                }
+                return Ok(true);
+            }
+            self.resizing = None;
+        }
+        while let Some(runner) = self.script.as_mut() {
+            match runner.step() {
+                Next::Key(k) => self.press(k)?,
+                Next::Orbit(az, el) => {
+                    self.orbit.azimuth = az.to_radians();
+                    self.orbit.elevation = el.to_radians().clamp(-1.55, 1.55);
+                }
+                Next::Size(w, h) => {
+                    let size = PhysicalSize::new(w, h);
+                    if let Some(gpu) = &self.gpu {
+                        // `None`: the size is applied later, reported by a `Resized` event.
+                        let _ = gpu.window.request_inner_size(size);
+                    }
+                    self.resizing = Some((size, 0));
+                    return self.run_script();
+                }
+                Next::Frame(shot) => {
+                    if shot.is_some() {
+                        self.screenshot = shot;
+                    }
+                    return Ok(true);
+                }
+                Next::Quit => return Ok(false),
+            }
+            if self.quit {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    fn frame(&mut self) -> Result<()> {
+        if self.quit || self.gpu.is_none() {
+            return Ok(());
+        }
+        if !self.run_script()? {
+            self.quit = true;
+            return Ok(());
+        }
+        let Some(gpu) = self.gpu.as_ref() else {
             return Ok(());
         };
         let size = gpu.window.inner_size();
@@ -253,14 +559,21 @@ impl Viewer {
             return Ok(());
         }
         if (size.width, size.height) != (gpu.swapchain.extent.width, gpu.swapchain.extent.height) {
-            return self.rebuild();
+            self.rebuild()?;
         }
+        if self.hud_dirty {
+            self.refresh_hud();
+        }
+        let Some(gpu) = self.gpu.as_mut() else {
+            return Ok(());
+        };
         // Waits only for the frame that used this slot last; the frame submitted just before
         // keeps running while this one is recorded.
         let available = gpu.renderer.begin_frame()?;
         let Some(index) = gpu.swapchain.acquire(available)? else {
             return self.rebuild();
         };
+        let shot = self.screenshot.take();
         let image = gpu.swapchain.images[index as usize];
         gpu.renderer
             .bind_present_image(image, ash::vk::ImageView::null());
@@ -270,28 +583,27 @@ impl Viewer {
             use_color: self.use_color,
             time: self.start.elapsed().as_secs_f32(),
         })?;
-        gpu.renderer.record(false)?;
+        let panels: &[Panel] = if self.hud_visible { &self.panels } else { &[] };
+        gpu.renderer.set_overlay(panels)?;
+        gpu.renderer.record(shot.is_some())?;
         gpu.renderer.submit(
             Some(available),
             Some(gpu.swapchain.rendered[index as usize]),
         )?;
         let presented = gpu.swapchain.present(index)?;
         self.frames += 1;
-        // The newest completed frame's timings (collected by `begin_frame`).
-        let passes: Vec<String> = gpu
-            .renderer
-            .last_timings()
-            .iter()
-            .filter(|(n, _)| !n.starts_with("present"))
-            .map(|(n, ms)| format!("{n} {ms:.2}"))
-            .collect();
-        gpu.window.set_title(&format!(
-            "{} - {} - {} ms{}",
-            self.opts.title,
-            gpu.renderer.config.label(),
-            passes.join(" | "),
-            if self.use_color { "" } else { " (no color)" }
-        ));
+        if let Some(path) = shot {
+            gpu.renderer.finish()?;
+            let frame = gpu.renderer.read_frame()?;
+            let written =
+                write_png(&path, &frame).map(|()| format!("screenshot {}", path.display()));
+            self.outcome(written)?;
+            self.hud_dirty = true;
+        }
+        if self.rate.tick(Instant::now()) {
+            self.memory = self.ctx.as_deref().and_then(gpu_memory);
+            self.hud_dirty = true;
+        }
         if !presented {
             self.rebuild()?;
         }
@@ -317,30 +629,18 @@ impl ApplicationHandler for Viewer {
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         let result = match event {
             WindowEvent::CloseRequested => {
-                self.gpu = None;
-                event_loop.exit();
+                self.quit = true;
                 Ok(())
             }
-            WindowEvent::Resized(_) => Ok(()),
+            WindowEvent::Resized(_) => {
+                self.hud_dirty = true;
+                Ok(())
+            }
             WindowEvent::RedrawRequested => self.frame(),
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                match event.logical_key.as_ref() {
-                    Key::Named(NamedKey::Escape) => {
-                        self.gpu = None;
-                        event_loop.exit();
-                        Ok(())
-                    }
-                    Key::Character("m") | Key::Named(NamedKey::Tab) => self.switch_method(1),
-                    Key::Character("n") => self.switch_method(-1),
-                    Key::Character("c") => {
-                        self.use_color = !self.use_color;
-                        Ok(())
-                    }
-                    Key::Character("r") => {
-                        self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up);
-                        Ok(())
-                    }
-                    _ => Ok(()),
+                match ViewerKey::from_winit(&event.logical_key) {
+                    Some(key) => self.press(key),
+                    None => Ok(()),
                 }
             }
             WindowEvent::MouseInput { state, button, .. } => {
@@ -386,7 +686,7 @@ impl ApplicationHandler for Viewer {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
-        if self.opts.frames.is_some_and(|n| self.frames >= n) {
+        if self.quit || self.opts.frames.is_some_and(|n| self.frames >= n) {
             self.gpu = None;
             event_loop.exit();
             return;
@@ -429,5 +729,40 @@ mod tests {
         orbit.azimuth = 1.5;
         orbit.elevation = 0.0;
         assert_eq!(orbit.camera().up, Vec3::Z);
+    }
+
+    #[test]
+    fn a_saved_camera_loads_back_unchanged() {
+        let dir = std::env::temp_dir().join(format!("surfel-camera-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let (centre, radius) = (Vec3::new(1.0, -2.0, 0.5), 3.0);
+        let camera = Camera::orbit_about(Up::Z, centre, radius, 33.3, 21.7, 1.1);
+        for name in ["cam.toml", "cam.json"] {
+            let path = dir.join(name);
+            save_camera(&path, &camera, Up::Z, &[Light::headlight()]).expect("save");
+            let file = SceneFile::load(&path).expect("parses");
+            assert_eq!(file.up, Some(Up::Z));
+            assert_eq!(file.lights, vec![Light::headlight()]);
+            assert_eq!(
+                file.camera,
+                Some(Pose::LookAt {
+                    eye: camera.eye.into(),
+                    target: camera.target.into()
+                })
+            );
+            // Loaded about another axis: the file's own up axis wins.
+            assert_eq!(
+                load_camera(&path, centre, radius, Up::Y).expect("load"),
+                camera
+            );
+        }
+        let bad = dir.join("cam.txt");
+        let e = save_camera(&bad, &camera, Up::Z, &[]).unwrap_err();
+        assert!(format!("{e:#}").contains("cam.txt"), "{e:#}");
+        let e = load_camera(&dir.join("missing.toml"), centre, radius, Up::Z).unwrap_err();
+        assert!(format!("{e:#}").contains("missing.toml"), "{e:#}");
+        std::fs::write(dir.join("nocam.toml"), "up = \"z\"\n").expect("write");
+        let e = load_camera(&dir.join("nocam.toml"), centre, radius, Up::Z).unwrap_err();
+        assert!(format!("{e:#}").contains("has no camera"), "{e:#}");
     }
 }

@@ -65,6 +65,17 @@ pub struct FrameUniforms {
     pub pad2: u32,
 }
 
+/// One overlay quad (`GpuGlyph` in GLSL): a glyph from the atlas or a solid panel.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuGlyph {
+    pub rect: Vec4,
+    pub atlas_x: u32,
+    pub atlas_y: u32,
+    pub color: u32,
+    pub flags: u32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -153,6 +164,13 @@ pub fn mirrors() -> Vec<Mirror> {
             pad0,
             pad1,
             pad2
+        }),
+        mirror!(GpuGlyph {
+            rect,
+            atlas_x,
+            atlas_y,
+            color,
+            flags
         }),
     ]
 }

@@ -192,6 +192,8 @@ pub enum Blend {
     Replace,
     /// dst += src (accumulation passes).
     Additive,
+    /// dst = src * src.a + dst * (1 - src.a) (straight alpha; overlays).
+    Alpha,
 }
 
 /// Everything that defines a graphics pipeline.
@@ -288,6 +290,14 @@ impl Pipeline {
                         .color_blend_op(vk::BlendOp::ADD)
                         .src_alpha_blend_factor(vk::BlendFactor::ONE)
                         .dst_alpha_blend_factor(vk::BlendFactor::ONE)
+                        .alpha_blend_op(vk::BlendOp::ADD),
+                    Blend::Alpha => base
+                        .blend_enable(true)
+                        .src_color_blend_factor(vk::BlendFactor::SRC_ALPHA)
+                        .dst_color_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
+                        .color_blend_op(vk::BlendOp::ADD)
+                        .src_alpha_blend_factor(vk::BlendFactor::ONE)
+                        .dst_alpha_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
                         .alpha_blend_op(vk::BlendOp::ADD),
                 }
             })

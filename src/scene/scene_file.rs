@@ -48,6 +48,20 @@ impl SceneFile {
             _ => bail!("{}: scene files must end in .toml or .json", path.display()),
         }
     }
+
+    /// Writes the file as TOML (`.toml`) or JSON (`.json`).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let text = match ext {
+            "toml" => toml::to_string(self)
+                .with_context(|| format!("{}: cannot encode scene file", path.display()))?,
+            "json" => serde_json::to_string_pretty(self)
+                .with_context(|| format!("{}: cannot encode scene file", path.display()))?,
+            _ => bail!("{}: scene files must end in .toml or .json", path.display()),
+        };
+        std::fs::write(path, text)
+            .with_context(|| format!("{}: cannot write scene file", path.display()))
+    }
 }
 
 #[cfg(test)]

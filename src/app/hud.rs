@@ -1,0 +1,247 @@
+//! What the viewer's HUD says: the statistics panel (method, per-pass GPU time, points, GPU
+//! memory, frame rate) and the key help. The text is rebuilt twice a second and on changes;
+//! other code extends it by appending lines to `Hud::stats` before `Hud::panels`.
+
+use std::time::{Duration, Instant};
+
+use crate::overlay::{Corner, HudLine, Panel};
+
+/// Every viewer key and mouse control, as shown by the help panel (`H`).
+pub const KEYS: &[(&str, &str)] = &[
+    ("left drag", "orbit about the up axis"),
+    ("right drag", "pan"),
+    ("wheel", "zoom"),
+    ("M / N", "next / previous method"),
+    ("C", "toggle point colors"),
+    ("R", "reset the camera"),
+    ("K", "save the camera (--camera-file)"),
+    ("L", "load the camera (--camera-file)"),
+    ("P", "screenshot (PNG)"),
+    ("H", "show / hide this help"),
+    ("Tab", "show / hide the HUD"),
+    ("F11", "fullscreen"),
+    ("Esc", "quit"),
+];
+
+/// How often the statistics are refreshed (and the frame rate averaged over).
+pub const REFRESH: Duration = Duration::from_millis(500);
+
+/// Frames per second averaged over windows of at least `REFRESH`.
+pub struct FrameRate {
+    start: Instant,
+    frames: u32,
+    /// The last window's rate (`None` before the first window closes).
+    pub fps: Option<f64>,
+}
+
+impl FrameRate {
+    pub fn new(now: Instant) -> Self {
+        Self {
+            start: now,
+            frames: 0,
+            fps: None,
+        }
+    }
+
+    /// Counts a frame presented at `now`; true when a window closed and `fps` changed.
+    pub fn tick(&mut self, now: Instant) -> bool {
+        self.frames += 1;
+        let elapsed = now.duration_since(self.start);
+        if elapsed < REFRESH {
+            return false;
+        }
+        self.fps = Some(f64::from(self.frames) / elapsed.as_secs_f64());
+        self.start = now;
+        self.frames = 0;
+        true
+    }
+}
+
+/// The figures the statistics panel shows.
+pub struct Stats<'a> {
+    pub method: &'a str,
+    pub file: &'a str,
+    /// Per-pass GPU milliseconds of the newest completed frame.
+    pub passes: &'a [(String, f64)],
+    pub points: u64,
+    pub width: u32,
+    pub height: u32,
+    pub fps: Option<f64>,
+    /// Bytes allocated and reserved by the GPU allocator.
+    pub memory: Option<(u64, u64)>,
+    pub use_color: bool,
+    /// The last action's outcome (camera saved, screenshot written, ...).
+    pub status: &'a str,
+}
+
+/// The HUD's panels: statistics (top left) and, when asked, the key help (top right).
+pub struct Hud {
+    pub stats: Vec<HudLine>,
+    pub help: bool,
+}
+
+/// Formats `n` with thousands separators.
+pub fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
+impl Hud {
+    /// The statistics lines for `s`.
+    pub fn new(s: &Stats<'_>, help: bool) -> Self {
+        let mut stats = vec![
+            HudLine::new(s.method, HudLine::HEADING),
+            HudLine::new(s.file, HudLine::DIM),
+        ];
+        let total: f64 = s.passes.iter().map(|(_, ms)| ms).sum();
+        stats.push(HudLine::new(
+            if s.passes.is_empty() {
+                "GPU: waiting for the first frame".to_string()
+            } else {
+                format!("GPU {total:.2} ms per frame")
+            },
+            HudLine::TEXT,
+        ));
+        for (name, ms) in s.passes {
+            stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
+        }
+        // Every method submits every point each frame; how many survive clipping and batch
+        // culling (`compute`) is decided on the GPU and not counted, so this is the number
+        // submitted, not the number that reached a pixel.
+        stats.push(HudLine::new(
+            format!("points {} (all submitted each frame)", thousands(s.points)),
+            HudLine::TEXT,
+        ));
+        stats.push(HudLine::new(
+            match s.memory {
+                Some((used, reserved)) => format!(
+                    "GPU memory {:.1} MiB in use, {:.1} MiB reserved",
+                    mib(used),
+                    mib(reserved)
+                ),
+                None => "GPU memory unknown".to_string(),
+            },
+            HudLine::TEXT,
+        ));
+        stats.push(HudLine::new(
+            match s.fps {
+                Some(fps) => format!("{fps:.1} frames/s  {}x{}", s.width, s.height),
+                None => format!("- frames/s  {}x{}", s.width, s.height),
+            },
+            HudLine::TEXT,
+        ));
+        if !s.use_color {
+            stats.push(HudLine::new("point colors off (C)", HudLine::DIM));
+        }
+        if !s.status.is_empty() {
+            stats.push(HudLine::new(s.status, HudLine::HEADING));
+        }
+        stats.push(HudLine::new("H help   Tab hide HUD", HudLine::DIM));
+        Self { stats, help }
+    }
+
+    /// The panels to draw.
+    pub fn panels(&self) -> Vec<Panel> {
+        let mut out = vec![Panel {
+            corner: Corner::TopLeft,
+            lines: self.stats.clone(),
+        }];
+        if self.help {
+            let mut help = Panel::new(Corner::TopRight);
+            help.line("Keys", HudLine::HEADING);
+            for (key, what) in KEYS {
+                help.line(format!("{key}\t{what}"), HudLine::TEXT);
+            }
+            out.push(help);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stats<'a>(passes: &'a [(String, f64)]) -> Stats<'a> {
+        Stats {
+            method: "compute:quantized=1",
+            file: "autzen.las",
+            passes,
+            points: 110_000,
+            width: 800,
+            height: 600,
+            fps: Some(59.94),
+            memory: Some((3 << 20, 64 << 20)),
+            use_color: true,
+            status: "",
+        }
+    }
+
+    #[test]
+    fn the_stats_panel_lists_method_passes_total_points_memory_and_rate() {
+        let passes = vec![
+            ("compute.project".to_string(), 1.25),
+            ("compute.resolve".to_string(), 0.5),
+        ];
+        let hud = Hud::new(&stats(&passes), false);
+        let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+        assert_eq!(
+            text,
+            [
+                "compute:quantized=1",
+                "autzen.las",
+                "GPU 1.75 ms per frame",
+                "  compute.project  1.25 ms",
+                "  compute.resolve  0.50 ms",
+                "points 110,000 (all submitted each frame)",
+                "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
+                "59.9 frames/s  800x600",
+                "H help   Tab hide HUD",
+            ]
+        );
+        assert_eq!(hud.panels().len(), 1);
+    }
+
+    #[test]
+    fn help_lists_every_key_in_a_second_panel() {
+        let hud = Hud::new(&stats(&[]), true);
+        let panels = hud.panels();
+        assert_eq!(panels.len(), 2);
+        assert_eq!(panels[1].corner, Corner::TopRight);
+        assert_eq!(panels[1].lines.len(), KEYS.len() + 1);
+        for key in ["M / N", "C", "R", "K", "L", "P", "H", "Tab", "F11", "Esc"] {
+            assert!(
+                panels[1]
+                    .lines
+                    .iter()
+                    .any(|l| l.text.starts_with(&format!("{key}\t"))),
+                "{key} missing"
+            );
+        }
+        assert!(hud.stats[2].text.contains("waiting"));
+    }
+
+    #[test]
+    fn frame_rate_averages_over_half_a_second() {
+        let t0 = Instant::now();
+        let mut r = FrameRate::new(t0);
+        for i in 1..25 {
+            assert!(!r.tick(t0 + Duration::from_millis(20 * i)));
+        }
+        assert!(r.tick(t0 + Duration::from_millis(500)));
+        assert!((r.fps.expect("rate") - 50.0).abs() < 1e-9);
+        assert_eq!(thousands(1_234_567), "1,234,567");
+        assert_eq!(thousands(999), "999");
+    }
+}

@@ -1,0 +1,259 @@
+//! The viewer end to end under Xvfb with validation (and synchronization validation) on:
+//! scripted tours that show and hide the HUD, take screenshots, save and load the camera and
+//! resize the window; script errors; the window sized to the monitor.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use image::RgbImage;
+
+fn data(rel: &str) -> PathBuf {
+    let root = std::env::var_os("SURFEL_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    root.join(rel)
+}
+
+/// A fresh directory for one test.
+fn tmp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("surfel-viewer-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+/// Runs `surfel view FILE args` under `xvfb-run` (screen `screen`) in `dir`.
+fn view(dir: &Path, screen: &str, file: &Path, args: &[&str]) -> Output {
+    Command::new("xvfb-run")
+        .args(["-a", "-s", &format!("-screen 0 {screen}x24")])
+        .arg(env!("CARGO_BIN_EXE_surfel"))
+        .arg("view")
+        .arg(file)
+        .args(args)
+        .arg("--validation")
+        .current_dir(dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("xvfb-run is installed by ../shared/ci/install-vulkan.sh")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn png(path: &Path) -> RgbImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8()
+}
+
+fn bright(p: &image::Rgb<u8>) -> bool {
+    p.0.iter().all(|&c| c >= 200)
+}
+
+/// Pixels where `a` and `b` differ, and their bounding box (x0, y0, x1, y1), inclusive.
+fn difference(a: &RgbImage, b: &RgbImage) -> (usize, Option<(u32, u32, u32, u32)>) {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let mut n = 0;
+    let mut bbox: Option<(u32, u32, u32, u32)> = None;
+    for (x, y, p) in a.enumerate_pixels() {
+        if p != b.get_pixel(x, y) {
+            n += 1;
+            bbox = Some(match bbox {
+                None => (x, y, x, y),
+                Some((x0, y0, x1, y1)) => (x0.min(x), y0.min(y), x1.max(x), y1.max(y)),
+            });
+        }
+    }
+    (n, bbox)
+}
+
+#[test]
+fn a_scripted_tour_shows_and_hides_the_hud_saves_and_loads_the_camera_and_resizes() {
+    let dir = tmp_dir("tour");
+    let las = data("lidar/autzen_trim.las");
+    std::fs::write(
+        dir.join("tour.txt"),
+        "# the HUD on, then off\n\
+         frames 2\n\
+         screenshot hud.png\n\
+         key Tab\n\
+         screenshot plain.png\n\
+         key K              # save the camera\n\
+         orbit 120,5\n\
+         screenshot turned.png\n\
+         key L              # and load it back\n\
+         screenshot loaded.png\n\
+         key Tab\n\
+         key H\n\
+         screenshot help.png\n\
+         key h\n\
+         key c\n\
+         key m\n\
+         size 320x200\n\
+         screenshot small.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "1024x768",
+        &las,
+        &[
+            "--size",
+            "480x360",
+            "--orbit",
+            "30,20",
+            "--script",
+            "tour.txt",
+            "--camera-file",
+            "cam.toml",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    for line in [
+        "screenshot hud.png",
+        "screenshot plain.png",
+        "camera saved to cam.toml",
+        "camera loaded from cam.toml",
+        "screenshot small.png",
+    ] {
+        assert!(
+            stdout.lines().any(|l| l == line),
+            "{line:?} not in {stdout}"
+        );
+    }
+
+    // The HUD: a panel from (MARGIN, MARGIN) with bright text on it, the rest untouched.
+    let (hud, plain) = (png(&dir.join("hud.png")), png(&dir.join("plain.png")));
+    assert_eq!(hud.dimensions(), (480, 360));
+    let (changed, bbox) = difference(&hud, &plain);
+    let (x0, y0, x1, y1) = bbox.expect("the HUD changed the image");
+    let margin = surfel::overlay::MARGIN as u32;
+    assert_eq!(
+        (x0, y0),
+        (margin, margin),
+        "the panel hangs from the top-left margin"
+    );
+    let area = (x1 - x0 + 1) * (y1 - y0 + 1);
+    assert!(
+        area < 480 * 360 / 2 && x1 < 400 && y1 < 300,
+        "the HUD covers only a corner: {bbox:?}"
+    );
+    // The translucent panel changes (almost) every pixel under it.
+    assert!(changed as f64 > 0.95 * area as f64, "{changed} of {area}");
+    let text_pixels = (y0..=y1)
+        .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+        .filter(|&(x, y)| bright(hud.get_pixel(x, y)) && !bright(plain.get_pixel(x, y)))
+        .count();
+    assert!(text_pixels > 300, "only {text_pixels} bright text pixels");
+
+    // The camera file holds the --orbit 30,20 camera and loading it restores the view.
+    let cam = surfel::scene::scene_file::SceneFile::load(&dir.join("cam.toml")).expect("parses");
+    let cloud = surfel::scene::load(&las).expect("autzen");
+    let (centre, radius) = cloud.bounding_sphere().expect("points");
+    let up = surfel::scene::Up::Z;
+    let expected = surfel::scene::Camera::orbit_about(up, centre, radius, 30.0, 20.0, 1.0);
+    assert_eq!(cam.up, Some(up));
+    let Some(surfel::scene::camera::Pose::LookAt { eye, target }) = cam.camera else {
+        panic!("no look-at camera in {:?}", cam.camera);
+    };
+    assert!(
+        (glam::Vec3::from(eye) - expected.eye).length() < 1e-4 * radius,
+        "{eye:?} vs {}",
+        expected.eye
+    );
+    assert!((glam::Vec3::from(target) - expected.target).length() < 1e-4 * radius);
+    let (turned, _) = difference(&plain, &png(&dir.join("turned.png")));
+    assert!(
+        turned > 480 * 360 / 20,
+        "orbit 120,5 changed only {turned} pixels"
+    );
+    let (loaded, _) = difference(&plain, &png(&dir.join("loaded.png")));
+    assert!(
+        loaded < 480 * 360 / 200,
+        "the loaded camera differs in {loaded} pixels"
+    );
+
+    // Help: a second panel hangs from the top-right margin.
+    let help = png(&dir.join("help.png"));
+    let (_, bbox) = difference(&help, &plain);
+    let (_, _, x1, _) = bbox.expect("HUD and help drawn");
+    assert_eq!(
+        x1,
+        480 - margin - 1,
+        "the help panel reaches the right margin"
+    );
+
+    // After the resize, the frame (and the HUD) have the new size.
+    assert_eq!(png(&dir.join("small.png")).dimensions(), (320, 200));
+}
+
+#[test]
+fn without_size_the_window_takes_80_percent_of_the_monitor() {
+    let dir = tmp_dir("monitor");
+    std::fs::write(dir.join("s.txt"), "screenshot full.png\nquit\nframes 100\n").expect("script");
+    let o = view(
+        &dir,
+        "500x400",
+        &data("stanford/bun_zipper.ply"),
+        &["--script", "s.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    assert_eq!(png(&dir.join("full.png")).dimensions(), (400, 320));
+}
+
+#[test]
+fn a_bad_script_line_names_the_file_and_line() {
+    let dir = tmp_dir("bad");
+    std::fs::write(dir.join("bad.txt"), "frames 1\n# fine\nkey Space\n").expect("script");
+    let o = Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(["view"])
+        .arg(data("stanford/bun_zipper.ply"))
+        .args(["--script", "bad.txt"])
+        .current_dir(&dir)
+        .output()
+        .expect("run surfel");
+    let stderr = text(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("bad.txt:3: expected `key NAME` with NAME a letter, Tab, F11 or Esc"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let o = Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(["view"])
+        .arg(data("stanford/bun_zipper.ply"))
+        .args(["--camera-file", "cam.txt"])
+        .current_dir(&dir)
+        .output()
+        .expect("run surfel");
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("cam.txt: camera files are scene files"));
+}
+
+#[test]
+fn a_failing_script_step_stops_the_viewer_with_its_error() {
+    let dir = tmp_dir("fail");
+    std::fs::write(dir.join("s.txt"), "frames 1\nkey L\nframes 5\n").expect("script");
+    let o = view(
+        &dir,
+        "640x480",
+        &data("stanford/bun_zipper.ply"),
+        &[
+            "--size",
+            "64x48",
+            "--script",
+            "s.txt",
+            "--camera-file",
+            "none.toml",
+        ],
+    );
+    assert!(!o.status.success());
+    let stderr = text(&o.stderr);
+    assert!(
+        stderr.contains("none.toml: cannot read scene file"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
