@@ -7,6 +7,7 @@ pub mod frame;
 pub mod gpu;
 pub mod graph;
 pub mod methods;
+pub mod post;
 pub mod render;
 pub mod rng;
 pub mod scene;

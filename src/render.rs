@@ -17,6 +17,7 @@ use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
+use crate::post::{self, PostOptions};
 use crate::scene::{lights, Camera, Cloud, Light, Up};
 use crate::streams::{upload, StreamLayout, UploadOptions};
 
@@ -115,6 +116,9 @@ pub struct Extras {
     pub present: Option<ImageDesc>,
     /// Frame slots (command buffer, fence, timestamp pool, frame uniforms), at least 1.
     pub frames_in_flight: usize,
+    /// Post-processing after the method (eye-dome lighting, background); none by default, so
+    /// the evaluation scores the method's own targets.
+    pub post: PostOptions,
 }
 
 impl Default for Extras {
@@ -123,6 +127,7 @@ impl Default for Extras {
             readback: false,
             present: None,
             frames_in_flight: DEFAULT_FRAMES_IN_FLIGHT,
+            post: PostOptions::NONE,
         }
     }
 }
@@ -234,11 +239,16 @@ impl Renderer {
             width,
             height,
         })?;
+        // The post stage's color (or the method's, without post-processing) is what is shown.
+        let shown = Targets {
+            color: post::build(ctx, &mut g, targets, width, height, &extras.post)?,
+            ..targets
+        };
         let present_target = extras
             .present
-            .map(|desc| add_present(&mut g, targets.color, desc));
+            .map(|desc| add_present(&mut g, shown.color, desc));
         let readback = if extras.readback {
-            Some(add_readback(ctx, &mut g, targets, width, height)?)
+            Some(add_readback(ctx, &mut g, shown, width, height)?)
         } else {
             None
         };

@@ -2,7 +2,8 @@
 //! switch methods and toggle color, and per-pass GPU milliseconds in the title.
 //!
 //! Controls: left drag orbits, right (or middle) drag pans, the wheel zooms, `M`/`N` switch to
-//! the next/previous method, `C` toggles point colors, `R` resets the camera, `Esc` quits.
+//! the next/previous method, `C` toggles point colors, `E` toggles eye-dome lighting, `R` resets
+//! the camera, `Esc` quits.
 
 use std::sync::Arc;
 
@@ -19,6 +20,7 @@ use winit::window::{Window, WindowId};
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
+use crate::post::PostOptions;
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction};
 use crate::scene::{Camera, Cloud, Light, Up};
@@ -31,6 +33,8 @@ pub struct ViewerOptions {
     /// The axis the drag orbit turns about.
     pub up: Up,
     pub lights: Vec<Light>,
+    /// Eye-dome lighting (at start; `E` toggles it) and background.
+    pub post: PostOptions,
     pub width: u32,
     pub height: u32,
     /// Quit after this many frames (smoke tests); run until closed when `None`.
@@ -104,6 +108,8 @@ struct Viewer {
     orbit: Orbit,
     method: usize,
     use_color: bool,
+    /// The post-processing shown now (`E` switches EDL on and off).
+    post: PostOptions,
     drag: Option<(MouseButton, Vec2)>,
     cursor: Vec2,
     frames: u64,
@@ -121,6 +127,7 @@ pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
         .unwrap_or(0);
     let mut viewer = Viewer {
         orbit: Orbit::from_camera(&opts.camera, opts.up),
+        post: opts.post,
         opts,
         cloud,
         ctx: None,
@@ -206,6 +213,7 @@ impl Viewer {
             Extras {
                 readback: false,
                 present: Some(desc),
+                post: self.post,
                 ..Extras::default()
             },
         )
@@ -241,6 +249,16 @@ impl Viewer {
                 break;
             }
         }
+        self.rebuild()
+    }
+
+    /// Switches eye-dome lighting off, or on with the parameters given at start (else the
+    /// defaults), and rebuilds the graph.
+    fn toggle_edl(&mut self) -> Result<()> {
+        self.post.edl = match self.post.edl {
+            Some(_) => None,
+            None => Some(self.opts.post.edl.unwrap_or_default()),
+        };
         self.rebuild()
     }
 
@@ -336,6 +354,7 @@ impl ApplicationHandler for Viewer {
                         self.use_color = !self.use_color;
                         Ok(())
                     }
+                    Key::Character("e") => self.toggle_edl(),
                     Key::Character("r") => {
                         self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up);
                         Ok(())

@@ -65,6 +65,21 @@ pub struct FrameUniforms {
     pub pad2: u32,
 }
 
+/// Push constants of the post-processing pass (`PostParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PostParams {
+    pub offsets01: Vec4,
+    pub offsets23: Vec4,
+    pub offsets45: Vec4,
+    pub offsets67: Vec4,
+    pub background: Vec4,
+    pub strength: f32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -150,6 +165,17 @@ pub fn mirrors() -> Vec<Mirror> {
             point_count,
             segment_points,
             batch_count,
+            pad0,
+            pad1,
+            pad2
+        }),
+        mirror!(PostParams {
+            offsets01,
+            offsets23,
+            offsets45,
+            offsets67,
+            background,
+            strength,
             pad0,
             pad1,
             pad2

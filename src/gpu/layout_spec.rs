@@ -50,12 +50,15 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // Workgroup sizes.
     ("RESOLVE_GROUP", 8),
     ("RASTER_GROUP", 128),
+    ("POST_GROUP", 8),
     // Points per batch (Schuetz et al. 2021: 10,240 points, 80 per thread of a 128-wide group).
     ("BATCH_POINTS", 10240),
     // Bits per axis of each quantized position word (Schuetz et al. 2022: 3 x 10 bits).
     ("QUANT_BITS", 10),
     // Most scalar attribute streams uploaded per cloud.
     ("MAX_SCALAR_STREAMS", 4),
+    // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
+    ("EDL_NEIGHBOURS", 8),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -119,6 +122,24 @@ pub const STRUCTS: &[StructSpec] = &[
             // Points per stream segment (every segment but the last is full).
             f("uint", "segment_points"),
             f("uint", "batch_count"),
+            f("uint", "pad0"),
+            f("uint", "pad1"),
+            f("uint", "pad2"),
+        ],
+    },
+    // Push constants of the post-processing pass (eye-dome lighting, background).
+    StructSpec {
+        name: "PostParams",
+        fields: &[
+            // Integer pixel offsets of the EDL neighbours, two per vec4 (x0, y0, x1, y1).
+            f("vec4", "offsets01"),
+            f("vec4", "offsets23"),
+            f("vec4", "offsets45"),
+            f("vec4", "offsets67"),
+            // sRGB-encoded background color, alpha 1.
+            f("vec4", "background"),
+            // EDL strength (the shade is exp(-300 strength sum / EDL_NEIGHBOURS)).
+            f("float", "strength"),
             f("uint", "pad0"),
             f("uint", "pad1"),
             f("uint", "pad2"),

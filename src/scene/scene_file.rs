@@ -1,7 +1,9 @@
-//! Scene files (TOML or JSON): a camera pose and lights.
+//! Scene files (TOML or JSON): a camera pose, lights and post-processing.
 //!
 //! ```toml
 //! up = "z"                 # x | y | z | -x | -y | -z (default: from the file format)
+//! edl = { strength = 1.0, radius = 1.4 }   # eye-dome lighting (both optional)
+//! background = "#202020"   # #rrggbb | r,g,b | black | white | grey | transparent
 //! [camera]
 //! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
 //! [[lights]]
@@ -17,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::camera::{Pose, Up};
 use super::lights::Light;
+use crate::post::{Background, Edl};
 
 /// The parsed file.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -27,6 +30,10 @@ pub struct SceneFile {
     pub camera: Option<Pose>,
     #[serde(default)]
     pub lights: Vec<Light>,
+    /// Eye-dome lighting with these parameters.
+    pub edl: Option<Edl>,
+    /// The background color (or `transparent`).
+    pub background: Option<Background>,
 }
 
 impl SceneFile {
