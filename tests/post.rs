@@ -105,7 +105,10 @@ fn check_edl(plain: &Frame, lit: &Frame, edl: &Edl, label: &str) -> (usize, usiz
             let i = (y * SIZE as i32 + x) as usize;
             let (before, after) = (plain.color[i], lit.color[i]);
             if !plain.covered(i) {
-                assert_eq!(after, before, "{label}: background pixel ({x}, {y}) changed");
+                assert_eq!(
+                    after, before,
+                    "{label}: background pixel ({x}, {y}) changed"
+                );
                 continue;
             }
             let shade = (-300.0 * f64::from(edl.strength) * response(plain, edl, x, y)).exp();

@@ -85,19 +85,18 @@ impl Edl {
         }
         let (lo, hi) = RADIUS_RANGE;
         if !(lo..=hi).contains(&radius) {
-            return Err(format!(
-                "EDL radius {radius} is outside {lo}..={hi} pixels"
-            ));
+            return Err(format!("EDL radius {radius} is outside {lo}..={hi} pixels"));
         }
         Ok(Self { strength, radius })
     }
 
-    /// Parses `STRENGTH` or `STRENGTH,RADIUS` (the `--edl` value).
+    /// Parses `STRENGTH` or `STRENGTH,RADIUS` (the `--edl` value; the command line names the
+    /// value in its error).
     pub fn parse(s: &str) -> Result<Self, String> {
         let expected = || {
             format!(
-                "'{s}': expected STRENGTH[,RADIUS], numbers with STRENGTH in 0..={MAX_STRENGTH} \
-                 and RADIUS in {}..={} pixels (default {EDL_DEFAULT_ARG})",
+                "expected STRENGTH[,RADIUS], numbers with STRENGTH in 0..={MAX_STRENGTH} and \
+                 RADIUS in {}..={} pixels (default {EDL_DEFAULT_ARG})",
                 RADIUS_RANGE.0, RADIUS_RANGE.1
             )
         };
@@ -106,7 +105,7 @@ impl Edl {
             Some((a, b)) => (number(a)?, number(b)?),
             None => (number(s)?, DEFAULT_RADIUS),
         };
-        Self::new(strength, radius).map_err(|e| format!("'{s}': {e}"))
+        Self::new(strength, radius)
     }
 
     /// The integer pixel offsets of the neighbours: `radius` pixels away in the directions
@@ -136,7 +135,8 @@ impl Background {
     /// and the viewer showed before backgrounds existed.
     pub const DEFAULT: Background = Background::Color([0, 0, 0]);
 
-    /// Parses `#rrggbb`, `r,g,b` (0-255), `black`, `white`, `grey`/`gray` or `transparent`.
+    /// Parses `#rrggbb`, `r,g,b` (0-255), `black`, `white`, `grey`/`gray` or `transparent` (the
+    /// caller names the value in its error).
     pub fn parse(s: &str) -> Result<Self, String> {
         let t = s.trim();
         let named = match t.to_ascii_lowercase().as_str() {
@@ -163,10 +163,9 @@ impl Background {
             }
         };
         rgb.map(Background::Color).ok_or_else(|| {
-            format!(
-                "'{s}': expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, \
-                 or transparent"
-            )
+            "expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, or \
+             transparent"
+                .to_string()
         })
     }
 }
@@ -184,7 +183,7 @@ impl TryFrom<String> for Background {
     type Error = String;
 
     fn try_from(s: String) -> Result<Self, String> {
-        Background::parse(&s)
+        Background::parse(&s).map_err(|e| format!("background '{s}': {e}"))
     }
 }
 
@@ -216,7 +215,11 @@ impl PostOptions {
 
     /// The push constants of the post pass.
     pub fn params(&self) -> PostParams {
-        let o = self.edl.unwrap_or_default().offsets().map(|[x, y]| [x as f32, y as f32]);
+        let o = self
+            .edl
+            .unwrap_or_default()
+            .offsets()
+            .map(|[x, y]| [x as f32, y as f32]);
         let pair = |i: usize| Vec4::new(o[i][0], o[i][1], o[i + 1][0], o[i + 1][1]);
         let background = match self.background {
             Background::Transparent => Vec4::ZERO,
@@ -311,9 +314,9 @@ mod tests {
         assert_eq!(Edl::parse("2.5"), Edl::new(2.5, DEFAULT_RADIUS));
         assert_eq!(Edl::parse(" 0.5 , 3 "), Edl::new(0.5, 3.0));
         let e = Edl::parse("x").unwrap_err();
-        assert!(e.contains("'x'") && e.contains("expected STRENGTH[,RADIUS]"), "{e}");
+        assert!(e.contains("expected STRENGTH[,RADIUS]"), "{e}");
         let e = Edl::parse("1,0.5").unwrap_err();
-        assert!(e.contains("'1,0.5'") && e.contains("radius 0.5 is outside 1..=64"), "{e}");
+        assert!(e.contains("radius 0.5 is outside 1..=64"), "{e}");
         let e = Edl::parse("-1").unwrap_err();
         assert!(e.contains("strength -1 is outside 0..=100"), "{e}");
         assert!(Edl::parse("NaN").is_err() && Edl::parse("1,2,3").is_err());
@@ -322,11 +325,29 @@ mod tests {
     #[test]
     fn edl_neighbours_ring_the_pixel_at_the_radius() {
         // Potree's default radius 1.4 picks the 8-connected ring, counter-clockwise from +x.
-        let ring = [[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1]];
+        let ring = [
+            [1, 0],
+            [1, 1],
+            [0, 1],
+            [-1, 1],
+            [-1, 0],
+            [-1, -1],
+            [0, -1],
+            [1, -1],
+        ];
         assert_eq!(Edl::default().offsets(), ring);
         assert_eq!(
             Edl::new(1.0, 3.0).expect("valid").offsets(),
-            [[3, 0], [2, 2], [0, 3], [-2, 2], [-3, 0], [-2, -2], [0, -3], [2, -2]]
+            [
+                [3, 0],
+                [2, 2],
+                [0, 3],
+                [-2, 2],
+                [-3, 0],
+                [-2, -2],
+                [0, -3],
+                [2, -2]
+            ]
         );
     }
 
@@ -341,14 +362,20 @@ mod tests {
             Background::parse("transparent"),
             Ok(Background::Transparent)
         );
-        for bad in ["#12345", "#12345g", "#+f+f+f", "#ééé", "1,2", "256,0,0", "pink", ""] {
-            let e = Background::parse(bad).unwrap_err();
+        for bad in [
+            "#12345", "#12345g", "#+f+f+f", "#ééé", "1,2", "256,0,0", "pink", "",
+        ] {
+            let e = Background::try_from(bad.to_string()).unwrap_err();
             assert!(
-                e.contains(&format!("'{bad}'")) && e.contains("#rrggbb, r,g,b"),
+                e.contains(&format!("background '{bad}'")) && e.contains("#rrggbb, r,g,b"),
                 "{e}"
             );
         }
-        for b in [Background::DEFAULT, Background::Transparent, Background::Color([1, 2, 250])] {
+        for b in [
+            Background::DEFAULT,
+            Background::Transparent,
+            Background::Color([1, 2, 250]),
+        ] {
             assert_eq!(Background::parse(&b.to_string()), Ok(b));
         }
     }

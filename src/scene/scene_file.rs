@@ -92,6 +92,39 @@ mod tests {
     }
 
     #[test]
+    fn parses_post_processing_with_defaults_and_checks_it() {
+        use crate::post::{Background, Edl};
+        let t = SceneFile::parse(
+            "edl = { radius = 3 }\nbackground = \"#102030\"\n",
+            Path::new("s.toml"),
+        )
+        .expect("valid post-processing");
+        assert_eq!(t.edl, Some(Edl::new(1.0, 3.0).expect("valid")));
+        assert_eq!(t.background, Some(Background::Color([16, 32, 48])));
+        let j = SceneFile::parse(
+            r#"{"edl": {}, "background": "transparent"}"#,
+            Path::new("s.json"),
+        )
+        .expect("valid post-processing");
+        assert_eq!(j.edl, Some(Edl::default()));
+        assert_eq!(j.background, Some(Background::Transparent));
+        let e = SceneFile::parse("edl = { strength = -2 }\n", Path::new("e.toml")).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("e.toml") && e.contains("strength -2 is outside"),
+            "{e}"
+        );
+        let e = SceneFile::parse("edl = { size = 2 }\n", Path::new("e.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("size"), "{e:#}");
+        let e = SceneFile::parse("background = \"pink\"\n", Path::new("b.toml")).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("b.toml") && e.contains("background 'pink'"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn rejects_unknown_keys_and_formats() {
         let e = SceneFile::parse("[camra]\n", Path::new("bad.toml")).unwrap_err();
         assert!(format!("{e:#}").contains("bad.toml"));
