@@ -24,7 +24,8 @@ layout(push_constant) uniform Push { PostParams p; } pc;
 // The scale of the references' response: shade = exp(-EDL_SCALE * strength * mean response).
 const float EDL_SCALE = 300.0;
 
-float edl_response(ivec2 px, ivec2 size, float log_depth) {
+float edl_response(ivec2 px, ivec2 size, float depth) {
+    float log_depth = log2(depth);
     vec4 pairs[EDL_NEIGHBOURS / 2] =
         vec4[](pc.p.offsets01, pc.p.offsets23, pc.p.offsets45, pc.p.offsets67);
     float sum = 0.0;
@@ -32,7 +33,8 @@ float edl_response(ivec2 px, ivec2 size, float log_depth) {
         vec4 pair = pairs[i / 2];
         ivec2 offset = ivec2((i % 2) == 0 ? pair.xy : pair.zw);
         float d = imageLoad(in_depth, clamp(px + offset, ivec2(0), size - 1)).r;
-        if (d > 0.0) {
+        // max(0, log2 depth - log2 d) without a logarithm where it is 0 (flat regions).
+        if (d > 0.0 && d < depth) {
             sum += max(0.0, log_depth - log2(d));
         }
     }
@@ -52,7 +54,7 @@ void main() {
         return;
     }
     if (EDL) {
-        float response = edl_response(px, size, log2(depth));
+        float response = edl_response(px, size, depth);
         color.rgb *= exp(-EDL_SCALE * pc.p.strength * response);
     }
     if (BACKGROUND) {
