@@ -47,12 +47,12 @@ void main() {
     if (any(greaterThanEqual(px, size))) {
         return;
     }
-    vec4 color = imageLoad(in_color, px);
     float depth = imageLoad(in_depth, px).r;
     if (!(depth > 0.0)) {
-        imageStore(out_color, px, BACKGROUND ? pc.p.background : color);
+        imageStore(out_color, px, BACKGROUND ? pc.p.background : imageLoad(in_color, px));
         return;
     }
+    vec4 color = imageLoad(in_color, px);
     if (EDL) {
         float response = edl_response(px, size, depth);
         color.rgb *= exp(-EDL_SCALE * pc.p.strength * response);
