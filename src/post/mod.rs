@@ -26,6 +26,9 @@ use crate::gpu::{Binding, Context, ImageDesc, Pipeline};
 use crate::graph::{Access, Descriptor, GraphBuilder, ImageId, Stages};
 use crate::methods::{Targets, COLOR_FORMAT};
 
+// `PostParams` holds the offsets of exactly eight neighbours.
+const _: () = assert!(EDL_NEIGHBOURS == 8);
+
 /// Potree's default EDL strength.
 pub const DEFAULT_STRENGTH: f32 = 1.0;
 /// Potree's default EDL radius in pixels.
@@ -139,28 +142,28 @@ impl Background {
     /// caller names the value in its error).
     pub fn parse(s: &str) -> Result<Self, String> {
         let t = s.trim();
-        let named = match t.to_ascii_lowercase().as_str() {
-            "transparent" => Some(Background::Transparent),
-            "black" => Some(Background::Color([0, 0, 0])),
-            "white" => Some(Background::Color([255, 255, 255])),
-            "grey" | "gray" => Some(Background::Color([128, 128, 128])),
-            _ => None,
-        };
-        let rgb = if let Some(b) = named {
-            return Ok(b);
-        } else if let Some(hex) = t.strip_prefix('#') {
-            (hex.len() == 6 && hex.chars().all(|c| c.is_ascii_hexdigit()))
-                .then(|| {
+        let rgb = match t.to_ascii_lowercase().as_str() {
+            "transparent" => return Ok(Background::Transparent),
+            "black" => Some([0, 0, 0]),
+            "white" => Some([255, 255, 255]),
+            "grey" | "gray" => Some([128, 128, 128]),
+            _ => match t.strip_prefix('#') {
+                Some(hex) if hex.len() == 6 && hex.chars().all(|c| c.is_ascii_hexdigit()) => {
                     let byte = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).ok();
-                    Some([byte(0)?, byte(2)?, byte(4)?])
-                })
-                .flatten()
-        } else {
-            let parts: Vec<Option<u8>> = t.split(',').map(|p| p.trim().parse().ok()).collect();
-            match parts[..] {
-                [Some(r), Some(g), Some(b)] => Some([r, g, b]),
-                _ => None,
-            }
+                    byte(0)
+                        .zip(byte(2))
+                        .zip(byte(4))
+                        .map(|((r, g), b)| [r, g, b])
+                }
+                Some(_) => None,
+                None => {
+                    let mut parts = t.split(',').map(|p| p.trim().parse::<u8>().ok());
+                    match (parts.next(), parts.next(), parts.next(), parts.next()) {
+                        (Some(Some(r)), Some(Some(g)), Some(Some(b)), None) => Some([r, g, b]),
+                        _ => None,
+                    }
+                }
+            },
         };
         rgb.map(Background::Color).ok_or_else(|| {
             "expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, or \
