@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
+use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
 use crate::render::{upload, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::preprocess;
@@ -120,6 +121,27 @@ pub struct CameraArgs {
     /// Render with the base color instead of the points' colors.
     #[arg(long)]
     pub no_color: bool,
+    #[command(flatten)]
+    pub post: PostArgs,
+}
+
+/// Post-processing options (after any method; see `post`).
+#[derive(Args, Debug, Clone, Default)]
+pub struct PostArgs {
+    /// Eye-dome lighting, depth-based shading that needs no normals: `--edl` alone for
+    /// strength 1 and radius 1.4 pixels, or `--edl STRENGTH[,RADIUS]`.
+    #[arg(
+        long,
+        value_name = "STRENGTH[,RADIUS]",
+        num_args = 0..=1,
+        default_missing_value = EDL_DEFAULT_ARG,
+        value_parser = Edl::parse
+    )]
+    pub edl: Option<Edl>,
+    /// Background of uncovered pixels: #rrggbb, r,g,b (0-255), black, white, grey, or
+    /// transparent (alpha 0 in the PNG). Default: opaque black.
+    #[arg(long, value_name = "COLOR", value_parser = Background::parse)]
+    pub background: Option<Background>,
 }
 
 #[derive(Args, Debug)]
@@ -260,6 +282,8 @@ pub struct ViewSettings {
     /// The up axis, `None` for the input format's.
     pub up: Option<Up>,
     pub lights: Vec<Light>,
+    /// Eye-dome lighting and background (flags over the scene file over the defaults).
+    pub post: PostOptions,
 }
 
 impl ViewSettings {
@@ -302,6 +326,14 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
         pose,
         up: cam.up.or(file.up),
         lights,
+        post: PostOptions {
+            edl: cam.post.edl.or(file.edl),
+            background: cam
+                .post
+                .background
+                .or(file.background)
+                .unwrap_or(Background::DEFAULT),
+        },
     })
 }
 
@@ -377,6 +409,7 @@ fn render(a: RenderArgs) -> Result<()> {
         Extras {
             readback: true,
             present: None,
+            post: settings.post.for_readback(),
             ..Extras::default()
         },
     )?;
@@ -439,12 +472,13 @@ fn render(a: RenderArgs) -> Result<()> {
         eprintln!("{:<24} {:>9.3} ms", "frame", timings.frame.median_ms);
     }
     // The frame to write: the first one, unless timed frames followed (then a fresh one).
-    let frame = if a.timings.is_some() {
+    let mut frame = if a.timings.is_some() {
         renderer.render(&view, true)?
     } else {
         first
     }
     .context("renderer returned no frame")?;
+    crate::post::composite(&mut frame, settings.post.background);
     drop(renderer);
     if ctx.validation && ctx.validation_errors() > 0 {
         bail!("{} Vulkan validation errors", ctx.validation_errors());
@@ -498,6 +532,7 @@ fn view(a: ViewArgs) -> Result<()> {
             up,
             lights: settings.lights,
             size,
+            post: settings.post,
             frames: a.frames,
             validation: a.validation || crate::gpu::context::validation_requested(),
             script,
@@ -624,6 +659,7 @@ mod tests {
             up,
             scene: None,
             no_color: false,
+            post: PostArgs::default(),
         }
     }
 

@@ -6,7 +6,8 @@
 pub struct Frame {
     pub width: u32,
     pub height: u32,
-    /// sRGB-encoded lit color, alpha 255 where covered, 0 where empty.
+    /// sRGB-encoded lit color, alpha 255 where covered, 0 where empty (255 everywhere when the
+    /// renderer composited an opaque background, `post::Background`).
     pub color: Vec<[u8; 4]>,
     /// Linear view-space depth (distance along the view direction, > 0) where covered,
     /// `f32::INFINITY` where empty.

@@ -8,6 +8,7 @@ pub mod gpu;
 pub mod graph;
 pub mod methods;
 pub mod overlay;
+pub mod post;
 pub mod render;
 pub mod rng;
 pub mod scene;

@@ -18,6 +18,7 @@ use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
 use crate::overlay::{pass::OverlayPass, Panel};
+use crate::post::{self, PostOptions};
 use crate::scene::{lights, Camera, Cloud, Light, Up};
 use crate::streams::{upload, StreamLayout, UploadOptions};
 
@@ -119,6 +120,9 @@ pub struct Extras {
     /// Draw the viewer's text overlay over the color target (before present and readback);
     /// its text is set per frame with `Renderer::set_overlay`.
     pub overlay: bool,
+    /// Post-processing after the method (eye-dome lighting, background); none by default, so
+    /// the evaluation scores the method's own targets.
+    pub post: PostOptions,
 }
 
 impl Default for Extras {
@@ -128,6 +132,7 @@ impl Default for Extras {
             present: None,
             frames_in_flight: DEFAULT_FRAMES_IN_FLIGHT,
             overlay: false,
+            post: PostOptions::NONE,
         }
     }
 }
@@ -240,11 +245,16 @@ impl Renderer {
             width,
             height,
         })?;
+        // The post stage's color (or the method's, without post-processing) is what is shown.
+        let shown = Targets {
+            color: post::build(ctx, &mut g, targets, width, height, &extras.post)?,
+            ..targets
+        };
         let overlay = if extras.overlay {
             Some(OverlayPass::add(
                 ctx,
                 &mut g,
-                targets.color,
+                shown.color,
                 frame_id,
                 slots,
                 width,
@@ -254,9 +264,9 @@ impl Renderer {
         };
         let present_target = extras
             .present
-            .map(|desc| add_present(&mut g, targets.color, desc));
+            .map(|desc| add_present(&mut g, shown.color, desc));
         let readback = if extras.readback {
-            Some(add_readback(ctx, &mut g, targets, width, height)?)
+            Some(add_readback(ctx, &mut g, shown, width, height)?)
         } else {
             None
         };

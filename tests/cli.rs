@@ -69,6 +69,8 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
         png.to_str().expect("utf8"),
         "--timings",
         json.to_str().expect("utf8"),
+        "--background",
+        "transparent",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let img = image::open(&png).expect("png").to_rgba8();
@@ -83,6 +85,129 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
     assert_eq!(t["passes"][0]["samples"], 3);
     assert!(t["passes"][0]["median_ms"].as_f64().expect("ms") > 0.0);
     assert!(t["points_per_second"].as_f64().expect("rate") > 0.0);
+}
+
+/// Renders the bunny at 48x48 with `extra` arguments; returns the PNG and the output.
+fn render_bunny(name: &str, extra: &[&str]) -> (image::RgbaImage, Output) {
+    let png = tmp(name);
+    let bunny = data("stanford/bun_zipper.ply");
+    let mut args = vec![
+        "render",
+        bunny.to_str().expect("utf8"),
+        "--size",
+        "48x48",
+        "--validation",
+        "--out",
+        png.to_str().expect("utf8"),
+    ];
+    args.extend(extra);
+    let o = surfel(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (image::open(&png).expect("png").to_rgba8(), o)
+}
+
+#[test]
+fn the_png_background_is_opaque_unless_transparent_is_asked_for() {
+    let (img, o) = render_bunny("bg-default.png", &["--dump-graph"]);
+    assert!(
+        img.pixels().all(|p| p[3] == 255),
+        "default PNG has alpha < 255"
+    );
+    assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0, 255], "default background");
+    let graph = String::from_utf8_lossy(&o.stdout);
+    // Composited on the read-back frame: no GPU pass for the background alone.
+    assert!(!graph.contains("post."), "{graph}");
+    let (img, _) = render_bunny("bg-orange.png", &["--background", "#ff8000"]);
+    assert_eq!(img.get_pixel(0, 0).0, [255, 128, 0, 255]);
+    assert!(img.pixels().all(|p| p[3] == 255));
+    let (img, o) = render_bunny(
+        "bg-none.png",
+        &["--background", "transparent", "--dump-graph"],
+    );
+    assert_eq!(img.get_pixel(0, 0).0[3], 0);
+    assert!(img.pixels().any(|p| p[3] == 255), "the bunny is covered");
+    let graph = String::from_utf8_lossy(&o.stdout);
+    assert!(!graph.contains("post."), "no post pass expected:\n{graph}");
+}
+
+#[test]
+fn edl_is_a_named_timed_pass_and_darkens_the_image() {
+    let json = tmp("edl.json");
+    let (plain, _) = render_bunny("edl-off.png", &["--method", "compute"]);
+    let (lit, o) = render_bunny(
+        "edl-on.png",
+        &[
+            "--method",
+            "compute",
+            "--edl",
+            "2,2",
+            "--dump-graph",
+            "--frames",
+            "2",
+            "--timings",
+            json.to_str().expect("utf8"),
+        ],
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains(": post.edl"));
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+    let passes = t["passes"].as_array().expect("passes");
+    assert!(passes.iter().any(|p| p["name"] == "post.edl"), "{passes:?}");
+    // EDL only darkens, and darkens the bunny's depth edges somewhere.
+    let pairs = || plain.pixels().zip(lit.pixels());
+    assert!(pairs().all(|(a, b)| (0..3).all(|c| b[c] <= a[c])));
+    let darker = pairs().filter(|(a, b)| b[0] < a[0]).count();
+    assert!(darker > 20, "{darker} darker pixels");
+    // A value after --edl is optional: --edl followed by another flag takes the defaults.
+    let (defaults, _) = render_bunny(
+        "edl-default.png",
+        &["--method", "compute", "--edl", "--background", "black"],
+    );
+    let (explicit, _) = render_bunny(
+        "edl-explicit.png",
+        &["--method", "compute", "--edl", "1,1.4"],
+    );
+    assert_eq!(defaults, explicit);
+}
+
+#[test]
+fn bad_post_processing_values_are_named() {
+    let bunny = data("stanford/bun_zipper.ply");
+    let b = bunny.to_str().expect("utf8");
+    for (args, expected) in [
+        (
+            ["--background", "pink"],
+            ["'pink'", "#rrggbb, r,g,b (each 0-255)"],
+        ),
+        (["--background", "#12345"], ["'#12345'", "#rrggbb"]),
+        (
+            ["--edl", "strong"],
+            ["'strong'", "expected STRENGTH[,RADIUS]"],
+        ),
+        (
+            ["--edl", "1,0.2"],
+            ["'1,0.2'", "radius 0.2 is outside 1..=64"],
+        ),
+    ] {
+        let mut all = vec!["render", b];
+        all.extend(args);
+        let o = surfel(&all);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(
+            expected.iter().all(|x| e.contains(x)) && e.contains(args[0]),
+            "{args:?}: {e}"
+        );
+    }
+    let scene = tmp("bad-edl.toml");
+    std::fs::write(&scene, "edl = { strength = 1000 }\n").expect("write");
+    let o = surfel(&["render", b, "--scene", scene.to_str().expect("utf8")]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("bad-edl.toml") && e.contains("strength 1000 is outside 0..=100"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -204,6 +329,19 @@ fn viewer_runs_under_xvfb() {
         .args(["-a", env!("CARGO_BIN_EXE_surfel"), "view"])
         .arg(data("stanford/bun_zipper.ply"))
         .args(["--size", "200x150", "--frames", "5", "--validation"])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("xvfb-run is installed by ../shared/ci/install-vulkan.sh");
+    assert!(o.status.success(), "viewer failed: {}", stderr(&o));
+}
+
+#[test]
+fn viewer_runs_with_edl_and_a_background_under_xvfb() {
+    let o = Command::new("xvfb-run")
+        .args(["-a", env!("CARGO_BIN_EXE_surfel"), "view"])
+        .arg(data("stanford/bun_zipper.ply"))
+        .args(["--size", "200x150", "--frames", "5", "--validation"])
+        .args(["--edl", "1.5,2", "--background", "white"])
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .expect("xvfb-run is installed by ../shared/ci/install-vulkan.sh");

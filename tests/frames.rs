@@ -1,6 +1,7 @@
 //! Frames in flight on lavapipe: frames submitted back to back without waiting render the
-//! same image as one frame alone (synchronization validation on), and a warmed-up frame
-//! (`begin_frame` + `update` + record + submit + wait) performs no heap allocation.
+//! same image as one frame alone (synchronization validation on), with and without the post
+//! stage, and a warmed-up frame (`begin_frame` + `update` + record + submit + wait) performs
+//! no heap allocation.
 
 mod common;
 
@@ -10,6 +11,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use surfel::eval::Frame;
 use surfel::methods::{MethodConfig, METHODS};
+use surfel::post::{Background, Edl, PostOptions};
 use surfel::render::{upload, Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light};
 
@@ -78,13 +80,26 @@ fn methods(ctx: &surfel::gpu::Context) -> Vec<MethodConfig> {
         .collect()
 }
 
+/// Each method alone, then followed by the post stage (eye-dome lighting and a background).
+const POST: [PostOptions; 2] = [
+    PostOptions::NONE,
+    PostOptions {
+        edl: Some(Edl {
+            strength: 1.0,
+            radius: 2.0,
+        }),
+        background: Background::Color([30, 60, 90]),
+    },
+];
+
 fn renderer(
     ctx: &std::sync::Arc<surfel::gpu::Context>,
     cloud: &Cloud,
     config: &MethodConfig,
     frames_in_flight: usize,
+    post: PostOptions,
 ) -> (Renderer, View) {
-    renderer_sized(ctx, cloud, config, frames_in_flight, 48)
+    renderer_sized(ctx, cloud, config, frames_in_flight, post, 48)
 }
 
 fn renderer_sized(
@@ -92,6 +107,7 @@ fn renderer_sized(
     cloud: &Cloud,
     config: &MethodConfig,
     frames_in_flight: usize,
+    post: PostOptions,
     size: u32,
 ) -> (Renderer, View) {
     let (scene, info) = upload(ctx, cloud).expect("upload");
@@ -105,6 +121,7 @@ fn renderer_sized(
         Extras {
             readback: true,
             frames_in_flight,
+            post,
             ..Extras::default()
         },
     )
@@ -132,9 +149,12 @@ fn assert_same(a: &Frame, b: &Frame, method: &str) {
 fn frames_in_flight_render_the_single_frame_image() {
     let ctx = common::context();
     let cloud = common::square(96);
-    for config in methods(&ctx) {
-        let name = config.method.name;
-        let (mut single, view) = renderer(&ctx, &cloud, &config, 1);
+    for (config, post) in methods(&ctx)
+        .into_iter()
+        .flat_map(|c| POST.map(|p| (c.clone(), p)))
+    {
+        let name = &format!("{} {post:?}", config.method.name);
+        let (mut single, view) = renderer(&ctx, &cloud, &config, 1, post);
         assert_eq!(single.frames_in_flight(), 1);
         let expected = single
             .render(&view, true)
@@ -146,7 +166,7 @@ fn frames_in_flight_render_the_single_frame_image() {
             "{name}: renders the square"
         );
 
-        let (mut r, view) = renderer(&ctx, &cloud, &config, 2);
+        let (mut r, view) = renderer(&ctx, &cloud, &config, 2, post);
         assert_eq!(r.frames_in_flight(), 2);
         // Eight frames from other viewpoints, submitted back to back: each waits only for
         // the frame that used its slot two frames earlier. A frame reading another slot's
@@ -185,9 +205,12 @@ fn warmed_up_frames_allocate_nothing() {
     // allocators, which are not ours to remove.
     let ctx = common::context();
     let cloud = common::square(32);
-    for config in methods(&ctx) {
-        let name = config.method.name;
-        let (mut r, view) = renderer(&ctx, &cloud, &config, 2);
+    for (config, post) in methods(&ctx)
+        .into_iter()
+        .flat_map(|c| POST.map(|p| (c.clone(), p)))
+    {
+        let name = &format!("{} {post:?}", config.method.name);
+        let (mut r, view) = renderer(&ctx, &cloud, &config, 2, post);
         for _ in 0..3 {
             r.render(&view, false).expect("warm-up frame");
         }
@@ -215,7 +238,7 @@ fn pass_times_add_up_to_the_frame_time() {
     let cloud = common::square(96);
     for config in methods(&ctx) {
         let name = config.method.name;
-        let (mut r, view) = renderer_sized(&ctx, &cloud, &config, 1, 512);
+        let (mut r, view) = renderer_sized(&ctx, &cloud, &config, 1, POST[1], 512);
         r.render(&view, false).expect("warm-up frame");
         r.clear_timings();
         r.render(&view, false).expect("timed frame");

@@ -13,6 +13,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("wheel", "zoom"),
     ("M / N", "next / previous method"),
     ("C", "toggle point colors"),
+    ("E", "toggle eye-dome lighting"),
     ("R", "reset the camera"),
     ("K", "save the camera (--camera-file)"),
     ("L", "load the camera (--camera-file)"),

@@ -26,6 +26,7 @@ use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
+use crate::post::PostOptions;
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
@@ -45,6 +46,8 @@ pub struct ViewerOptions {
     pub lights: Vec<Light>,
     /// Initial window size; `None`: 80 % of the monitor (1280x720 when it is unknown).
     pub size: Option<(u32, u32)>,
+    /// Eye-dome lighting (at start; `E` toggles it) and background.
+    pub post: PostOptions,
     /// Quit after this many frames (smoke tests); run until closed when `None`.
     pub frames: Option<u64>,
     pub validation: bool,
@@ -140,6 +143,8 @@ struct Viewer {
     /// Write the next frame to this PNG.
     screenshot: Option<PathBuf>,
     quit: bool,
+    /// The post-processing shown now (`E` switches EDL on and off).
+    post: PostOptions,
     drag: Option<(MouseButton, Vec2)>,
     cursor: Vec2,
     frames: u64,
@@ -158,6 +163,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     let script = opts.script.take().map(Runner::new);
     let mut viewer = Viewer {
         orbit: Orbit::from_camera(&opts.camera, opts.up),
+        post: opts.post,
         opts,
         cloud,
         ctx: None,
@@ -248,7 +254,8 @@ pub fn write_png(path: &Path, frame: &Frame) -> Result<()> {
     .with_context(|| format!("{}: cannot write PNG", path.display()))
 }
 
-/// Saves `camera` (and the up axis and lights) as a scene file `--scene` reads back.
+/// Saves `camera` (and the up axis and lights) as a scene file `--scene` reads back; the
+/// post-processing settings are not part of a camera and stay unset.
 pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Result<()> {
     SceneFile {
         up: Some(up),
@@ -257,6 +264,8 @@ pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Re
             target: camera.target.into(),
         }),
         lights: lights.to_vec(),
+        edl: None,
+        background: None,
     }
     .save(path)
 }
@@ -341,6 +350,7 @@ impl Viewer {
                 readback: true,
                 present: Some(desc),
                 overlay: true,
+                post: self.post.for_display(),
                 ..Extras::default()
             },
         )
@@ -380,6 +390,16 @@ impl Viewer {
         self.rebuild()
     }
 
+    /// Switches eye-dome lighting off, or on with the parameters given at start (else the
+    /// defaults), and rebuilds the graph.
+    fn toggle_edl(&mut self) -> Result<()> {
+        self.post.edl = match self.post.edl {
+            Some(_) => None,
+            None => Some(self.opts.post.edl.unwrap_or_default()),
+        };
+        self.rebuild()
+    }
+
     /// Handles a key, from the window or from the script.
     fn press(&mut self, key: ViewerKey) -> Result<()> {
         self.hud_dirty = true;
@@ -396,6 +416,7 @@ impl Viewer {
             ViewerKey::Char('m') => self.switch_method(1)?,
             ViewerKey::Char('n') => self.switch_method(-1)?,
             ViewerKey::Char('c') => self.use_color = !self.use_color,
+            ViewerKey::Char('e') => self.toggle_edl()?,
             ViewerKey::Char('r') => {
                 self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up)
             }

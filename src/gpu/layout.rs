@@ -76,6 +76,21 @@ pub struct GpuGlyph {
     pub flags: u32,
 }
 
+/// Push constants of the post-processing pass (`PostParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PostParams {
+    pub offsets01: Vec4,
+    pub offsets23: Vec4,
+    pub offsets45: Vec4,
+    pub offsets67: Vec4,
+    pub background: Vec4,
+    pub strength: f32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -171,6 +186,17 @@ pub fn mirrors() -> Vec<Mirror> {
             atlas_y,
             color,
             flags
+        }),
+        mirror!(PostParams {
+            offsets01,
+            offsets23,
+            offsets45,
+            offsets67,
+            background,
+            strength,
+            pad0,
+            pad1,
+            pad2
         }),
     ]
 }

@@ -50,6 +50,7 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // Workgroup sizes.
     ("RESOLVE_GROUP", 8),
     ("RASTER_GROUP", 128),
+    ("POST_GROUP", 8),
     // Points per batch (Schuetz et al. 2021: 10,240 points, 80 per thread of a 128-wide group).
     ("BATCH_POINTS", 10240),
     // Bits per axis of each quantized position word (Schuetz et al. 2022: 3 x 10 bits).
@@ -63,6 +64,8 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("OVERLAY_ATLAS_WIDTH", 512),
     // GpuGlyph.flags bits: a solid quad (panel background) instead of an atlas glyph.
     ("OVERLAY_SOLID", 1),
+    // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
+    ("EDL_NEIGHBOURS", 8),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -143,6 +146,24 @@ pub const STRUCTS: &[StructSpec] = &[
             // RGBA8, sRGB-encoded, straight alpha.
             f("uint", "color"),
             f("uint", "flags"),
+        ],
+    },
+    // Push constants of the post-processing pass (eye-dome lighting, background).
+    StructSpec {
+        name: "PostParams",
+        fields: &[
+            // Integer pixel offsets of the EDL neighbours, two per vec4 (x0, y0, x1, y1).
+            f("vec4", "offsets01"),
+            f("vec4", "offsets23"),
+            f("vec4", "offsets45"),
+            f("vec4", "offsets67"),
+            // sRGB-encoded background color, alpha 1.
+            f("vec4", "background"),
+            // EDL strength (the shade is exp(-300 strength sum / EDL_NEIGHBOURS)).
+            f("float", "strength"),
+            f("uint", "pad0"),
+            f("uint", "pad1"),
+            f("uint", "pad2"),
         ],
     },
 ];

@@ -1,7 +1,9 @@
-//! Scene files (TOML or JSON): a camera pose and lights.
+//! Scene files (TOML or JSON): a camera pose, lights and post-processing.
 //!
 //! ```toml
 //! up = "z"                 # x | y | z | -x | -y | -z (default: from the file format)
+//! edl = { strength = 1.0, radius = 1.4 }   # eye-dome lighting (both optional)
+//! background = "#202020"   # #rrggbb | r,g,b | black | white | grey | transparent
 //! [camera]
 //! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
 //! [[lights]]
@@ -17,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::camera::{Pose, Up};
 use super::lights::Light;
+use crate::post::{Background, Edl};
 
 /// The parsed file.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -27,6 +30,10 @@ pub struct SceneFile {
     pub camera: Option<Pose>,
     #[serde(default)]
     pub lights: Vec<Light>,
+    /// Eye-dome lighting with these parameters.
+    pub edl: Option<Edl>,
+    /// The background color (or `transparent`).
+    pub background: Option<Background>,
 }
 
 impl SceneFile {
@@ -96,6 +103,39 @@ mod tests {
         assert_eq!(u.up, Some(Up::NegZ));
         let j = SceneFile::parse(r#"{"up": "x"}"#, Path::new("u.json")).expect("valid up");
         assert_eq!(j.up, Some(Up::X));
+    }
+
+    #[test]
+    fn parses_post_processing_with_defaults_and_checks_it() {
+        use crate::post::{Background, Edl};
+        let t = SceneFile::parse(
+            "edl = { radius = 3 }\nbackground = \"#102030\"\n",
+            Path::new("s.toml"),
+        )
+        .expect("valid post-processing");
+        assert_eq!(t.edl, Some(Edl::new(1.0, 3.0).expect("valid")));
+        assert_eq!(t.background, Some(Background::Color([16, 32, 48])));
+        let j = SceneFile::parse(
+            r#"{"edl": {}, "background": "transparent"}"#,
+            Path::new("s.json"),
+        )
+        .expect("valid post-processing");
+        assert_eq!(j.edl, Some(Edl::default()));
+        assert_eq!(j.background, Some(Background::Transparent));
+        let e = SceneFile::parse("edl = { strength = -2 }\n", Path::new("e.toml")).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("e.toml") && e.contains("strength -2 is outside"),
+            "{e}"
+        );
+        let e = SceneFile::parse("edl = { size = 2 }\n", Path::new("e.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("size"), "{e:#}");
+        let e = SceneFile::parse("background = \"pink\"\n", Path::new("b.toml")).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("b.toml") && e.contains("background 'pink'"),
+            "{e}"
+        );
     }
 
     #[test]
