@@ -75,6 +75,10 @@ pub struct InputArgs {
     /// Reuse/store computed normals and radii in FILE.surfel-cache.
     #[arg(long)]
     pub cache: bool,
+    /// COPC only: read whole octree levels from the root down while their points fit N (the
+    /// root level always).
+    #[arg(long, value_name = "N")]
+    pub budget: Option<u64>,
 }
 
 impl InputArgs {
@@ -83,6 +87,7 @@ impl InputArgs {
         LoadOptions {
             k: self.k,
             cache: self.cache,
+            budget: self.budget,
         }
     }
 }
@@ -483,6 +488,22 @@ fn info(a: InfoArgs) -> Result<()> {
     println!("points            {}", cloud.len());
     println!("records in file   {}", cloud.stats.records);
     println!("dropped (NaN/inf) {}", cloud.stats.dropped_non_finite);
+    println!("dropped (invalid) {}", cloud.stats.dropped_invalid);
+    let duplicates = cloud.duplicates();
+    println!(
+        "duplicates        {} points at {} distinct positions",
+        duplicates.points, duplicates.positions
+    );
+    if let Some(levels) = &cloud.stats.levels {
+        let per_level: Vec<String> = levels.points.iter().map(u64::to_string).collect();
+        println!(
+            "octree levels     read {} of {} (points per level: {}); {} points skipped",
+            levels.read,
+            levels.points.len(),
+            per_level.join(", "),
+            levels.points_skipped()
+        );
+    }
     println!(
         "faces             {}",
         cloud.faces.as_ref().map_or(0, |f| f.len())

@@ -205,8 +205,11 @@ fn control_bytes_in_file_text_are_escaped() {
 
 #[test]
 fn unknown_format() {
-    let m = error("cloud.e57", b"whatever");
-    assert_contains(&m, &["unsupported file type \"e57\"", ".ply", ".laz"]);
+    let m = error("cloud.e58", b"whatever");
+    assert_contains(
+        &m,
+        &["unsupported file type \"e58\"", ".ply", ".copc.laz", ".e57"],
+    );
     let m = error("noext", b"whatever");
     assert_contains(&m, &["unsupported file type \"\""]);
 }
