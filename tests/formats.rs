@@ -249,7 +249,15 @@ fn grid(c: &Cloud) -> Vec<[i64; 3]> {
 fn copc_budget_reads_whole_levels_from_the_root() {
     let path = data("copc/1.2-with-color.copc.laz");
     let all = scene::load(&path).unwrap();
-    for (budget, read) in [(1, 1), (89, 1), (90, 2), (286, 2), (287, 3), (1_064, 3), (1_065, 4)] {
+    for (budget, read) in [
+        (1, 1),
+        (89, 1),
+        (90, 2),
+        (286, 2),
+        (287, 3),
+        (1_064, 3),
+        (1_065, 4),
+    ] {
         let c = scene::load_with_budget(&path, Some(budget)).unwrap();
         let levels = c.stats.levels.clone().unwrap();
         assert_eq!(levels.read, read, "budget {budget}");
@@ -260,12 +268,18 @@ fn copc_budget_reads_whole_levels_from_the_root() {
         // The first levels are a subset of the whole cloud (compared on the file's 0.01 grid:
         // each load has its own origin, so the f32 local coordinates differ in rounding).
         let whole: std::collections::HashSet<_> = grid(&all).into_iter().collect();
-        assert!(grid(&c).iter().all(|r| whole.contains(r)), "budget {budget}");
+        assert!(
+            grid(&c).iter().all(|r| whole.contains(r)),
+            "budget {budget}"
+        );
     }
     let m = scene::load_with_budget(&data("lidar/autzen_trim.laz"), Some(10))
         .unwrap_err()
         .to_string();
-    assert!(m.contains("autzen_trim.laz: a point budget needs a COPC file"), "{m}");
+    assert!(
+        m.contains("autzen_trim.laz: a point budget needs a COPC file"),
+        "{m}"
+    );
 }
 
 /// A binary PCD with F4 x y z and the given points and viewpoint.
@@ -292,11 +306,18 @@ fn pcd_with_utm_coordinates_is_recentred() {
     let points: Vec<[f32; 3]> = (0..1_000)
         .map(|i| {
             let f = i as f32;
-            [512_000.0 + f * 0.125, 5_412_000.0 + f * 0.5, 230.0 + (f * 0.25) % 10.0]
+            [
+                512_000.0 + f * 0.125,
+                5_412_000.0 + f * 0.5,
+                230.0 + (f * 0.25) % 10.0,
+            ]
         })
         .collect();
-    let c = scene::load(&temp("utm.pcd", &pcd(&points, [512_050.0, 5_412_200.0, 1_230.0])))
-        .unwrap();
+    let c = scene::load(&temp(
+        "utm.pcd",
+        &pcd(&points, [512_050.0, 5_412_200.0, 1_230.0]),
+    ))
+    .unwrap();
     let lo = DVec3::new(512_000.0, 5_412_000.0, 230.0);
     let hi = DVec3::new(512_124.875, 5_412_499.5, 239.75);
     assert_eq!(c.origin, (lo + hi) * 0.5);

@@ -112,9 +112,10 @@ fn read_at<R: Read + Seek>(
     Ok(bytes)
 }
 
-/// Checks that the first EVLR of a LAS 1.4 header lies inside the file, so the `las` crate never
-/// allocates a record length the file cannot hold.
-fn check_evlr<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(), LoadError> {
+/// Checks the parts of a LAS 1.4 header that the `las` crate would trust: the point count must
+/// fit the file, and the first EVLR must lie inside it (so no record length the file cannot
+/// hold is allocated).
+fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(), LoadError> {
     let header = read_at(file, read, 0, 375.min(size), size, "the LAS header")?;
     if header.len() < 375 || &header[..4] != b"LASF" {
         return Err(LoadError::at_byte(
@@ -133,6 +134,19 @@ fn check_evlr<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(),
             format!(
                 "expected LAS version 1.4 (COPC), found {}.{}",
                 header[24], header[25]
+            ),
+        ));
+    }
+    let (count_at, count) = match u32_at(&header, 107) {
+        0 => (247, u64_at(&header, 247)),
+        legacy => (107, u64::from(legacy)),
+    };
+    if count > size.saturating_mul(MAX_POINTS_PER_BYTE) {
+        return Err(LoadError::at_byte(
+            file,
+            count_at,
+            format!(
+                "the header declares {count} points, more than a file of {size} bytes can hold"
             ),
         ));
     }
@@ -341,7 +355,7 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
         .map_err(|source| io_error(&file, source))?
         .len();
     let mut read = BufReader::new(open);
-    check_evlr(&file, &mut read, size)?;
+    check_header(&file, &mut read, size)?;
     read.rewind().map_err(|source| io_error(&file, source))?;
     let header = las::Header::new(&mut read).map_err(|e| match e {
         las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => LoadError::whole(

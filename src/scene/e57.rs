@@ -145,7 +145,11 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     });
     let origin = bounds.centre().unwrap_or(DVec3::ZERO);
     let mut cloud = Cloud {
-        positions: points.world.iter().map(|p| (*p - origin).as_vec3()).collect(),
+        positions: points
+            .world
+            .iter()
+            .map(|p| (*p - origin).as_vec3())
+            .collect(),
         colors: points.any_color.then_some(points.colors),
         scalars: if points.any_intensity {
             vec![Scalar {
