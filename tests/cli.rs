@@ -168,6 +168,65 @@ fn info_reports_counts_attributes_and_memory() {
     assert!(s.contains("in 7 batches of 10240 points"), "{s}");
 }
 
+/// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
+fn info(rel: &str, extra: &[&str]) -> String {
+    let path = data(rel);
+    let mut args = vec!["info", path.to_str().expect("utf8"), "--no-device"];
+    args.extend(extra);
+    let o = surfel(&args);
+    assert!(o.status.success(), "{rel}: {}", stderr(&o));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn info_reports_duplicates_and_dropped_points() {
+    let s = info("stanford/dragon_vrip.ply", &[]);
+    assert!(
+        s.contains("duplicates        2100 points at 1690 distinct positions"),
+        "{s}"
+    );
+    assert!(s.contains("dropped (NaN/inf) 0"), "{s}");
+    for (rel, nan) in [
+        ("pcd/table_scene_mug_stereo_textured.pcd", 97_920),
+        ("pcd/milk_cartoon_all_small_clorox.pcd", 65_793),
+    ] {
+        let s = info(rel, &[]);
+        assert!(s.contains(&format!("dropped (NaN/inf) {nan}\n")), "{s}");
+        assert!(
+            s.contains(&format!("points            {}\n", 307_200 - nan)),
+            "{s}"
+        );
+    }
+    let s = info("e57/tiny_spherical.e57", &[]);
+    assert!(s.contains("records in file   360\n"), "{s}");
+    assert!(s.contains("dropped (invalid) 180\n"), "{s}");
+}
+
+#[test]
+fn info_reports_the_copc_levels_a_budget_reads() {
+    let s = info("copc/1.2-with-color.copc.laz", &["--budget", "100"]);
+    assert!(s.contains("points            90\n"), "{s}");
+    assert!(
+        s.contains("octree levels     read 2 of 4 (points per level: 24, 66, 197, 778); 975 points skipped"),
+        "{s}"
+    );
+    let s = info("copc/1.2-with-color.copc.laz", &[]);
+    assert!(s.contains("read 4 of 4"), "{s}");
+    let o = surfel(&[
+        "info",
+        data("lidar/autzen_trim.las").to_str().expect("utf8"),
+        "--no-device",
+        "--budget",
+        "10",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("autzen_trim.las: a point budget needs a COPC file (.copc.laz)"),
+        "{}",
+        stderr(&o)
+    );
+}
+
 #[test]
 fn sample_writes_a_cloud_with_normals_and_radii() {
     let out = tmp("bunny_sampled.ply");
