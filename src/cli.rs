@@ -116,7 +116,7 @@ pub struct CameraArgs {
     )]
     pub target: Option<String>,
     /// The axis pointing up in the data (x, y, z, -x, -y, -z): orbits turn about it. Default:
-    /// z for LAS, LAZ and PCD, y for the other formats.
+    /// z for LAS, LAZ, COPC, E57 and PCD, y for the other formats.
     #[arg(long, value_name = "AXIS", allow_hyphen_values = true, value_parser = parse_up)]
     pub up: Option<Up>,
     /// Scene file (TOML/JSON) with an up axis, a camera pose and lights.
@@ -129,7 +129,7 @@ pub struct CameraArgs {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Model or point cloud (ply, obj, pcd, las, laz, xyz).
+    /// Model or point cloud (ply, obj, pcd, las, laz, copc.laz, e57, xyz).
     #[arg(required_unless_present = "list_methods")]
     pub file: Option<PathBuf>,
     /// Method, optionally with parameters: `points:size=3`.

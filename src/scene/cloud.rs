@@ -111,8 +111,8 @@ pub struct Cloud {
     /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
     /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
     pub sensor: Option<Vec3>,
-    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ
-    /// and PCD; +y otherwise); cameras orbit about it.
+    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ,
+    /// COPC, E57 and PCD; +y otherwise); cameras orbit about it.
     pub up: Up,
 }
 
