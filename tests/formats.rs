@@ -340,3 +340,119 @@ fn pcd_with_utm_coordinates_is_recentred() {
     assert_eq!(c.origin, DVec3::ZERO);
     assert_eq!(c.positions[1], Vec3::new(99_999.0, -5.0, 0.5));
 }
+
+/// Writes a two-scan E57 file: scan 0 Cartesian with colors, intensity, an invalid point and a
+/// pose (90° about +z, then a UTM-sized translation); scan 1 spherical without colors or
+/// intensity, translated only.
+fn two_scans(path: &Path) {
+    use e57::{E57Writer, Quaternion, Record, RecordValue as V, Transform, Translation};
+    let mut writer = E57Writer::from_file(path, "two-scans").unwrap();
+    let prototype = vec![
+        Record::CARTESIAN_X_F64,
+        Record::CARTESIAN_Y_F64,
+        Record::CARTESIAN_Z_F64,
+        Record::CARTESIAN_INVALID_STATE,
+        Record::COLOR_RED_U8,
+        Record::COLOR_GREEN_U8,
+        Record::COLOR_BLUE_U8,
+        Record::INTENSITY_U16,
+    ];
+    let mut scan = writer.add_pointcloud("scan-0", prototype).unwrap();
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    scan.set_transform(Some(Transform {
+        rotation: Quaternion {
+            w: half,
+            x: 0.0,
+            y: 0.0,
+            z: half,
+        },
+        translation: Translation {
+            x: 500_000.0,
+            y: 5_400_000.0,
+            z: 100.0,
+        },
+    }));
+    for (xyz, state, rgb, intensity) in [
+        ([1.0, 0.0, 0.0], 0, [255, 0, 0], 1_000),
+        ([0.0, 2.0, 0.0], 2, [0, 255, 0], 2_000),
+        ([0.5, 0.25, 3.0], 0, [0, 0, 128], 3_000),
+    ] {
+        let mut values: Vec<V> = xyz.into_iter().map(V::Double).collect();
+        values.push(V::Integer(state));
+        values.extend(rgb.map(V::Integer));
+        values.push(V::Integer(intensity));
+        scan.add_point(values).unwrap();
+    }
+    scan.finalize().unwrap();
+    let prototype = vec![
+        Record::SPHERICAL_RANGE_F64,
+        Record::SPHERICAL_AZIMUTH_F64,
+        Record::SPHERICAL_ELEVATION_F64,
+    ];
+    let mut scan = writer.add_pointcloud("scan-1", prototype).unwrap();
+    scan.set_transform(Some(Transform {
+        rotation: Quaternion {
+            w: 1.0,
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+        },
+        translation: Translation {
+            x: 500_010.0,
+            y: 5_400_010.0,
+            z: 90.0,
+        },
+    }));
+    let (azimuth, elevation) = (0.3_f64, -0.2_f64);
+    scan.add_point(vec![
+        V::Double(2.0),
+        V::Double(azimuth),
+        V::Double(elevation),
+    ])
+    .unwrap();
+    scan.finalize().unwrap();
+    writer.finalize().unwrap();
+}
+
+#[test]
+fn e57_reads_every_scan_with_its_pose_and_recentres() {
+    let path = std::env::temp_dir().join(format!("surfel-two-scans-{}.e57", std::process::id()));
+    two_scans(&path);
+    let c = scene::load(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(c.stats.records, 4);
+    assert_eq!(c.stats.dropped_invalid, 1);
+    assert_eq!(c.len(), 3);
+    let t = DVec3::new(500_000.0, 5_400_000.0, 100.0);
+    // 90° about +z maps (x, y, z) to (-y, x, z).
+    let spherical = DVec3::new(500_010.0, 5_400_010.0, 90.0)
+        + DVec3::new(
+            2.0 * (-0.2f64).cos() * 0.3f64.cos(),
+            2.0 * (-0.2f64).cos() * 0.3f64.sin(),
+            2.0 * (-0.2f64).sin(),
+        );
+    let expected = [
+        t + DVec3::new(0.0, 1.0, 0.0),
+        t + DVec3::new(-0.25, 0.5, 3.0),
+        spherical,
+    ];
+    for (k, e) in expected.iter().enumerate() {
+        assert!(
+            (world(&c, k) - *e).abs().max_element() < 1e-6,
+            "point {k}: {} vs {e}",
+            world(&c, k)
+        );
+    }
+    // The origin is the f64 centre of the points' box.
+    let lo = expected.iter().fold(DVec3::INFINITY, |a, b| a.min(*b));
+    let hi = expected.iter().fold(DVec3::NEG_INFINITY, |a, b| a.max(*b));
+    assert!((c.origin - (lo + hi) * 0.5).abs().max_element() < 1e-9);
+    // Scan 1 has no colors or intensity: white and 0.
+    assert_eq!(
+        c.colors.as_deref(),
+        Some(&[[255, 0, 0, 255], [0, 0, 128, 255], [255, 255, 255, 255]][..])
+    );
+    assert_eq!(c.scalars.len(), 1);
+    assert_eq!(c.scalars[0].name, "intensity");
+    assert_eq!(c.scalars[0].values, [1_000.0, 3_000.0, 0.0]);
+}

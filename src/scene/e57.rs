@@ -1,21 +1,23 @@
 //! E57 reader (ASTM E2807), through the `e57` crate.
 //!
-//! Every scan (`data3D` entry) of the file is read: spherical coordinates are converted to
-//! Cartesian (`x = r cos(el) cos(az)`, `y = r cos(el) sin(az)`, `z = r sin(el)`) and each
-//! scan's pose (rotation quaternion and translation) is applied, all in f64. Points the file
-//! marks invalid (`cartesianInvalidState` or `sphericalInvalidState` other than 0, i.e. a mere
-//! direction or no coordinate at all) are skipped and counted in `stats.dropped_invalid`. The
+//! Every scan (`data3D` entry) of the file is read record by record (the crate's raw reader):
+//! a valid Cartesian coordinate is used as is, else a valid spherical one is converted
+//! (`x = r cos(el) cos(az)`, `y = r cos(el) sin(az)`, `z = r sin(el)`), and each scan's pose
+//! (rotation quaternion, then translation) is applied, all in f64. Points with neither (their
+//! `cartesianInvalidState` / `sphericalInvalidState` is not 0: a mere direction or no
+//! coordinate at all) are skipped and counted in `stats.dropped_invalid`. The
 //! f64 bounding-box centre becomes [`Cloud::origin`] and is subtracted before the conversion to
-//! f32, as for LAS. Colors are normalized by the scan's color limits to sRGB bytes (points
-//! without a valid color in a file that has colors are white); intensity becomes the
+//! f32, as for LAS. Colors are normalized by the scan's color limits (else the color fields'
+//! type bounds) to sRGB bytes (points without a valid color in a file that has colors are
+//! white); intensity becomes the
 //! `intensity` scalar, in the file's units (0 where a point has none).
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
-use e57::{CartesianCoordinate, E57Reader};
-use glam::DVec3;
+use e57::{E57Reader, PointCloud, RecordDataType, RecordName, RecordValue};
+use glam::{DQuat, DVec3};
 
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::LoadError;
@@ -75,9 +77,149 @@ struct Points {
     records: u64,
 }
 
-/// A normalized (0..1) color channel as an sRGB byte.
-fn channel(v: f32) -> u8 {
-    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+/// A color channel's value range: the scan's color limits, else its record type's bounds.
+fn channel_range(
+    pc: &PointCloud,
+    limits: Option<(&Option<RecordValue>, &Option<RecordValue>)>,
+    field: Option<usize>,
+) -> (f64, f64) {
+    let value = |v: &Option<RecordValue>| match v {
+        Some(RecordValue::Integer(i)) => Some(*i as f64),
+        Some(RecordValue::Single(f)) => Some(f64::from(*f)),
+        Some(RecordValue::Double(d)) => Some(*d),
+        _ => None,
+    };
+    if let Some((Some(lo), Some(hi))) = limits.map(|(lo, hi)| (value(lo), value(hi))) {
+        return (lo, hi);
+    }
+    match field.map(|k| &pc.prototype[k].data_type) {
+        Some(RecordDataType::Integer { min, max }) => (*min as f64, *max as f64),
+        Some(RecordDataType::ScaledInteger {
+            min,
+            max,
+            scale,
+            offset,
+        }) => (*min as f64 * scale + offset, *max as f64 * scale + offset),
+        _ => (0.0, 1.0),
+    }
+}
+
+/// Where a scan's fields are in its records, and how to turn them into points.
+struct Scan {
+    cartesian: Option<[usize; 3]>,
+    cartesian_state: Option<usize>,
+    spherical: Option<[usize; 3]>,
+    spherical_state: Option<usize>,
+    color: Option<[usize; 3]>,
+    color_invalid: Option<usize>,
+    /// (min, max) of each color channel, mapped to 0..255.
+    color_range: [(f64, f64); 3],
+    intensity: Option<usize>,
+    intensity_invalid: Option<usize>,
+    rotation: DQuat,
+    translation: DVec3,
+}
+
+impl Scan {
+    fn new(pc: &PointCloud) -> Scan {
+        let find = |name: RecordName| pc.prototype.iter().position(|r| r.name == name);
+        let three = |a, b, c| Some([find(a)?, find(b)?, find(c)?]);
+        let color = three(
+            RecordName::ColorRed,
+            RecordName::ColorGreen,
+            RecordName::ColorBlue,
+        );
+        let limits = pc.color_limits.as_ref();
+        let color_range = [
+            limits.map(|l| (&l.red_min, &l.red_max)),
+            limits.map(|l| (&l.green_min, &l.green_max)),
+            limits.map(|l| (&l.blue_min, &l.blue_max)),
+        ];
+        let (rotation, translation) =
+            pc.transform
+                .as_ref()
+                .map_or((DQuat::IDENTITY, DVec3::ZERO), |t| {
+                    let q = &t.rotation;
+                    let d = &t.translation;
+                    (
+                        DQuat::from_xyzw(q.x, q.y, q.z, q.w),
+                        DVec3::new(d.x, d.y, d.z),
+                    )
+                });
+        let mut channel = 0;
+        Scan {
+            cartesian: three(
+                RecordName::CartesianX,
+                RecordName::CartesianY,
+                RecordName::CartesianZ,
+            ),
+            cartesian_state: find(RecordName::CartesianInvalidState),
+            spherical: three(
+                RecordName::SphericalRange,
+                RecordName::SphericalAzimuth,
+                RecordName::SphericalElevation,
+            ),
+            spherical_state: find(RecordName::SphericalInvalidState),
+            color,
+            color_invalid: find(RecordName::IsColorInvalid),
+            color_range: color_range.map(|limits| {
+                let range = channel_range(pc, limits, color.map(|c| c[channel]));
+                channel += 1;
+                range
+            }),
+            intensity: find(RecordName::Intensity),
+            intensity_invalid: find(RecordName::IsIntensityInvalid),
+            rotation,
+            translation,
+        }
+    }
+}
+
+/// One decoded record of `scan`: its world position (`None` for a point the file marks
+/// invalid), color and intensity.
+fn decode(
+    pc: &PointCloud,
+    scan: &Scan,
+    values: &[RecordValue],
+) -> e57::Result<(Option<DVec3>, Option<[u8; 4]>, Option<f32>)> {
+    let value = |k: usize| values[k].to_f64(&pc.prototype[k].data_type);
+    let flag = |k: Option<usize>| k.map_or(Ok(0.0), value);
+    let local = if let (Some([x, y, z]), 0.0) = (scan.cartesian, flag(scan.cartesian_state)?) {
+        Some(DVec3::new(value(x)?, value(y)?, value(z)?))
+    } else if let (Some([r, a, e]), 0.0) = (scan.spherical, flag(scan.spherical_state)?) {
+        let (range, azimuth, elevation) = (value(r)?, value(a)?, value(e)?);
+        Some(
+            range
+                * DVec3::new(
+                    elevation.cos() * azimuth.cos(),
+                    elevation.cos() * azimuth.sin(),
+                    elevation.sin(),
+                ),
+        )
+    } else {
+        None
+    };
+    let world = local.map(|p| scan.rotation * p + scan.translation);
+    let color = match (scan.color, flag(scan.color_invalid)?) {
+        (Some(rgb), 0.0) => {
+            let mut color = [0, 0, 0, 255];
+            for (c, (k, (lo, hi))) in color.iter_mut().zip(rgb.into_iter().zip(scan.color_range)) {
+                let unit = if hi > lo {
+                    (value(k)? - lo) / (hi - lo)
+                } else {
+                    0.0
+                };
+                *c = (unit.clamp(0.0, 1.0) * 255.0).round() as u8;
+            }
+            Some(color)
+        }
+        _ => None,
+    };
+    let intensity = match (scan.intensity, flag(scan.intensity_invalid)?) {
+        (Some(k), 0.0) => Some(value(k)? as f32),
+        _ => None,
+    };
+    Ok((world, color, intensity))
 }
 
 /// Reads every scan of `reader`, a file of `size` bytes.
@@ -88,31 +230,28 @@ fn read_scans<R: Read + Seek>(
 ) -> Result<Points, LoadError> {
     let mut out = Points::default();
     for (index, pc) in reader.pointclouds().iter().enumerate() {
+        let scan = Scan::new(pc);
         out.records = out.records.saturating_add(pc.records);
-        out.any_color |= pc.has_color();
-        out.any_intensity |= pc.has_intensity();
+        out.any_color |= scan.color.is_some();
+        out.any_intensity |= scan.intensity.is_some();
         // The declared count bounds the reservation only as far as the file can hold it.
         let reserve = usize::try_from(pc.records.min(size / 4)).unwrap_or(0);
         out.world.reserve(reserve);
-        let mut points = reader
-            .pointcloud_simple(pc)
+        let records = reader
+            .pointcloud_raw(pc)
             .map_err(|e| crate_error(file, Some(index), e))?;
-        points.spherical_to_cartesian(true);
-        points.apply_pose(true);
-        points.intensity_to_color(false);
-        points.normalize_intensity(false);
-        points.normalize_color(true);
-        for point in points {
-            let point = point.map_err(|e| crate_error(file, Some(index), e))?;
-            let CartesianCoordinate::Valid { x, y, z } = point.cartesian else {
+        for (i, values) in records.enumerate() {
+            let at_record =
+                |e: e57::Error| LoadError::whole(file, format!("scan {index}, record {i}: {e}"));
+            let values = values.map_err(at_record)?;
+            let (world, color, intensity) = decode(pc, &scan, &values).map_err(at_record)?;
+            let Some(world) = world else {
                 out.invalid += 1;
                 continue;
             };
-            out.world.push(DVec3::new(x, y, z));
-            out.colors.push(point.color.map_or(NO_COLOR, |c| {
-                [channel(c.red), channel(c.green), channel(c.blue), 255]
-            }));
-            out.intensity.push(point.intensity.unwrap_or(0.0));
+            out.world.push(world);
+            out.colors.push(color.unwrap_or(NO_COLOR));
+            out.intensity.push(intensity.unwrap_or(0.0));
         }
     }
     Ok(out)
