@@ -379,7 +379,7 @@ fn malformed_e57_names_the_offset() {
     let mut flipped = whole;
     flipped[1100] ^= 0x40;
     let m = error("crc.e57", &flipped);
-    assert_contains(&m, &["scan 0: ", "invalid checksum", "page 1"]);
+    assert_contains(&m, &["scan 0, record 0: ", "invalid checksum", "page 1"]);
 }
 
 #[test]
