@@ -86,6 +86,53 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
 }
 
 #[test]
+fn renders_copc_under_a_budget_and_e57_with_their_colors() {
+    for (rel, extra, points) in [
+        ("copc/1.2-with-color.copc.laz", &["--budget", "100"][..], 90),
+        ("e57/tinyCartesianFloatRgb.e57", &[][..], 2_090),
+    ] {
+        let name = rel.replace('/', "-");
+        let (png, json) = (tmp(&format!("{name}.png")), tmp(&format!("{name}.json")));
+        let path = data(rel);
+        let mut args = vec![
+            "render",
+            path.to_str().expect("utf8"),
+            "--method",
+            "points:size=4",
+            "--size",
+            "96x96",
+            "--frames",
+            "1",
+            "--validation",
+            "--out",
+            png.to_str().expect("utf8"),
+            "--timings",
+            json.to_str().expect("utf8"),
+        ];
+        args.extend(extra);
+        let o = surfel(&args);
+        assert!(o.status.success(), "{rel}: {}", stderr(&o));
+        let t: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+        assert_eq!(t["points"], points, "{rel}");
+        let img = image::open(&png).expect("png").to_rgba8();
+        let covered: Vec<_> = img.pixels().filter(|p| p[3] == 255).collect();
+        assert!(
+            covered.len() > 50,
+            "{rel}: {} pixels covered",
+            covered.len()
+        );
+        // The points' own colors: some covered pixels are far from grey.
+        assert!(
+            covered
+                .iter()
+                .any(|p| p[0].abs_diff(p[1]) > 20 || p[1].abs_diff(p[2]) > 20),
+            "{rel}: only grey pixels"
+        );
+    }
+}
+
+#[test]
 fn mesh_method_on_a_cloud_without_faces_is_a_clean_error() {
     let o = surfel(&[
         "render",

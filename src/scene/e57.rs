@@ -5,12 +5,11 @@
 //! (`x = r cos(el) cos(az)`, `y = r cos(el) sin(az)`, `z = r sin(el)`), and each scan's pose
 //! (rotation quaternion, then translation) is applied, all in f64. Points with neither (their
 //! `cartesianInvalidState` / `sphericalInvalidState` is not 0: a mere direction or no
-//! coordinate at all) are skipped and counted in `stats.dropped_invalid`. The
-//! f64 bounding-box centre becomes [`Cloud::origin`] and is subtracted before the conversion to
-//! f32, as for LAS. Colors are normalized by the scan's color limits (else the color fields'
-//! type bounds) to sRGB bytes (points without a valid color in a file that has colors are
-//! white); intensity becomes the
-//! `intensity` scalar, in the file's units (0 where a point has none).
+//! coordinate at all) are skipped and counted in `stats.dropped_invalid`. The f64 bounding-box
+//! centre becomes [`Cloud::origin`] and is subtracted before the conversion to f32, as for LAS.
+//! Colors are normalized by the scan's color limits (else the color fields' type bounds) to
+//! sRGB bytes (points without a valid color in a file that has colors are white); intensity
+//! becomes the `intensity` scalar, in the file's units (0 where a point has none).
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek};
@@ -77,7 +76,8 @@ struct Points {
     records: u64,
 }
 
-/// A color channel's value range: the scan's color limits, else its record type's bounds.
+/// A color channel's value range: the scan's color limits, else its record type's bounds, else
+/// 0..1.
 fn channel_range(
     pc: &PointCloud,
     limits: Option<(&Option<RecordValue>, &Option<RecordValue>)>,
@@ -100,6 +100,15 @@ fn channel_range(
             scale,
             offset,
         }) => (*min as f64 * scale + offset, *max as f64 * scale + offset),
+        Some(RecordDataType::Single {
+            min: Some(lo),
+            max: Some(hi),
+        }) => (f64::from(*lo), f64::from(*hi)),
+        Some(RecordDataType::Double {
+            min: Some(lo),
+            max: Some(hi),
+        }) => (*lo, *hi),
+        // Unbounded floating-point colors: taken as 0..1.
         _ => (0.0, 1.0),
     }
 }
@@ -130,7 +139,7 @@ impl Scan {
             RecordName::ColorBlue,
         );
         let limits = pc.color_limits.as_ref();
-        let color_range = [
+        let channel_limits = [
             limits.map(|l| (&l.red_min, &l.red_max)),
             limits.map(|l| (&l.green_min, &l.green_max)),
             limits.map(|l| (&l.blue_min, &l.blue_max)),
@@ -146,7 +155,6 @@ impl Scan {
                         DVec3::new(d.x, d.y, d.z),
                     )
                 });
-        let mut channel = 0;
         Scan {
             cartesian: three(
                 RecordName::CartesianX,
@@ -162,11 +170,8 @@ impl Scan {
             spherical_state: find(RecordName::SphericalInvalidState),
             color,
             color_invalid: find(RecordName::IsColorInvalid),
-            color_range: color_range.map(|limits| {
-                let range = channel_range(pc, limits, color.map(|c| c[channel]));
-                channel += 1;
-                range
-            }),
+            color_range: [0, 1, 2]
+                .map(|i| channel_range(pc, channel_limits[i], color.map(|c| c[i]))),
             intensity: find(RecordName::Intensity),
             intensity_invalid: find(RecordName::IsIntensityInvalid),
             rotation,
