@@ -180,13 +180,16 @@ impl Scan {
     }
 }
 
-/// One decoded record of `scan`: its world position (`None` for a point the file marks
-/// invalid), color and intensity.
-fn decode(
-    pc: &PointCloud,
-    scan: &Scan,
-    values: &[RecordValue],
-) -> e57::Result<(Option<DVec3>, Option<[u8; 4]>, Option<f32>)> {
+/// One decoded record.
+struct Decoded {
+    /// World position, `None` for a point the file marks invalid.
+    world: Option<DVec3>,
+    color: Option<[u8; 4]>,
+    intensity: Option<f32>,
+}
+
+/// Decodes one record of `scan`.
+fn decode(pc: &PointCloud, scan: &Scan, values: &[RecordValue]) -> e57::Result<Decoded> {
     let value = |k: usize| values[k].to_f64(&pc.prototype[k].data_type);
     let flag = |k: Option<usize>| k.map_or(Ok(0.0), value);
     let local = if let (Some([x, y, z]), 0.0) = (scan.cartesian, flag(scan.cartesian_state)?) {
@@ -224,7 +227,11 @@ fn decode(
         (Some(k), 0.0) => Some(value(k)? as f32),
         _ => None,
     };
-    Ok((world, color, intensity))
+    Ok(Decoded {
+        world,
+        color,
+        intensity,
+    })
 }
 
 /// Reads every scan of `reader`, a file of `size` bytes.
@@ -249,7 +256,11 @@ fn read_scans<R: Read + Seek>(
             let at_record =
                 |e: e57::Error| LoadError::whole(file, format!("scan {index}, record {i}: {e}"));
             let values = values.map_err(at_record)?;
-            let (world, color, intensity) = decode(pc, &scan, &values).map_err(at_record)?;
+            let Decoded {
+                world,
+                color,
+                intensity,
+            } = decode(pc, &scan, &values).map_err(at_record)?;
             let Some(world) = world else {
                 out.invalid += 1;
                 continue;
