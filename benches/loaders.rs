@@ -131,5 +131,28 @@ fn preprocessing(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, loaders, preprocessing);
+fn formats(c: &mut Criterion) {
+    let threads = rayon::current_num_threads();
+    let mut group = c.benchmark_group(format!("formats ({threads} threads)"));
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(5));
+    for file in ["e57/bunnyFloat.e57", "copc/1.2-with-color.copc.laz"] {
+        let path = data(file);
+        group.throughput(Throughput::Bytes(
+            std::fs::metadata(&path).expect("data").len(),
+        ));
+        group.bench_function(file, |b| b.iter(|| scene::load(&path).expect("load")));
+    }
+    for n in [1_000_000, 10_000_000] {
+        let cloud = sampled_dragon(n);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_function(format!("duplicates ({n} sampled dragon)"), |b| {
+            b.iter(|| cloud.duplicates())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, loaders, preprocessing, formats);
 criterion_main!(benches);

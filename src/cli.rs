@@ -76,6 +76,10 @@ pub struct InputArgs {
     /// Reuse/store computed normals and radii in FILE.surfel-cache.
     #[arg(long)]
     pub cache: bool,
+    /// COPC only: read whole octree levels from the root down while their points fit N (the
+    /// root level always).
+    #[arg(long, value_name = "N")]
+    pub budget: Option<u64>,
 }
 
 impl InputArgs {
@@ -84,6 +88,7 @@ impl InputArgs {
         LoadOptions {
             k: self.k,
             cache: self.cache,
+            budget: self.budget,
         }
     }
 }
@@ -112,7 +117,7 @@ pub struct CameraArgs {
     )]
     pub target: Option<String>,
     /// The axis pointing up in the data (x, y, z, -x, -y, -z): orbits turn about it. Default:
-    /// z for LAS, LAZ and PCD, y for the other formats.
+    /// z for LAS, LAZ, COPC, E57 and PCD, y for the other formats.
     #[arg(long, value_name = "AXIS", allow_hyphen_values = true, value_parser = parse_up)]
     pub up: Option<Up>,
     /// Scene file (TOML/JSON) with an up axis, a camera pose and lights.
@@ -146,7 +151,7 @@ pub struct PostArgs {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Model or point cloud (ply, obj, pcd, las, laz, xyz).
+    /// Model or point cloud (ply, obj, pcd, las, laz, copc.laz, e57, xyz).
     #[arg(required_unless_present = "list_methods")]
     pub file: Option<PathBuf>,
     /// Method, optionally with parameters: `points:size=3`.
@@ -548,6 +553,22 @@ fn info(a: InfoArgs) -> Result<()> {
     println!("points            {}", cloud.len());
     println!("records in file   {}", cloud.stats.records);
     println!("dropped (NaN/inf) {}", cloud.stats.dropped_non_finite);
+    println!("dropped (invalid) {}", cloud.stats.dropped_invalid);
+    let duplicates = cloud.duplicates();
+    println!(
+        "duplicates        {} points at {} distinct positions",
+        duplicates.points, duplicates.positions
+    );
+    if let Some(levels) = &cloud.stats.levels {
+        let per_level: Vec<String> = levels.points.iter().map(u64::to_string).collect();
+        println!(
+            "octree levels     read {} of {} (points per level: {}); {} points skipped",
+            levels.read,
+            levels.points.len(),
+            per_level.join(", "),
+            levels.points_skipped()
+        );
+    }
     println!(
         "faces             {}",
         cloud.faces.as_ref().map_or(0, |f| f.len())

@@ -211,6 +211,53 @@ fn bad_post_processing_values_are_named() {
 }
 
 #[test]
+fn renders_copc_under_a_budget_and_e57_with_their_colors() {
+    for (rel, extra, points) in [
+        ("copc/1.2-with-color.copc.laz", &["--budget", "100"][..], 90),
+        ("e57/tinyCartesianFloatRgb.e57", &[][..], 2_090),
+    ] {
+        let name = rel.replace('/', "-");
+        let (png, json) = (tmp(&format!("{name}.png")), tmp(&format!("{name}.json")));
+        let path = data(rel);
+        let mut args = vec![
+            "render",
+            path.to_str().expect("utf8"),
+            "--method",
+            "points:size=4",
+            "--size",
+            "96x96",
+            "--frames",
+            "1",
+            "--validation",
+            "--out",
+            png.to_str().expect("utf8"),
+            "--timings",
+            json.to_str().expect("utf8"),
+        ];
+        args.extend(extra);
+        let o = surfel(&args);
+        assert!(o.status.success(), "{rel}: {}", stderr(&o));
+        let t: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+        assert_eq!(t["points"], points, "{rel}");
+        let img = image::open(&png).expect("png").to_rgba8();
+        let covered: Vec<_> = img.pixels().filter(|p| p[3] == 255).collect();
+        assert!(
+            covered.len() > 50,
+            "{rel}: {} pixels covered",
+            covered.len()
+        );
+        // The points' own colors: some covered pixels are far from grey.
+        assert!(
+            covered
+                .iter()
+                .any(|p| p[0].abs_diff(p[1]) > 20 || p[1].abs_diff(p[2]) > 20),
+            "{rel}: only grey pixels"
+        );
+    }
+}
+
+#[test]
 fn mesh_method_on_a_cloud_without_faces_is_a_clean_error() {
     let o = surfel(&[
         "render",
@@ -304,6 +351,65 @@ fn info_prints_the_up_axis_of_the_format_or_the_override() {
     let o = surfel(&["info", las, "--no-device", "--up", "-x"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("up axis           -x"));
+}
+
+/// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
+fn info(rel: &str, extra: &[&str]) -> String {
+    let path = data(rel);
+    let mut args = vec!["info", path.to_str().expect("utf8"), "--no-device"];
+    args.extend(extra);
+    let o = surfel(&args);
+    assert!(o.status.success(), "{rel}: {}", stderr(&o));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn info_reports_duplicates_and_dropped_points() {
+    let s = info("stanford/dragon_vrip.ply", &[]);
+    assert!(
+        s.contains("duplicates        2100 points at 1690 distinct positions"),
+        "{s}"
+    );
+    assert!(s.contains("dropped (NaN/inf) 0"), "{s}");
+    for (rel, nan) in [
+        ("pcd/table_scene_mug_stereo_textured.pcd", 97_920),
+        ("pcd/milk_cartoon_all_small_clorox.pcd", 65_793),
+    ] {
+        let s = info(rel, &[]);
+        assert!(s.contains(&format!("dropped (NaN/inf) {nan}\n")), "{s}");
+        assert!(
+            s.contains(&format!("points            {}\n", 307_200 - nan)),
+            "{s}"
+        );
+    }
+    let s = info("e57/tiny_spherical.e57", &[]);
+    assert!(s.contains("records in file   360\n"), "{s}");
+    assert!(s.contains("dropped (invalid) 180\n"), "{s}");
+}
+
+#[test]
+fn info_reports_the_copc_levels_a_budget_reads() {
+    let s = info("copc/1.2-with-color.copc.laz", &["--budget", "100"]);
+    assert!(s.contains("points            90\n"), "{s}");
+    assert!(
+        s.contains("octree levels     read 2 of 4 (points per level: 24, 66, 197, 778); 975 points skipped"),
+        "{s}"
+    );
+    let s = info("copc/1.2-with-color.copc.laz", &[]);
+    assert!(s.contains("read 4 of 4"), "{s}");
+    let o = surfel(&[
+        "info",
+        data("lidar/autzen_trim.las").to_str().expect("utf8"),
+        "--no-device",
+        "--budget",
+        "10",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("autzen_trim.las: a point budget needs a COPC file (.copc.laz)"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

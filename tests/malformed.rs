@@ -205,8 +205,11 @@ fn control_bytes_in_file_text_are_escaped() {
 
 #[test]
 fn unknown_format() {
-    let m = error("cloud.e57", b"whatever");
-    assert_contains(&m, &["unsupported file type \"e57\"", ".ply", ".laz"]);
+    let m = error("cloud.e58", b"whatever");
+    assert_contains(
+        &m,
+        &["unsupported file type \"e58\"", ".ply", ".copc.laz", ".e57"],
+    );
     let m = error("noext", b"whatever");
     assert_contains(&m, &["unsupported file type \"\""]);
 }
@@ -340,4 +343,138 @@ fn nan_coordinates_dropped_and_counted() {
     assert_eq!(c.stats.dropped_non_finite, 1);
     // The face through the dropped vertex is removed, the other re-indexed.
     assert_eq!(c.faces, Some(vec![[0, 1, 2]]));
+}
+
+/// `bytes` with the little-endian `value` written over `len` bytes at `at`.
+fn patched(mut bytes: Vec<u8>, at: usize, value: u64, len: usize) -> Vec<u8> {
+    bytes[at..at + len].copy_from_slice(&value.to_le_bytes()[..len]);
+    bytes
+}
+
+#[test]
+fn malformed_e57_names_the_offset() {
+    // bunnyFloat.e57: 374,784 bytes, its XML section (2,176 bytes) at byte 372,332.
+    let m = error("half.e57", &cut("e57/bunnyFloat.e57", |n| n / 2));
+    assert!(
+        m.ends_with(": byte offset 24: the XML section (2176 bytes at byte 372332) ends past the end of the file at byte 187392 (truncated file?)"),
+        "{m}"
+    );
+    let m = error("head.e57", &cut("e57/bunnyFloat.e57", |_| 30));
+    assert!(
+        m.ends_with(": the file ends at byte 30, inside the 48-byte E57 header"),
+        "{m}"
+    );
+    let whole = cut("e57/bunnyFloat.e57", |n| n);
+    let m = error("xml.e57", &patched(whole.clone(), 32, 1 << 40, 8));
+    assert_contains(
+        &m,
+        &["byte offset 24", "the XML section (1099511627776 bytes"],
+    );
+    let m = error("sig.e57", &patched(whole.clone(), 0, 0, 1));
+    assert!(
+        m.ends_with(": byte offset 0: expected the E57 signature \"ASTM-E57\""),
+        "{m}"
+    );
+    // A flipped byte in the first data page: the page checksum fails while reading scan 0.
+    let mut flipped = whole;
+    flipped[1100] ^= 0x40;
+    let m = error("crc.e57", &flipped);
+    assert_contains(&m, &["scan 0, record 0: ", "invalid checksum", "page 1"]);
+}
+
+#[test]
+fn malformed_copc_names_the_offset() {
+    // 1.2-with-color.copc.laz: 33,684 bytes; the hierarchy EVLR at 31,544, its root page
+    // (65 entries) at 31,604; the root node's entry (24 points, 665 bytes at byte 28,853) first.
+    let rel = "copc/1.2-with-color.copc.laz";
+    let m = error("half.copc.laz", &cut(rel, |n| n / 2));
+    assert!(
+        m.ends_with(": byte offset 31544: the first EVLR header (60 bytes) ends past the end of the file at byte 16842 (truncated file?)"),
+        "{m}"
+    );
+    let m = error("cut.copc.laz", &cut(rel, |_| 31_700));
+    assert!(
+        m.ends_with(": byte offset 31564: the first EVLR (2080 bytes) ends past the end of the file at byte 31700 (truncated file?)"),
+        "{m}"
+    );
+    let whole = cut(rel, |n| n);
+    // The 64-bit point count (byte 247) with the legacy 32-bit one (byte 107) zero.
+    let m = error(
+        "huge.copc.laz",
+        &patched(patched(whole.clone(), 107, 0, 4), 247, 1 << 40, 8),
+    );
+    assert!(
+        m.ends_with(": byte offset 247: the header declares 1099511627776 points, more than a file of 33684 bytes can hold"),
+        "{m}"
+    );
+    let m = error("more.copc.laz", &patched(whole.clone(), 107, 1_066, 4));
+    assert!(
+        m.ends_with(": the COPC hierarchy holds 1065 points, but the header declares 1066"),
+        "{m}"
+    );
+    let m = error(
+        "count.copc.laz",
+        &patched(whole.clone(), 31_632, i32::MAX as u64, 4),
+    );
+    assert!(
+        m.ends_with(": byte offset 31604: a chunk of 665 bytes cannot hold the 2147483647 points it declares"),
+        "{m}"
+    );
+    let m = error("far.copc.laz", &patched(whole.clone(), 31_620, 1 << 40, 8));
+    assert!(
+        m.ends_with(": byte offset 31604: the chunk of 24 points (665 bytes at byte 1099511627776) is not inside the file of 33684 bytes (truncated file?)"),
+        "{m}"
+    );
+    let one_more = patched(patched(whole.clone(), 31_632, 25, 4), 107, 1_066, 4);
+    let m = error("chunk.copc.laz", &one_more);
+    assert!(
+        m.ends_with(": byte offset 28889: the chunk holds 24 points, but its hierarchy entry at byte 31604 declares 25"),
+        "{m}"
+    );
+    let m = error("layers.copc.laz", &patched(whole, 28_893, 1 << 31, 4));
+    assert_contains(
+        &m,
+        &[
+            "byte offset 28893: the chunk's layers need",
+            "bytes, but only",
+        ],
+    );
+    let m = error("plain.copc.laz", &cut("lidar/autzen_trim.laz", |n| n));
+    assert!(
+        m.ends_with(": byte offset 24: expected LAS version 1.4 (COPC), found 1.2"),
+        "{m}"
+    );
+}
+
+/// CRC-32C (Castagnoli), the checksum of every 1,020-byte E57 page (stored big-endian after it).
+fn crc32c(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in bytes {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = (crc >> 1) ^ if crc & 1 == 1 { 0x82F6_3B78 } else { 0 };
+        }
+    }
+    !crc
+}
+
+#[test]
+fn e57_scan_claiming_2_pow_40_records_fails_at_the_end_of_its_data() {
+    // bunnyFloat.e57 with the scan's recordCount raised from 30,571 to 2^40 (the XML keeps its
+    // length: indentation is dropped) and the page checksums redone.
+    let mut bytes = cut("e57/bunnyFloat.e57", |n| n);
+    let old = b"recordCount=\"30571\">\n        <prototype";
+    let new = b"recordCount=\"1099511627776\">\n<prototype";
+    let at = bytes
+        .windows(old.len())
+        .position(|w| w == old)
+        .expect("recordCount in the XML");
+    bytes[at..at + new.len()].copy_from_slice(new);
+    for page in [at / 1024, (at + new.len()) / 1024] {
+        let start = page * 1024;
+        let crc = crc32c(&bytes[start..start + 1020]);
+        bytes[start + 1020..start + 1024].copy_from_slice(&crc.to_be_bytes());
+    }
+    let m = error("records.e57", &bytes);
+    assert_contains(&m, &["scan 0, record 30571: "]);
 }

@@ -19,6 +19,41 @@ pub struct LoadStats {
     pub records: usize,
     /// Records dropped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
+    /// Records the file itself marks invalid (E57 `cartesianInvalidState` /
+    /// `sphericalInvalidState`), skipped.
+    pub dropped_invalid: usize,
+    /// For an octree file (COPC): the points of each level and how many levels were read.
+    pub levels: Option<Levels>,
+}
+
+/// The octree levels of a COPC file and the levels a point budget let a load read.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Levels {
+    /// Points in each level, from the root (level 0) down, as the hierarchy declares them.
+    pub points: Vec<u64>,
+    /// Levels read: `0..read` (all of them without a budget).
+    pub read: usize,
+}
+
+impl Levels {
+    /// Points in the levels that were read.
+    pub fn points_read(&self) -> u64 {
+        self.points[..self.read].iter().sum()
+    }
+
+    /// Points in the deeper levels the budget left out.
+    pub fn points_skipped(&self) -> u64 {
+        self.points[self.read..].iter().sum()
+    }
+}
+
+/// Exact duplicate positions in a cloud, reported by `surfel info`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Duplicates {
+    /// Points whose position equals an earlier point's.
+    pub points: usize,
+    /// Distinct positions that occur more than once.
+    pub positions: usize,
 }
 
 /// Axis-aligned bounds of the finite points seen so far, in f64 file coordinates.
@@ -76,8 +111,8 @@ pub struct Cloud {
     /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
     /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
     pub sensor: Option<Vec3>,
-    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ
-    /// and PCD; +y otherwise); cameras orbit about it.
+    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ,
+    /// COPC, E57 and PCD; +y otherwise); cameras orbit about it.
     pub up: Up,
 }
 
@@ -106,6 +141,24 @@ impl Cloud {
         let (lo, hi) = self.bounds()?;
         let centre = (lo + hi) * 0.5;
         Some((centre, ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE)))
+    }
+
+    /// Counts exact duplicate positions (bitwise equal coordinates, with -0 equal to +0): the
+    /// positions are sorted in parallel, so it takes O(n log n) time and 12 bytes per point.
+    pub fn duplicates(&self) -> Duplicates {
+        let mut keys: Vec<[u32; 3]> = self
+            .positions
+            .par_iter()
+            .map(|p| (*p + Vec3::ZERO).to_array().map(f32::to_bits))
+            .collect();
+        keys.par_sort_unstable();
+        let (points, positions) = keys
+            .par_windows(2)
+            .enumerate()
+            .filter(|(_, w)| w[0] == w[1])
+            .map(|(i, w)| (1, usize::from(i == 0 || keys[i - 1] != w[0])))
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        Duplicates { points, positions }
     }
 
     /// Removes every point with a NaN or infinite coordinate, together with its normal, color,
@@ -159,5 +212,46 @@ impl Cloud {
         }
         self.stats.dropped_non_finite += dropped;
         dropped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn duplicates_count_repeats_and_the_positions_repeated() {
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        let cloud = Cloud {
+            positions: vec![
+                p(1.0, 2.0, 3.0),
+                p(0.0, 0.0, 0.0),
+                p(1.0, 2.0, 3.0),
+                p(-0.0, 0.0, -0.0),
+                p(1.0, 2.0, 3.0),
+                p(1.0, 2.0, 3.000_001),
+                p(5.0, 5.0, 5.0),
+                p(5.0, 5.0, 5.0),
+            ],
+            ..Cloud::default()
+        };
+        // (1,2,3) three times, the origin twice (signed zeros are equal), (5,5,5) twice.
+        assert_eq!(
+            cloud.duplicates(),
+            Duplicates {
+                points: 4,
+                positions: 3
+            }
+        );
+        assert_eq!(Cloud::default().duplicates(), Duplicates::default());
+    }
+
+    #[test]
+    fn levels_split_read_and_skipped_points() {
+        let levels = Levels {
+            points: vec![10, 80, 640],
+            read: 2,
+        };
+        assert_eq!((levels.points_read(), levels.points_skipped()), (90, 640));
     }
 }

@@ -15,6 +15,9 @@ pub struct LoadOptions {
     pub k: usize,
     /// Reuse and store computed normals and radii in `FILE.surfel-cache`.
     pub cache: bool,
+    /// Read at most about this many points from a COPC file: whole octree levels from the root
+    /// down while they fit (the root level always). `None` reads everything.
+    pub budget: Option<u64>,
 }
 
 impl Default for LoadOptions {
@@ -22,6 +25,7 @@ impl Default for LoadOptions {
         LoadOptions {
             k: preprocess::DEFAULT_K,
             cache: false,
+            budget: None,
         }
     }
 }
@@ -29,7 +33,7 @@ impl Default for LoadOptions {
 /// Loads `path` and completes what the methods need: normals (from faces for meshes, else PCA
 /// over k-NN) and radii (k-NN), optionally cached next to the input.
 pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
-    let mut cloud = super::load(path)?;
+    let mut cloud = super::load_with_budget(path, options.budget)?;
     if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
         cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
     }

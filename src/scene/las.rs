@@ -244,7 +244,7 @@ fn finish(
         origin,
         stats: LoadStats {
             records: usize::try_from(declared).unwrap_or(usize::MAX),
-            dropped_non_finite: 0,
+            ..LoadStats::default()
         },
         ..Cloud::default()
     };

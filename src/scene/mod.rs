@@ -1,8 +1,10 @@
-//! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ and XYZ text, preprocessing (normals and
+//! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ, COPC, E57 and XYZ text, preprocessing (normals and
 //! splat radii from k nearest neighbours), mesh sampling, camera, lights and scene files.
 
 pub mod camera;
 pub mod cloud;
+pub mod copc;
+pub mod e57;
 pub mod error;
 pub mod input;
 pub mod las;
@@ -22,26 +24,39 @@ pub mod xyz;
 use std::path::Path;
 
 pub use camera::{Camera, Pose, Up};
-pub use cloud::{Cloud, LoadStats, Scalar};
+pub use cloud::{Cloud, Levels, LoadStats, Scalar};
 pub use error::{LoadError, Location};
 pub use input::{load_prepared, LoadOptions};
 pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):
-/// `ply`, `obj`, `pcd`, `las`, `laz`, `xyz`, `txt`, `pts`. Points with a non-finite coordinate
-/// are dropped and counted in `stats.dropped_non_finite`. The cloud's `up` is the format's
-/// convention: +z for the survey formats (LAS, LAZ, PCD), +y for the others.
+/// `ply`, `obj`, `pcd`, `las`, `laz`, `copc.laz`, `e57`, `xyz`, `txt`, `pts`. Points with a
+/// non-finite coordinate are dropped and counted in `stats.dropped_non_finite`. The cloud's `up`
+/// is the format's convention: +z for the survey formats (LAS, LAZ, COPC, E57, PCD), +y for the
+/// others.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
-    let extension = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
+    load_with_budget(path, None)
+}
+
+/// [`load`], reading a COPC file's octree only down to the deepest level whose points, with
+/// those of the levels above it, fit `budget` (the root level always). A budget for any other
+/// format is an error: only an octree can be read partially.
+pub fn load_with_budget(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
+    let extension = format_extension(path);
     let up = format_up(&extension);
+    if budget.is_some() && extension != "copc.laz" {
+        return Err(LoadError::whole(
+            &path.display().to_string(),
+            "a point budget needs a COPC file (.copc.laz); other formats are read whole",
+        ));
+    }
     let mut cloud = match extension.as_str() {
         "ply" => ply::load(path),
         "obj" => obj::load(path),
         "pcd" => pcd::load(path),
+        "copc.laz" => copc::load(path, budget),
         "las" | "laz" => las::load(path),
+        "e57" => e57::load(path),
         "xyz" | "txt" | "pts" => xyz::load(path),
         _ => Err(LoadError::UnknownFormat {
             file: path.display().to_string(),
@@ -52,10 +67,25 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     Ok(cloud)
 }
 
+/// The lower-case format extension of `path`: `copc.laz` for a COPC file, else the last
+/// extension (empty when there is none).
+pub fn format_extension(path: &Path) -> String {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".copc.laz") {
+        return "copc.laz".into();
+    }
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
 /// The up axis a file format conventionally uses, from its lower-case extension.
 pub fn format_up(extension: &str) -> Up {
     match extension {
-        "las" | "laz" | "pcd" => Up::Z,
+        "las" | "laz" | "copc.laz" | "e57" | "pcd" => Up::Z,
         _ => Up::Y,
     }
 }
@@ -74,11 +104,20 @@ mod tests {
 
     #[test]
     fn survey_formats_are_z_up_and_the_others_y_up() {
-        for ext in ["las", "laz", "pcd"] {
+        for ext in ["las", "laz", "copc.laz", "e57", "pcd"] {
             assert_eq!(format_up(ext), Up::Z, "{ext}");
         }
         for ext in ["ply", "obj", "xyz", "txt", "pts"] {
             assert_eq!(format_up(ext), Up::Y, "{ext}");
         }
+    }
+
+    #[test]
+    fn copc_is_recognised_before_laz() {
+        assert_eq!(format_extension(Path::new("a/b.COPC.laz")), "copc.laz");
+        assert_eq!(format_extension(Path::new("a/copc.laz")), "laz");
+        assert_eq!(format_extension(Path::new("a/b.laz")), "laz");
+        assert_eq!(format_extension(Path::new("a/b.E57")), "e57");
+        assert_eq!(format_extension(Path::new("a/b")), "");
     }
 }

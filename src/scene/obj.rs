@@ -218,7 +218,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
         faces: Some(faces),
         stats: LoadStats {
             records: n,
-            dropped_non_finite: 0,
+            ..LoadStats::default()
         },
         ..Cloud::default()
     };

@@ -5,14 +5,22 @@
 //! kept as a named scalar (`name_i` for element `i` of a field with `COUNT` > 1; `_` padding
 //! fields are skipped). Points with a non-finite coordinate are dropped and counted. The
 //! `VIEWPOINT` translation becomes [`Cloud::sensor`].
+//!
+//! Coordinates are kept in f64 while reading. When the finite points reach a magnitude of
+//! [`RECENTRE_MAGNITUDE`] (projected coordinates such as UTM, ~5 × 10⁶ m), the f64 centre of
+//! their bounding box becomes [`Cloud::origin`] and is subtracted before the conversion to f32,
+//! as for LAS, so the local coordinates keep the precision the file's values had.
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
-use super::cloud::{Cloud, LoadStats, Scalar};
+use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::{show, LoadError};
 use super::text::{self, Lines};
+
+/// Clouds with a finite coordinate at least this large (in absolute value) are re-centred.
+pub const RECENTRE_MAGNITUDE: f64 = 1e5;
 
 /// Largest output an LZF stream can produce per input byte (a 3-byte back-reference copies
 /// at most 264 bytes), used to reject absurd uncompressed sizes before allocating.
@@ -146,7 +154,7 @@ enum Data {
 struct Header {
     fields: Vec<Field>,
     points: usize,
-    viewpoint: Option<Vec3>,
+    viewpoint: Option<DVec3>,
     data: Data,
     body: usize,
     lines: usize,
@@ -228,7 +236,7 @@ fn parse_header(file: &str, bytes: &[u8]) -> Result<Header, LoadError> {
                 let v: Option<Vec<f64>> = args.iter().map(|a| text::parse_f64(a)).collect();
                 match v {
                     Some(v) if v.len() == 7 => {
-                        viewpoint = Some(Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+                        viewpoint = Some(DVec3::new(v[0], v[1], v[2]))
                     }
                     _ => return Err(err("VIEWPOINT tx ty tz qw qx qy qz (7 numbers)")),
                 }
@@ -319,7 +327,7 @@ enum Role {
 /// Collects decoded values into a cloud.
 struct Builder {
     roles: Vec<Role>,
-    positions: Vec<[f32; 3]>,
+    positions: Vec<[f64; 3]>,
     normals: Option<Vec<[f32; 3]>>,
     colors: Option<Vec<[u8; 4]>>,
     scalars: Vec<Scalar>,
@@ -384,7 +392,7 @@ impl Builder {
     #[inline]
     fn set(&mut self, field: usize, element: usize, point: usize, raw: [u8; 4], value: f64) {
         match self.roles[field] {
-            Role::Position(a) => self.positions[point][a] = value as f32,
+            Role::Position(a) => self.positions[point][a] = value,
             Role::Normal(a) => {
                 if let Some(n) = self.normals.as_mut() {
                     n[point][a] = value as f32;
@@ -401,17 +409,30 @@ impl Builder {
     }
 
     fn finish(self, header: &Header) -> Cloud {
+        let bounds = self.positions.iter().fold(Bounds::EMPTY, |mut b, p| {
+            b.add(DVec3::from(*p));
+            b
+        });
+        let origin = bounds
+            .centre()
+            .filter(|_| bounds.lo.abs().max(bounds.hi.abs()).max_element() >= RECENTRE_MAGNITUDE)
+            .unwrap_or(DVec3::ZERO);
         let mut cloud = Cloud {
-            positions: self.positions.into_iter().map(Vec3::from).collect(),
+            positions: self
+                .positions
+                .into_iter()
+                .map(|p| (DVec3::from(p) - origin).as_vec3())
+                .collect(),
             normals: self
                 .normals
                 .map(|n| n.into_iter().map(Vec3::from).collect()),
             colors: self.colors,
             scalars: self.scalars,
-            sensor: header.viewpoint,
+            sensor: header.viewpoint.map(|v| (v - origin).as_vec3()),
+            origin,
             stats: LoadStats {
                 records: header.points,
-                dropped_non_finite: 0,
+                ..LoadStats::default()
             },
             ..Cloud::default()
         };

@@ -1078,7 +1078,7 @@ fn vertex_element(file: &str, header: &Header) -> Result<usize, LoadError> {
 fn finish(mut cloud: Cloud, vertex_count: usize) -> Cloud {
     cloud.stats = LoadStats {
         records: vertex_count,
-        dropped_non_finite: 0,
+        ..LoadStats::default()
     };
     cloud.retain_finite();
     cloud

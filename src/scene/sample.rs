@@ -177,7 +177,7 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         sensor: mesh.sensor,
         stats: LoadStats {
             records: n_points,
-            dropped_non_finite: 0,
+            ..LoadStats::default()
         },
         ..Cloud::default()
     })

@@ -125,7 +125,7 @@ fn build(values: &[f64], columns: usize) -> Cloud {
         positions: vec3(0),
         stats: LoadStats {
             records: rows.len(),
-            dropped_non_finite: 0,
+            ..LoadStats::default()
         },
         ..Cloud::default()
     };
