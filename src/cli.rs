@@ -7,9 +7,10 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+use crate::color::{self, Coloring};
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
-use crate::render::{upload, Extras, Renderer, View};
+use crate::render::{upload_colored, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
@@ -120,6 +121,10 @@ pub struct CameraArgs {
     /// Render with the base color instead of the points' colors.
     #[arg(long)]
     pub no_color: bool,
+    /// Color by a field: rgb, none, elevation, normal, intensity, classification, return, or
+    /// any scalar field by name (also scalar:NAME); `surfel info` lists a file's fields.
+    #[arg(long, value_name = "NAME")]
+    pub color_by: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -247,12 +252,25 @@ pub struct ViewSettings {
     /// The up axis, `None` for the input format's.
     pub up: Option<Up>,
     pub lights: Vec<Light>,
+    /// The field to color by, `None` for the default (`color::default_field`).
+    pub color_by: Option<String>,
 }
 
 impl ViewSettings {
     /// The up axis for a cloud whose format uses `format_up`.
     pub fn up(&self, format_up: Up) -> Up {
         self.up.unwrap_or(format_up)
+    }
+
+    /// The coloring of `cloud` (whose format uses `format_up`) these settings select; an unknown
+    /// field is an error naming `file` and listing the cloud's fields.
+    pub fn coloring(&self, file: &Path, cloud: &crate::scene::Cloud) -> Result<Coloring> {
+        let name = self
+            .color_by
+            .as_deref()
+            .unwrap_or_else(|| color::default_field(cloud));
+        color::select(cloud, name, self.up(cloud.up))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
     }
 
     /// The camera for a cloud with this bounding sphere whose format uses `format_up`.
@@ -289,6 +307,7 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
         pose,
         up: cam.up.or(file.up),
         lights,
+        color_by: cam.color_by.clone().or(file.color_by),
     })
 }
 
@@ -349,10 +368,11 @@ fn render(a: RenderArgs) -> Result<()> {
         s
     };
     let cloud = load_prepared(&file, &a.input.options())?;
+    let coloring = settings.coloring(&file, &cloud)?;
     let load_s = since();
     let ctx = context(a.validation)?;
     let device_s = since();
-    let (scene, info) = upload(&ctx, &cloud)?;
+    let (scene, info) = upload_colored(&ctx, &cloud, coloring)?;
     let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,
@@ -459,6 +479,11 @@ fn view(a: ViewArgs) -> Result<()> {
     let (width, height) = parse_size(&a.size)?;
     let settings = view_settings(&a.camera)?;
     let cloud = load_prepared(&a.file, &a.input.options())?;
+    let coloring = settings.coloring(&a.file, &cloud)?;
+    let color_by = settings
+        .color_by
+        .clone()
+        .unwrap_or_else(|| color::default_field(&cloud).to_owned());
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let up = settings.up(cloud.up);
     crate::app::run(
@@ -469,6 +494,8 @@ fn view(a: ViewArgs) -> Result<()> {
             camera: settings.camera(centre, radius, up),
             up,
             lights: settings.lights,
+            color_by,
+            coloring,
             width,
             height,
             frames: a.frames,
@@ -494,13 +521,22 @@ fn info(a: InfoArgs) -> Result<()> {
     let scalars: Vec<&str> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
     attrs.extend(scalars);
     println!("attributes        {}", attrs.join(", "));
+    if !cloud.scalars.is_empty() {
+        println!("scalar fields     min .. max (2nd .. 98th percentile)");
+        for s in &cloud.scalars {
+            let (min, max) = color::min_max(&s.values);
+            let [lo, hi] = color::robust_range(&s.values);
+            println!("  {:<22} {min} .. {max} ({lo} .. {hi})", s.name);
+        }
+    }
+    println!("color by          {}", color::fields(&cloud).join(", "));
     if let Some((lo, hi)) = cloud.bounds() {
         let o = cloud.origin;
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
         println!("bounds (local)    {lo:.6} .. {hi:.6}");
     }
     let n = cloud.len() as u64;
-    let streams = crate::streams::StreamLayout::streams_for(&cloud);
+    let streams = crate::streams::StreamLayout::streams_for(&cloud, None);
     let mut total = 0;
     println!("GPU streams       bytes/point  MiB");
     for s in streams {
@@ -589,6 +625,7 @@ mod tests {
             up,
             scene: None,
             no_color: false,
+            color_by: None,
         }
     }
 

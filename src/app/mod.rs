@@ -2,7 +2,8 @@
 //! switch methods and toggle color, and per-pass GPU milliseconds in the title.
 //!
 //! Controls: left drag orbits, right (or middle) drag pans, the wheel zooms, `M`/`N` switch to
-//! the next/previous method, `C` toggles point colors, `R` resets the camera, `Esc` quits.
+//! the next/previous method, `C` toggles point colors, `V` cycles the fields to color by,
+//! `R` resets the camera, `Esc` quits.
 
 use std::sync::Arc;
 
@@ -16,10 +17,11 @@ use winit::keyboard::{Key, NamedKey};
 use winit::raw_window_handle::HasDisplayHandle;
 use winit::window::{Window, WindowId};
 
+use crate::color::{self, Coloring};
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
-use crate::render::{upload, Extras, Renderer, SceneInfo, View};
+use crate::render::{upload_colored, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction};
 use crate::scene::{Camera, Cloud, Light, Up};
 
@@ -31,6 +33,9 @@ pub struct ViewerOptions {
     /// The axis the drag orbit turns about.
     pub up: Up,
     pub lights: Vec<Light>,
+    /// The field colored by at start (`V` cycles `color::fields`) and its coloring.
+    pub color_by: String,
+    pub coloring: Coloring,
     pub width: u32,
     pub height: u32,
     /// Quit after this many frames (smoke tests); run until closed when `None`.
@@ -160,7 +165,7 @@ impl Viewer {
                 validation: self.opts.validation,
                 surface_extensions: exts,
             })?);
-            self.scene = Some(upload(&ctx, &self.cloud)?);
+            self.scene = Some(upload_colored(&ctx, &self.cloud, self.opts.coloring)?);
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -244,6 +249,30 @@ impl Viewer {
         self.rebuild()
     }
 
+    /// Colors by the next field of `color::fields`: swaps the uploaded scalar stream (an event,
+    /// not per frame) and rebuilds the renderer on the new segment table.
+    fn cycle_color(&mut self) -> Result<()> {
+        let fields = color::fields(&self.cloud);
+        let next = fields
+            .iter()
+            .position(|f| *f == self.opts.color_by)
+            .map_or(0, |i| (i + 1) % fields.len());
+        let name = fields[next].clone();
+        let coloring =
+            color::select(&self.cloud, &name, self.orbit.up).map_err(anyhow::Error::msg)?;
+        let ctx = self.ctx.clone().context("context")?;
+        if let Some((scene, info)) = self.scene.as_mut() {
+            let chunk = crate::streams::UploadOptions::default().chunk_bytes;
+            scene
+                .streams
+                .select_scalar(&ctx, &self.cloud, coloring.scalar, chunk)?;
+            info.coloring = coloring;
+        }
+        println!("color by {name}");
+        self.opts.color_by = name;
+        self.rebuild()
+    }
+
     fn frame(&mut self) -> Result<()> {
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
@@ -286,9 +315,10 @@ impl Viewer {
             .map(|(n, ms)| format!("{n} {ms:.2}"))
             .collect();
         gpu.window.set_title(&format!(
-            "{} - {} - {} ms{}",
+            "{} - {} - color: {} - {} ms{}",
             self.opts.title,
             gpu.renderer.config.label(),
+            self.opts.color_by,
             passes.join(" | "),
             if self.use_color { "" } else { " (no color)" }
         ));
@@ -336,6 +366,7 @@ impl ApplicationHandler for Viewer {
                         self.use_color = !self.use_color;
                         Ok(())
                     }
+                    Key::Character("v") => self.cycle_color(),
                     Key::Character("r") => {
                         self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up);
                         Ok(())

@@ -2,6 +2,7 @@
 //!
 //! ```toml
 //! up = "z"                 # x | y | z | -x | -y | -z (default: from the file format)
+//! color_by = "intensity"   # any field `surfel info` lists (default: rgb, else none)
 //! [camera]
 //! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
 //! [[lights]]
@@ -27,6 +28,8 @@ pub struct SceneFile {
     pub camera: Option<Pose>,
     #[serde(default)]
     pub lights: Vec<Light>,
+    /// The field to color by (`--color-by`).
+    pub color_by: Option<String>,
 }
 
 impl SceneFile {
@@ -82,6 +85,8 @@ mod tests {
         assert_eq!(u.up, Some(Up::NegZ));
         let j = SceneFile::parse(r#"{"up": "x"}"#, Path::new("u.json")).expect("valid up");
         assert_eq!(j.up, Some(Up::X));
+        let c = SceneFile::parse("color_by = \"Deviation\"\n", Path::new("c.toml")).expect("color");
+        assert_eq!(c.color_by.as_deref(), Some("Deviation"));
     }
 
     #[test]
