@@ -119,7 +119,8 @@ pub fn upload_with(
 pub struct View {
     pub camera: Camera,
     pub lights: Vec<Light>,
-    /// Use the points' colors (when the input has them) instead of the base color.
+    /// Color by the scene's `Coloring` (`SceneInfo::coloring`); `false` shows the lit base
+    /// color.
     pub use_color: bool,
     /// Seconds, for orbiting lights.
     pub time: f32,
