@@ -68,6 +68,15 @@ pub fn fields(cloud: &Cloud) -> Vec<String> {
     names
 }
 
+/// The field after `current` in `fields` (cyclically; the first when `current` is not there).
+pub fn next_field<'a>(fields: &'a [String], current: &str) -> Option<&'a str> {
+    let next = fields
+        .iter()
+        .position(|f| f == current)
+        .map_or(0, |i| (i + 1) % fields.len());
+    fields.get(next).map(String::as_str)
+}
+
 /// The field `cloud` is colored by when none is named.
 pub fn default_field(cloud: &Cloud) -> &'static str {
     if cloud.colors.is_some() {
@@ -372,6 +381,11 @@ mod tests {
             "--color-by 'bogus': no such field; this file has: rgb, none, elevation, \
              intensity, classification, return_number, Deviation"
         );
+        let all = fields(&c);
+        assert_eq!(next_field(&all, "rgb"), Some("none"));
+        assert_eq!(next_field(&all, "Deviation"), Some("rgb"));
+        assert_eq!(next_field(&all, "gone"), Some("rgb"));
+        assert_eq!(next_field(&[], "rgb"), None);
         // No colors, no `rgb`.
         let plain = cloud(vec![], false);
         assert!(select(&plain, "rgb", Up::Y).is_err());

@@ -253,11 +253,9 @@ impl Viewer {
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
         let fields = color::fields(&self.cloud);
-        let next = fields
-            .iter()
-            .position(|f| *f == self.opts.color_by)
-            .map_or(0, |i| (i + 1) % fields.len());
-        let name = fields[next].clone();
+        let name = color::next_field(&fields, &self.opts.color_by)
+            .context("no field to color by")?
+            .to_owned();
         let coloring =
             color::select(&self.cloud, &name, self.orbit.up).map_err(anyhow::Error::msg)?;
         let ctx = self.ctx.clone().context("context")?;
