@@ -549,6 +549,12 @@ fn info(a: InfoArgs) -> Result<()> {
             bytes as f64 / (1 << 20) as f64
         );
     }
+    if !cloud.scalars.is_empty() {
+        println!(
+            "  {:<22} {:>5}  (the field colored by, when one is)",
+            "scalar f32", 4
+        );
+    }
     let batches = n.div_ceil(u64::from(crate::gpu::layout::BATCH_POINTS));
     println!(
         "GPU memory        {:.2} bytes/point, {:.2} MiB in {batches} batches of {} points",

@@ -133,6 +133,27 @@ enum Decode {
 }
 
 impl Decode {
+    /// Decodes the field of every record of `stride` bytes in `records` into `out`, one field
+    /// at a time over a block that stays in cache (the common fields without a per-record
+    /// dispatch).
+    fn fill(self, records: &[u8], stride: usize, out: &mut [f32]) {
+        let rows = records.chunks_exact(stride).zip(out);
+        match self {
+            Decode::Value {
+                at,
+                kind: Kind::U16,
+                scale,
+                offset,
+            } if scale == 1.0 && offset == 0.0 => {
+                rows.for_each(|(r, o)| *o = f32::from(u16_at(r, at)));
+            }
+            Decode::Bits { at, shift, mask } => {
+                rows.for_each(|(r, o)| *o = f32::from((r[at] >> shift) & mask));
+            }
+            d => rows.for_each(|(r, o)| *o = d.read(r)),
+        }
+    }
+
     fn read(self, r: &[u8]) -> f32 {
         match self {
             Decode::Value {
@@ -430,12 +451,12 @@ impl Columns {
             .zip(bytes.par_chunks(per_task * stride))
             .map(|((raw, mut columns), b)| {
                 let mut bounds = Bounds::EMPTY;
-                for (k, (r, xyz)) in b.chunks_exact(stride).zip(raw).enumerate() {
+                for (r, xyz) in b.chunks_exact(stride).zip(raw) {
                     *xyz = [i32_at(r, 0), i32_at(r, 4), i32_at(r, 8)];
                     bounds.add(layout.world(*xyz));
-                    for ((_, decode), column) in layout.fields.iter().zip(columns.iter_mut()) {
-                        column[k] = decode.read(r);
-                    }
+                }
+                for ((_, decode), column) in layout.fields.iter().zip(columns.iter_mut()) {
+                    decode.fill(b, stride, column);
                 }
                 let max_channel = layout.color_at.map_or(0, |at| {
                     b.chunks_exact(stride)

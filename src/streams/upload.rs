@@ -79,7 +79,7 @@ fn stream_buffer(
     )
 }
 
-/// `GpuSegment.scalar` for field `k`'s stream in `buffers`.
+/// `GpuSegment.scalar` for the scalar stream among `buffers` (zeros without one).
 fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
     buffers
         .iter()
