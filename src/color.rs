@@ -89,6 +89,7 @@ pub fn default_field(cloud: &Cloud) -> &'static str {
 /// Resolves `name` (a field of [`fields`], `scalar:NAME` or `return`) for `cloud`, whose up axis
 /// is `up`. An unknown name is an error listing the fields of this cloud.
 pub fn select(cloud: &Cloud, name: &str, up: Up) -> Result<Coloring, String> {
+    // A mode on its own, lit; attribute modes override `unlit` (and the range).
     let lit = |mode| Coloring {
         mode,
         scalar: None,
@@ -122,7 +123,6 @@ pub fn select(cloud: &Cloud, name: &str, up: Up) -> Result<Coloring, String> {
                 );
             let range = if lo <= hi { [lo, hi] } else { [0.0, 1.0] };
             return Ok(Coloring {
-                mode: COLOR_ELEVATION,
                 range,
                 unlit: true,
                 ..lit(COLOR_ELEVATION)
