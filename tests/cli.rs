@@ -364,7 +364,7 @@ fn an_unknown_color_field_lists_the_fields_of_the_file() {
         e.contains(&format!(
             "{}: --color-by 'bogus': no such field; this file has: rgb, none, elevation, \
              normal, intensity, classification, return_number, number_of_returns, \
-             point_source_id",
+             point_source_id, gps_time\n",
             las.display()
         )),
         "{e}"
@@ -400,7 +400,7 @@ fn deviation_las() -> PathBuf {
                 intensity: i as u16,
                 return_number: 1,
                 number_of_returns: 1,
-                gps_time: Some(0.0),
+                gps_time: Some(1.0e9 + f64::from(i)),
                 extra_bytes: ((x / 10.0 - 1.0) as f32).to_le_bytes().to_vec(),
                 ..Default::default()
             })
@@ -417,6 +417,10 @@ fn extra_bytes_fields_are_listed_by_info_and_can_color_a_render() {
     assert!(o.status.success(), "{}", stderr(&o));
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(
+        s.contains("  gps_time               0 .. 399 (8 .. 391)"),
+        "{s}"
+    );
+    assert!(
         s.contains("  Deviation              -1 .. 0.9 (-1 .. 0.9)"),
         "{s}"
     );
@@ -427,7 +431,7 @@ fn extra_bytes_fields_are_listed_by_info_and_can_color_a_render() {
     assert!(
         s.contains(
             "color by          none, elevation, normal, intensity, classification, \
-             return_number, number_of_returns, point_source_id, Deviation"
+             return_number, number_of_returns, point_source_id, gps_time, Deviation"
         ),
         "{s}"
     );

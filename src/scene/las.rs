@@ -7,10 +7,10 @@
 //! to f32, so large projected coordinates keep their centimetre grid. RGB is kept (8-bit values
 //! stored in the 16-bit fields, as many writers do, are detected and used as is; true 16-bit
 //! values are shifted down). Intensity, classification (12, "overlap", reads as 1,
-//! "unclassified", as in the crate), return number, number of returns, point source id and, in
+//! "unclassified", as in the crate), return number, number of returns, point source id, GPS
+//! time (in seconds after the first record's: f32 cannot hold absolute GPS times) and, in
 //! formats 8 and 10, NIR become scalars, and so does every field an extra-bytes VLR (LASF_Spec
-//! record 4, LAS 1.4 R15 §2.5.8) describes, by its name, with its scale and offset. GPS time
-//! is not kept: f32 cannot hold it.
+//! record 4, LAS 1.4 R15 §2.5.8) describes, by its name, with its scale and offset.
 
 use std::fs::File;
 use std::io::{BufReader, Cursor, ErrorKind, Read, Seek};
@@ -130,13 +130,17 @@ enum Decode {
     Bits { at: usize, shift: u8, mask: u8 },
     /// The classification code at byte `at` under `mask`; overlap reads as unclassified.
     Class { at: usize, mask: u8 },
+    /// The f64 GPS time at byte `at`, in seconds after the first record's (f32 cannot hold
+    /// absolute GPS times; relative ones keep about a millisecond over a day).
+    Time { at: usize },
 }
 
 impl Decode {
     /// Decodes the field of every record of `stride` bytes in `records` into `out`, one field
     /// at a time over a block that stays in cache (the common fields without a per-record
     /// dispatch).
-    fn fill(self, records: &[u8], stride: usize, out: &mut [f32]) {
+    /// `time_origin` is the first record's GPS time.
+    fn fill(self, records: &[u8], stride: usize, out: &mut [f32], time_origin: f64) {
         let rows = records.chunks_exact(stride).zip(out);
         match self {
             Decode::Value {
@@ -150,11 +154,11 @@ impl Decode {
             Decode::Bits { at, shift, mask } => {
                 rows.for_each(|(r, o)| *o = f32::from((r[at] >> shift) & mask));
             }
-            d => rows.for_each(|(r, o)| *o = d.read(r)),
+            d => rows.for_each(|(r, o)| *o = d.read(r, time_origin)),
         }
     }
 
-    fn read(self, r: &[u8]) -> f32 {
+    fn read(self, r: &[u8], time_origin: f64) -> f32 {
         match self {
             Decode::Value {
                 at,
@@ -167,6 +171,7 @@ impl Decode {
                 let code = r[at] & mask;
                 f32::from(if code == OVERLAP { 1 } else { code })
             }
+            Decode::Time { at } => (Kind::F64.read(&r[at..]) - time_origin) as f32,
         }
     }
 }
@@ -278,6 +283,9 @@ fn standard_names(format: &las::point::Format) -> Vec<&'static str> {
         "number_of_returns",
         "point_source_id",
     ];
+    if format.has_gps_time {
+        names.push("gps_time");
+    }
     if format.has_nir {
         names.push("nir");
     }
@@ -292,6 +300,8 @@ struct Layout {
     color_at: Option<usize>,
     /// Names and decoders of the scalar fields, standard fields first.
     fields: Vec<(String, Decode)>,
+    /// Byte offset of the GPS time when the format has one.
+    time_at: Option<usize>,
 }
 
 impl Layout {
@@ -341,6 +351,9 @@ impl Layout {
                 offset: 0.0,
             },
         ];
+        if format.has_gps_time {
+            decoders.push(Decode::Time { at: base });
+        }
         if format.has_nir {
             decoders.push(Decode::Value {
                 at: base + gps + 6,
@@ -381,6 +394,7 @@ impl Layout {
             transforms: *header.transforms(),
             color_at: format.has_color.then_some(base + gps),
             fields,
+            time_at: format.has_gps_time.then_some(base),
         })
     }
 
@@ -395,6 +409,7 @@ impl Layout {
                 .iter()
                 .map(|_| records::filled(0.0, n))
                 .collect(),
+            time_origin: 0.0,
             bounds: Bounds::EMPTY,
             sixteen_bit: false,
         }
@@ -412,6 +427,8 @@ struct Columns {
     colors: Option<Vec<[u8; 4]>>,
     /// One column per field of `Layout::fields`.
     scalars: Vec<Vec<f32>>,
+    /// The first record's GPS time (GPS times are kept relative to it).
+    time_origin: f64,
     /// Bounds of the (scaled) points decoded so far.
     bounds: Bounds,
     /// Whether a color channel above 255 was seen (true 16-bit colors).
@@ -435,6 +452,10 @@ impl Columns {
         let per_task = records::task_records(stride);
         let rows = first..first + bytes.len() / stride;
         let shift = self.sixteen_bit;
+        if let (0, Some(at), Some(r)) = (first, layout.time_at, bytes.get(..stride)) {
+            self.time_origin = Kind::F64.read(&r[at..]);
+        }
+        let time_origin = self.time_origin;
         // Per task, its slice of every scalar column.
         let mut columns: Vec<Vec<&mut [f32]>> = Vec::new();
         for column in &mut self.scalars {
@@ -456,7 +477,7 @@ impl Columns {
                     bounds.add(layout.world(*xyz));
                 }
                 for ((_, decode), column) in layout.fields.iter().zip(columns.iter_mut()) {
-                    decode.fill(b, stride, column);
+                    decode.fill(b, stride, column, time_origin);
                 }
                 let max_channel = layout.color_at.map_or(0, |at| {
                     b.chunks_exact(stride)
@@ -681,6 +702,7 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .map(|_| Vec::with_capacity(capacity))
         .collect();
     let mut index = 0u64;
+    let mut time_origin = None;
     while let Some(point) = reader.read_point().map_err(|e| {
         let message = match e {
             _ if truncated_file => truncated(index, declared, size),
@@ -695,19 +717,25 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         if let Some(c) = point.color {
             rgb16.push([c.red, c.green, c.blue]);
         }
+        let time = point.gps_time.unwrap_or(0.0);
+        let origin = *time_origin.get_or_insert(time);
         let standard = [
             f32::from(point.intensity),
             f32::from(u8::from(point.classification)),
             f32::from(point.return_number),
             f32::from(point.number_of_returns),
             f32::from(point.point_source_id),
-            f32::from(point.nir.unwrap_or(0)),
         ];
-        let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes));
-        for (column, value) in columns
-            .iter_mut()
-            .zip(standard[..names.len()].iter().copied().chain(extras))
-        {
+        let optional = [
+            format.has_gps_time.then_some((time - origin) as f32),
+            point.nir.map(f32::from),
+        ];
+        let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes, 0.0));
+        let values = standard
+            .into_iter()
+            .chain(optional.into_iter().flatten())
+            .chain(extras);
+        for (column, value) in columns.iter_mut().zip(values) {
             column.push(value);
         }
         index += 1;
@@ -884,7 +912,7 @@ mod tests {
                     number_of_returns: 3,
                     point_source_id: 40 + i as u16,
                     classification: Classification::new(2 + (i % 2) as u8 * 4).unwrap(),
-                    gps_time: point_format.has_gps_time.then_some(i as f64),
+                    gps_time: point_format.has_gps_time.then_some(3.0e8 + i as f64 * 0.25),
                     color: point_format.has_color.then(|| Color::new(1, 2, 3)),
                     nir: point_format.has_nir.then_some(700 + i as u16),
                     extra_bytes: bytes(i),
@@ -915,7 +943,7 @@ mod tests {
 
     #[test]
     fn extra_bytes_nir_and_returns_become_named_scalars() {
-        for format in [1, 6, 8] {
+        for format in [0, 1, 6, 8] {
             let bytes = deviation_file(format, 1500);
             let cloud = parse("x.las", bytes.clone()).unwrap();
             let names: Vec<_> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
@@ -926,6 +954,9 @@ mod tests {
                 "number_of_returns",
                 "point_source_id",
             ];
+            if format != 0 {
+                expected.push("gps_time");
+            }
             if format == 8 {
                 expected.push("nir");
             }
@@ -954,6 +985,10 @@ mod tests {
                 );
                 if format == 8 {
                     assert_eq!(column("nir")[i], 700.0 + f);
+                }
+                if format != 0 {
+                    // Seconds after the first record, exact although 3e8 + 0.25 is not an f32.
+                    assert_eq!(column("gps_time")[i], f * 0.25);
                 }
             }
             assert_matches_crate(&format!("extra-f{format}.las"), bytes);
