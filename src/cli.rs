@@ -7,10 +7,11 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+use crate::color::{self, Coloring};
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
 use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
-use crate::render::{upload, Extras, Renderer, View};
+use crate::render::{upload_colored, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
@@ -126,6 +127,10 @@ pub struct CameraArgs {
     /// Render with the base color instead of the points' colors.
     #[arg(long)]
     pub no_color: bool,
+    /// Color by a field: rgb, none, elevation, normal, intensity, classification, return, or
+    /// any scalar field by name (also scalar:NAME); `surfel info` lists a file's fields.
+    #[arg(long, value_name = "NAME")]
+    pub color_by: Option<String>,
     #[command(flatten)]
     pub post: PostArgs,
 }
@@ -289,12 +294,25 @@ pub struct ViewSettings {
     pub lights: Vec<Light>,
     /// Eye-dome lighting and background (flags over the scene file over the defaults).
     pub post: PostOptions,
+    /// The field to color by, `None` for the default (`color::default_field`).
+    pub color_by: Option<String>,
 }
 
 impl ViewSettings {
     /// The up axis for a cloud whose format uses `format_up`.
     pub fn up(&self, format_up: Up) -> Up {
         self.up.unwrap_or(format_up)
+    }
+
+    /// The coloring of `cloud` (whose format uses `format_up`) these settings select; an unknown
+    /// field is an error naming `file` and listing the cloud's fields.
+    pub fn coloring(&self, file: &Path, cloud: &crate::scene::Cloud) -> Result<Coloring> {
+        let name = self
+            .color_by
+            .as_deref()
+            .unwrap_or_else(|| color::default_field(cloud));
+        color::select(cloud, name, self.up(cloud.up))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
     }
 
     /// The camera for a cloud with this bounding sphere whose format uses `format_up`.
@@ -339,6 +357,7 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
                 .or(file.background)
                 .unwrap_or(Background::DEFAULT),
         },
+        color_by: cam.color_by.clone().or(file.color_by),
     })
 }
 
@@ -399,10 +418,11 @@ fn render(a: RenderArgs) -> Result<()> {
         s
     };
     let cloud = load_prepared(&file, &a.input.options())?;
+    let coloring = settings.coloring(&file, &cloud)?;
     let load_s = since();
     let ctx = context(a.validation)?;
     let device_s = since();
-    let (scene, info) = upload(&ctx, &cloud)?;
+    let (scene, info) = upload_colored(&ctx, &cloud, coloring)?;
     let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,
@@ -522,6 +542,11 @@ fn view(a: ViewArgs) -> Result<()> {
         }
     }
     let cloud = load_prepared(&a.file, &a.input.options())?;
+    let coloring = settings.coloring(&a.file, &cloud)?;
+    let color_by = settings
+        .color_by
+        .clone()
+        .unwrap_or_else(|| color::default_field(&cloud).to_owned());
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let up = settings.up(cloud.up);
     crate::app::run(
@@ -538,6 +563,8 @@ fn view(a: ViewArgs) -> Result<()> {
             lights: settings.lights,
             size,
             post: settings.post,
+            color_by,
+            coloring,
             frames: a.frames,
             validation: a.validation || crate::gpu::context::validation_requested(),
             script,
@@ -580,6 +607,15 @@ fn info(a: InfoArgs) -> Result<()> {
     let scalars: Vec<&str> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
     attrs.extend(scalars);
     println!("attributes        {}", attrs.join(", "));
+    if !cloud.scalars.is_empty() {
+        println!("scalar fields     min .. max (2nd .. 98th percentile)");
+        for s in &cloud.scalars {
+            let (min, max) = color::min_max(&s.values);
+            let [lo, hi] = color::robust_range(&s.values);
+            println!("  {:<22} {min} .. {max} ({lo} .. {hi})", s.name);
+        }
+    }
+    println!("color by          {}", color::fields(&cloud).join(", "));
     if let Some((lo, hi)) = cloud.bounds() {
         let o = cloud.origin;
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
@@ -591,7 +627,7 @@ fn info(a: InfoArgs) -> Result<()> {
     };
     println!("up axis           {} ({source})", up.name());
     let n = cloud.len() as u64;
-    let streams = crate::streams::StreamLayout::streams_for(&cloud);
+    let streams = crate::streams::StreamLayout::streams_for(&cloud, None);
     let mut total = 0;
     println!("GPU streams       bytes/point  MiB");
     for s in streams {
@@ -602,6 +638,12 @@ fn info(a: InfoArgs) -> Result<()> {
             s.name(),
             s.bytes_per_point(),
             bytes as f64 / (1 << 20) as f64
+        );
+    }
+    if !cloud.scalars.is_empty() {
+        println!(
+            "  {:<22} {:>5}  (the field colored by, when one is)",
+            "scalar f32", 4
         );
     }
     let batches = n.div_ceil(u64::from(crate::gpu::layout::BATCH_POINTS));
@@ -681,6 +723,7 @@ mod tests {
             scene: None,
             no_color: false,
             post: PostArgs::default(),
+            color_by: None,
         }
     }
 

@@ -2,6 +2,7 @@
 
 pub mod app;
 pub mod cli;
+pub mod color;
 pub mod eval;
 pub mod frame;
 pub mod gpu;

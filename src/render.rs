@@ -10,8 +10,9 @@ use bytemuck::Zeroable;
 use glam::{Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
+use crate::color::Coloring;
 use crate::frame::Frame;
-use crate::gpu::layout::{FrameBlock, FLAG_HAS_NORMALS, FLAG_USE_COLOR};
+use crate::gpu::layout::{FrameBlock, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
@@ -35,15 +36,34 @@ pub struct SceneInfo {
     pub has_normals: bool,
     /// The cloud's up axis.
     pub up: Up,
+    /// What the points are colored by (`color::select`); its scalar field is the one uploaded.
+    pub coloring: Coloring,
 }
 
 /// Uploads `cloud` as point streams (Morton-ordered batches, segments fitted to the device)
-/// and, when present, its triangle indices (remapped to stream order).
+/// and, when present, its triangle indices (remapped to stream order), colored by its colors
+/// when it has them.
 pub fn upload(ctx: &Arc<Context>, cloud: &Cloud) -> Result<(GpuScene, SceneInfo)> {
     upload_with(ctx, cloud, UploadOptions::default())
 }
 
-/// `upload` with explicit segment and chunk sizes.
+/// `upload` colored by `coloring` (its scalar field is the one uploaded).
+pub fn upload_colored(
+    ctx: &Arc<Context>,
+    cloud: &Cloud,
+    coloring: Coloring,
+) -> Result<(GpuScene, SceneInfo)> {
+    let options = UploadOptions {
+        scalar: coloring.scalar,
+        ..UploadOptions::default()
+    };
+    let (scene, mut info) = upload_with(ctx, cloud, options)?;
+    info.coloring = coloring;
+    Ok((scene, info))
+}
+
+/// `upload` with explicit segment and chunk sizes (and scalar field to upload), colored by the
+/// cloud's colors when it has them.
 pub fn upload_with(
     ctx: &Arc<Context>,
     cloud: &Cloud,
@@ -53,7 +73,8 @@ pub fn upload_with(
     let segment_points = options
         .segment_points
         .unwrap_or_else(|| upload::default_segment_points(ctx));
-    let layout = StreamLayout::new(cloud, segment_points).map_err(anyhow::Error::msg)?;
+    let layout =
+        StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
     let streams = upload::upload(ctx, cloud, &layout, options)?;
     let (indices, index_count) = match &cloud.faces {
         Some(f) if !f.is_empty() => {
@@ -90,6 +111,7 @@ pub fn upload_with(
             has_colors: cloud.colors.is_some(),
             has_normals: cloud.normals.is_some(),
             up: cloud.up,
+            coloring: Coloring::default_for(cloud.colors.is_some()),
         },
     ))
 }
@@ -99,11 +121,19 @@ pub fn upload_with(
 pub struct View {
     pub camera: Camera,
     pub lights: Vec<Light>,
-    /// Use the points' colors (when the input has them) instead of the base color.
+    /// Color by the scene's `Coloring` (`SceneInfo::coloring`); `false` shows the lit base
+    /// color.
     pub use_color: bool,
     /// Seconds, for orbiting lights.
     pub time: f32,
 }
+
+/// Ambient weight of the default shading (`shade` in `glsl/common/common.glsl`).
+pub const AMBIENT: f32 = 0.25;
+/// Specular weight (tinted by the albedo); the diffuse weight is `1 - AMBIENT - SPECULAR`.
+pub const SPECULAR: f32 = 0.15;
+/// Blinn-Phong exponent.
+pub const SPECULAR_EXPONENT: f32 = 32.0;
 
 /// Frames in flight unless `Extras::frames_in_flight` says otherwise.
 pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
@@ -340,16 +370,24 @@ impl Renderer {
         block.u.params = Vec4::new(
             self.config.get("size").max(1.0),
             view.camera.near,
-            0.08,
-            32.0,
+            AMBIENT,
+            SPECULAR_EXPONENT,
         );
+        block.u.specular = SPECULAR;
         block.u.base_color = Vec4::new(0.7, 0.7, 0.7, 1.0);
-        block.u.flags = if view.use_color && self.info.has_colors {
-            FLAG_USE_COLOR
+        // Without colors (`C` in the viewer, `--no-color`) every mode shows the lit base color.
+        let coloring = self.info.coloring;
+        let colored = view.use_color && coloring.mode != COLOR_NONE;
+        block.u.color_mode = if colored { coloring.mode } else { COLOR_NONE };
+        let [start, scale] = coloring.range_uniform();
+        block.u.color_range = Vec4::new(start, scale, 0.0, 0.0);
+        block.u.color_axis = coloring.axis.extend(0.0);
+        block.u.flags = if self.info.has_normals {
+            FLAG_HAS_NORMALS
         } else {
             0
-        } | if self.info.has_normals {
-            FLAG_HAS_NORMALS
+        } | if colored && coloring.unlit {
+            FLAG_UNLIT
         } else {
             0
         };

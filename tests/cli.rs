@@ -621,3 +621,123 @@ fn a_directory_as_input_reports_the_os_error_once() {
         );
     }
 }
+
+#[test]
+fn an_unknown_color_field_lists_the_fields_of_the_file() {
+    let las = data("lidar/autzen_trim.las");
+    let o = surfel(&[
+        "render",
+        las.to_str().expect("utf8"),
+        "--color-by",
+        "bogus",
+        "--out",
+        tmp("bogus.png").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!(
+            "{}: --color-by 'bogus': no such field; this file has: rgb, none, elevation, \
+             normal, intensity, classification, return_number, number_of_returns, \
+             point_source_id, gps_time\n",
+            las.display()
+        )),
+        "{e}"
+    );
+    assert!(!e.contains("panicked"), "{e}");
+}
+
+/// A LAS 1.4 file (point format 6) of a 20 x 20 grid with an extra-bytes field `Deviation`
+/// (f32, x / 10 - 1: -1 to 0.9).
+fn deviation_las() -> PathBuf {
+    let mut descriptor = vec![0u8; 192];
+    descriptor[2] = 9; // f32
+    descriptor[4..13].copy_from_slice(b"Deviation");
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(6).expect("format 6");
+    builder.point_format.extra_bytes = 4;
+    builder.vlrs.push(las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "extra bytes".into(),
+        data: descriptor,
+    });
+    let path = tmp("deviation.las");
+    let mut writer =
+        las::Writer::from_path(&path, builder.into_header().expect("header")).expect("writer");
+    for i in 0..400 {
+        let (x, y) = ((i % 20) as f64, (i / 20) as f64);
+        writer
+            .write_point(las::Point {
+                x,
+                y,
+                z: 0.1 * x,
+                intensity: i as u16,
+                return_number: 1,
+                number_of_returns: 1,
+                gps_time: Some(1.0e9 + f64::from(i)),
+                extra_bytes: ((x / 10.0 - 1.0) as f32).to_le_bytes().to_vec(),
+                ..Default::default()
+            })
+            .expect("point");
+    }
+    writer.close().expect("close");
+    path
+}
+
+#[test]
+fn extra_bytes_fields_are_listed_by_info_and_can_color_a_render() {
+    let las = deviation_las();
+    let o = surfel(&["info", las.to_str().expect("utf8"), "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("  gps_time               0 .. 399 (8 .. 391)"),
+        "{s}"
+    );
+    assert!(
+        s.contains("  Deviation              -1 .. 0.9 (-1 .. 0.9)"),
+        "{s}"
+    );
+    assert!(
+        s.contains("  intensity              0 .. 399 (8 .. 391)"),
+        "{s}"
+    );
+    assert!(
+        s.contains(
+            "color by          none, elevation, normal, intensity, classification, \
+             return_number, number_of_returns, point_source_id, gps_time, Deviation"
+        ),
+        "{s}"
+    );
+    // The flag and the scene file's `color_by` render the same image.
+    let (flag, scene, toml) = (tmp("dev-flag.png"), tmp("dev-scene.png"), tmp("dev.toml"));
+    std::fs::write(&toml, "color_by = \"Deviation\"\n").expect("scene file");
+    for args in [
+        vec![
+            "--color-by",
+            "Deviation",
+            "--out",
+            flag.to_str().expect("utf8"),
+        ],
+        vec![
+            "--scene",
+            toml.to_str().expect("utf8"),
+            "--out",
+            scene.to_str().expect("utf8"),
+        ],
+    ] {
+        let mut all = vec!["render", las.to_str().expect("utf8"), "--size", "64x64"];
+        all.extend(["--method", "points:size=4", "--validation"]);
+        all.extend(args);
+        let o = surfel(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let a = image::open(&flag).expect("png").to_rgba8();
+    let b = image::open(&scene).expect("png").to_rgba8();
+    assert_eq!(a, b);
+    // Unlit ramp colors: the lowest Deviation is the ramp's blue, the highest its red.
+    let colors: std::collections::BTreeSet<[u8; 4]> = a.pixels().map(|p| p.0).collect();
+    assert!(colors.contains(&[0, 0, 255, 255]), "{colors:?}");
+    assert!(colors.contains(&[255, 0, 0, 255]), "{colors:?}");
+}

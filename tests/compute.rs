@@ -119,6 +119,7 @@ fn segments_and_quantized_positions_leave_the_image_unchanged() {
         UploadOptions {
             segment_points: Some(1),
             chunk_bytes: 64 << 10,
+            ..Default::default()
         },
     );
     assert_eq!(whole.color, split.color);

@@ -28,20 +28,29 @@ vec3 linear_to_srgb(vec3 c) {
     return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
 }
 
-// Two-sided Blinn-Phong in view space with every light of the frame.
+// Two-sided Blinn-Phong in view space with every light of the frame. The weights keep the
+// albedo: ambient + diffuse + specular = 1 at normal incidence under a unit light, and the
+// specular is tinted by the albedo, so black stays black and a surface facing a headlight shows
+// its own color. Attribute colors (FLAG_UNLIT) are returned as they are.
 vec3 shade(vec3 albedo, vec3 n, vec3 view_pos) {
+    if ((frame.u.flags & FLAG_UNLIT) != 0u) {
+        return albedo;
+    }
     vec3 v = normalize(-view_pos);
     if (dot(n, v) < 0.0) {
         n = -n;
     }
-    vec3 lit = albedo * frame.u.params.z;
+    float ambient = frame.u.params.z;
+    float specular = frame.u.specular;
+    float diffuse_weight = 1.0 - ambient - specular;
+    vec3 lit = albedo * ambient;
     for (uint i = 0u; i < frame.u.light_count; ++i) {
         vec3 l = normalize(frame.lights[i].position.xyz - view_pos);
         vec3 h = normalize(l + v);
         vec3 c = frame.lights[i].color_kind.rgb;
         float diffuse = max(dot(n, l), 0.0);
-        float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.params.w) : 0.0;
-        lit += c * (albedo * diffuse + 0.2 * specular);
+        float highlight = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.params.w) : 0.0;
+        lit += c * albedo * (diffuse_weight * diffuse + specular * highlight);
     }
     return lit;
 }

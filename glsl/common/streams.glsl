@@ -40,12 +40,70 @@ float stream_radius(uint i) {
     return (l & 1u) == 0u ? pair.x : pair.y;
 }
 
-// Albedo in linear space: the point's color when the frame uses colors, else the base color.
+// The f32 value of the scalar field uploaded for coloring (GpuSegment.scalar).
+float stream_scalar(uint i) {
+    uint s = segment_of(i);
+    return FloatStream(segments[s].scalar.xy).v[local_index(i, s)];
+}
+
+// An sRGB 0xRRGGBB constant in linear space.
+vec3 rgb8(uint c) {
+    return srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0);
+}
+
+// The scalar ramp at t in [0, 1] (clamped; NaN gives the start), interpolated in sRGB.
+vec3 ramp(float t) {
+    const uint stops[5] = uint[](RAMP_0, RAMP_1, RAMP_2, RAMP_3, RAMP_4);
+    float x = isnan(t) ? 0.0 : clamp(t, 0.0, 1.0) * 4.0;
+    uint k = min(uint(x), 3u);
+    vec3 a = vec3((stops[k] >> 16) & 255u, (stops[k] >> 8) & 255u, stops[k] & 255u);
+    uint e = stops[k + 1u];
+    vec3 b = vec3((e >> 16) & 255u, (e >> 8) & 255u, e & 255u);
+    return srgb_to_linear(mix(a, b, x - float(k)) / 255.0);
+}
+
+// Position of `value` in the frame's color range (0 at its start, 1 at its end).
+float ramp_position(float value) {
+    return (value - frame.u.color_range.x) * frame.u.color_range.y;
+}
+
+// Albedo in linear space, selected by the frame's color mode (src/color.rs): the point's color,
+// the base color, or an attribute through a palette or ramp.
 vec3 stream_albedo(uint i) {
-    if ((frame.u.flags & FLAG_USE_COLOR) != 0u) {
+    uint mode = frame.u.color_mode;
+    if (mode == COLOR_RGB) {
         uint s = segment_of(i);
         uint c = WordStream(segments[s].color_first.xy).v[local_index(i, s)];
         return srgb_to_linear(unpackUnorm4x8(c).rgb);
+    }
+    if (mode == COLOR_INTENSITY) {
+        float t = ramp_position(stream_scalar(i));
+        return srgb_to_linear(vec3(isnan(t) ? 0.0 : clamp(t, 0.0, 1.0)));
+    }
+    if (mode == COLOR_SCALAR) {
+        return ramp(ramp_position(stream_scalar(i)));
+    }
+    if (mode == COLOR_CLASSIFICATION) {
+        const uint palette[20] = uint[](
+            CLASS_COLOR_0, CLASS_COLOR_1, CLASS_COLOR_2, CLASS_COLOR_3, CLASS_COLOR_4,
+            CLASS_COLOR_5, CLASS_COLOR_6, CLASS_COLOR_7, CLASS_COLOR_8, CLASS_COLOR_9,
+            CLASS_COLOR_10, CLASS_COLOR_11, CLASS_COLOR_12, CLASS_COLOR_13, CLASS_COLOR_14,
+            CLASS_COLOR_15, CLASS_COLOR_16, CLASS_COLOR_17, CLASS_COLOR_18, CLASS_COLOR_OTHER);
+        float c = stream_scalar(i);
+        bool known = c >= 0.0 && c <= 18.0 && c == floor(c);
+        return rgb8(palette[known ? uint(c) : 19u]);
+    }
+    if (mode == COLOR_RETURN) {
+        const uint palette[6] = uint[](RETURN_COLOR_0, RETURN_COLOR_1, RETURN_COLOR_2,
+                                       RETURN_COLOR_3, RETURN_COLOR_4, RETURN_COLOR_5);
+        float r = stream_scalar(i);
+        return rgb8(palette[r >= 1.0 ? min(uint(r), 5u) : 0u]);
+    }
+    if (mode == COLOR_ELEVATION) {
+        return ramp(ramp_position(dot(stream_position(i), frame.u.color_axis.xyz)));
+    }
+    if (mode == COLOR_NORMAL) {
+        return srgb_to_linear(stream_normal(i) * 0.5 + 0.5);
     }
     return frame.u.base_color.rgb;
 }

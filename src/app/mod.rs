@@ -21,13 +21,14 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::raw_window_handle::HasDisplayHandle;
 use winit::window::{Fullscreen, Window, WindowId};
 
+use crate::color::{self, Coloring};
 use crate::frame::Frame;
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{upload, Extras, Renderer, SceneInfo, View};
+use crate::render::{upload_colored, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
@@ -48,6 +49,9 @@ pub struct ViewerOptions {
     pub size: Option<(u32, u32)>,
     /// Eye-dome lighting (at start; `E` toggles it) and background.
     pub post: PostOptions,
+    /// The field colored by at start (`V` cycles `color::fields`) and its coloring.
+    pub color_by: String,
+    pub coloring: Coloring,
     /// Quit after this many frames (smoke tests); run until closed when `None`.
     pub frames: Option<u64>,
     pub validation: bool,
@@ -255,7 +259,7 @@ pub fn write_png(path: &Path, frame: &Frame) -> Result<()> {
 }
 
 /// Saves `camera` (and the up axis and lights) as a scene file `--scene` reads back; the
-/// post-processing settings are not part of a camera and stay unset.
+/// post-processing and coloring settings are not part of a camera and stay unset.
 pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Result<()> {
     SceneFile {
         up: Some(up),
@@ -266,6 +270,7 @@ pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Re
         lights: lights.to_vec(),
         edl: None,
         background: None,
+        color_by: None,
     }
     .save(path)
 }
@@ -302,7 +307,7 @@ impl Viewer {
                 validation: self.opts.validation,
                 surface_extensions: exts,
             })?);
-            self.scene = Some(upload(&ctx, &self.cloud)?);
+            self.scene = Some(upload_colored(&ctx, &self.cloud, self.opts.coloring)?);
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -390,6 +395,28 @@ impl Viewer {
         self.rebuild()
     }
 
+    /// Colors by the next field of `color::fields`: swaps the uploaded scalar stream (an event,
+    /// not per frame) and rebuilds the renderer on the new segment table.
+    fn cycle_color(&mut self) -> Result<()> {
+        let fields = color::fields(&self.cloud);
+        let name = color::next_field(&fields, &self.opts.color_by)
+            .context("no field to color by")?
+            .to_owned();
+        let coloring =
+            color::select(&self.cloud, &name, self.orbit.up).map_err(anyhow::Error::msg)?;
+        let ctx = self.ctx.clone().context("context")?;
+        if let Some((scene, info)) = self.scene.as_mut() {
+            let chunk = crate::streams::UploadOptions::default().chunk_bytes;
+            scene
+                .streams
+                .select_scalar(&ctx, &self.cloud, coloring.scalar, chunk)?;
+            info.coloring = coloring;
+        }
+        println!("color by {name}");
+        self.opts.color_by = name;
+        self.rebuild()
+    }
+
     /// Switches eye-dome lighting off, or on with the parameters given at start (else the
     /// defaults), and rebuilds the graph.
     fn toggle_edl(&mut self) -> Result<()> {
@@ -417,6 +444,7 @@ impl Viewer {
             ViewerKey::Char('n') => self.switch_method(-1)?,
             ViewerKey::Char('c') => self.use_color = !self.use_color,
             ViewerKey::Char('e') => self.toggle_edl()?,
+            ViewerKey::Char('v') => self.cycle_color()?,
             ViewerKey::Char('r') => {
                 self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up)
             }

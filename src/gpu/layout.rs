@@ -33,8 +33,7 @@ pub struct GpuSegment {
     pub medium_fine: [u32; 4],
     pub normal_radius: [u32; 4],
     pub color_first: [u32; 4],
-    pub scalars01: [u32; 4],
-    pub scalars23: [u32; 4],
+    pub scalar: [u32; 4],
 }
 
 /// One light, resolved to view space on the CPU.
@@ -60,9 +59,11 @@ pub struct FrameUniforms {
     pub point_count: u32,
     pub segment_points: u32,
     pub batch_count: u32,
+    pub color_mode: u32,
+    pub specular: f32,
     pub pad0: u32,
-    pub pad1: u32,
-    pub pad2: u32,
+    pub color_axis: Vec4,
+    pub color_range: Vec4,
 }
 
 /// One overlay quad (`GpuGlyph` in GLSL): a glyph from the atlas or a solid panel.
@@ -157,8 +158,7 @@ pub fn mirrors() -> Vec<Mirror> {
             medium_fine,
             normal_radius,
             color_first,
-            scalars01,
-            scalars23
+            scalar
         }),
         mirror!(GpuLight {
             position,
@@ -176,9 +176,11 @@ pub fn mirrors() -> Vec<Mirror> {
             point_count,
             segment_points,
             batch_count,
+            color_mode,
+            specular,
             pad0,
-            pad1,
-            pad2
+            color_axis,
+            color_range
         }),
         mirror!(GpuGlyph {
             rect,
@@ -230,9 +232,9 @@ mod tests {
 
     #[test]
     fn frame_block_places_lights_after_the_uniforms() {
-        assert_eq!(std::mem::offset_of!(FrameBlock, lights), 272);
+        assert_eq!(std::mem::offset_of!(FrameBlock, lights), 304);
         assert_eq!(std::mem::size_of::<GpuBatch>(), 32);
-        assert_eq!(std::mem::size_of::<GpuSegment>(), 96);
+        assert_eq!(std::mem::size_of::<GpuSegment>(), 80);
         assert_eq!(TARGET_NORMAL, 2);
     }
 }

@@ -45,8 +45,53 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("LIGHT_ORBIT", 2),
     ("MAX_LIGHTS", 16),
     // FrameUniforms.flags bits.
-    ("FLAG_USE_COLOR", 1),
     ("FLAG_HAS_NORMALS", 2),
+    // Attribute colors are shown as they are, without lighting (src/color.rs).
+    ("FLAG_UNLIT", 4),
+    // FrameUniforms.color_mode: what the albedo comes from (src/color.rs).
+    ("COLOR_NONE", 0),
+    ("COLOR_RGB", 1),
+    ("COLOR_INTENSITY", 2),
+    ("COLOR_SCALAR", 3),
+    ("COLOR_CLASSIFICATION", 4),
+    ("COLOR_RETURN", 5),
+    ("COLOR_ELEVATION", 6),
+    ("COLOR_NORMAL", 7),
+    // ASPRS standard classes 0-18 (LAS 1.4 R15 table 17) as sRGB 0xRRGGBB, then any other class.
+    ("CLASS_COLOR_0", 0x9e9e9e),
+    ("CLASS_COLOR_1", 0xc8c8c8),
+    ("CLASS_COLOR_2", 0xa0724a),
+    ("CLASS_COLOR_3", 0x9bd77d),
+    ("CLASS_COLOR_4", 0x4fa83c),
+    ("CLASS_COLOR_5", 0x1e6e28),
+    ("CLASS_COLOR_6", 0xdc5a46),
+    ("CLASS_COLOR_7", 0xff00ff),
+    ("CLASS_COLOR_8", 0xf0e650),
+    ("CLASS_COLOR_9", 0x3c78e6),
+    ("CLASS_COLOR_10", 0x8c5a3c),
+    ("CLASS_COLOR_11", 0x5a5a5a),
+    ("CLASS_COLOR_12", 0xd2d296),
+    ("CLASS_COLOR_13", 0xfac800),
+    ("CLASS_COLOR_14", 0xffa000),
+    ("CLASS_COLOR_15", 0xaa3cc8),
+    ("CLASS_COLOR_16", 0xf078c8),
+    ("CLASS_COLOR_17", 0x78a0c8),
+    ("CLASS_COLOR_18", 0xff0080),
+    ("CLASS_COLOR_OTHER", 0xffffff),
+    // Return numbers 1, 2, 3, 4 and 5 or later; 0 (invalid) takes RETURN_COLOR_0.
+    ("RETURN_COLOR_0", 0x808080),
+    ("RETURN_COLOR_1", 0xe63c3c),
+    ("RETURN_COLOR_2", 0x3cb44b),
+    ("RETURN_COLOR_3", 0x3c64e6),
+    ("RETURN_COLOR_4", 0xf0c81e),
+    ("RETURN_COLOR_5", 0xc850dc),
+    // The scalar ramp (elevation and other scalars): blue, cyan, green, yellow, red, with
+    // equal spacing, interpolated in sRGB.
+    ("RAMP_0", 0x0000ff),
+    ("RAMP_1", 0x00ffff),
+    ("RAMP_2", 0x00ff00),
+    ("RAMP_3", 0xffff00),
+    ("RAMP_4", 0xff0000),
     // Workgroup sizes.
     ("RESOLVE_GROUP", 8),
     ("RASTER_GROUP", 128),
@@ -55,8 +100,6 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("BATCH_POINTS", 10240),
     // Bits per axis of each quantized position word (Schuetz et al. 2022: 3 x 10 bits).
     ("QUANT_BITS", 10),
-    // Most scalar attribute streams uploaded per cloud.
-    ("MAX_SCALAR_STREAMS", 4),
     // Viewer text overlay: the per-slot glyph instances and the R8 glyph atlas (bytes packed
     // four to a word, row-major, OVERLAY_ATLAS_WIDTH texels per row).
     ("BINDING_OVERLAY_GLYPHS", 20),
@@ -96,11 +139,12 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uvec4", "medium_fine"),
             // xy: octahedral normals (4 B/point), zw: f16 radii packed in pairs (2 B/point).
             f("uvec4", "normal_radius"),
-            // xy: RGBA8 colors (4 B/point), z: first point of the segment, w: scalar streams.
+            // xy: RGBA8 colors (4 B/point), z: first point of the segment, w: scalar streams
+            // (0 or 1).
             f("uvec4", "color_first"),
-            // Addresses of up to MAX_SCALAR_STREAMS f32 scalar streams (lo, hi pairs).
-            f("uvec4", "scalars01"),
-            f("uvec4", "scalars23"),
+            // xy: the f32 stream of the one scalar field uploaded (the field colored by),
+            // z: that field's index in the cloud, w: unused.
+            f("uvec4", "scalar"),
         ],
     },
     StructSpec {
@@ -120,7 +164,7 @@ pub const STRUCTS: &[StructSpec] = &[
             f("mat4", "view_proj"),
             // x: width, y: height, z: 1/width, w: 1/height.
             f("vec4", "viewport"),
-            // x: point size in pixels, y: near plane, z: ambient, w: specular exponent.
+            // x: point size in pixels, y: near plane, z: ambient weight, w: specular exponent.
             f("vec4", "params"),
             f("vec4", "base_color"),
             f("uint", "flags"),
@@ -129,9 +173,16 @@ pub const STRUCTS: &[StructSpec] = &[
             // Points per stream segment (every segment but the last is full).
             f("uint", "segment_points"),
             f("uint", "batch_count"),
+            // COLOR_*: where the albedo comes from (src/color.rs).
+            f("uint", "color_mode"),
+            // Specular weight; the albedo-tinted specular, the diffuse weight (1 - ambient -
+            // specular) and the ambient sum to 1 at normal incidence, so colors stay true.
+            f("float", "specular"),
             f("uint", "pad0"),
-            f("uint", "pad1"),
-            f("uint", "pad2"),
+            // xyz: the up axis (COLOR_ELEVATION colors by position . axis), w: unused.
+            f("vec4", "color_axis"),
+            // x: the value at the ramp's start, y: 1 / (end - start), zw: unused.
+            f("vec4", "color_range"),
         ],
     },
     // One overlay quad (a glyph or a panel background), in pixels. 32 bytes.

@@ -6,8 +6,11 @@
 //! bounding-box centre becomes [`Cloud::origin`] and is subtracted in f64 before the conversion
 //! to f32, so large projected coordinates keep their centimetre grid. RGB is kept (8-bit values
 //! stored in the 16-bit fields, as many writers do, are detected and used as is; true 16-bit
-//! values are shifted down), and intensity and classification become scalars (classification
-//! 12, "overlap", reads as 1, "unclassified", as in the crate).
+//! values are shifted down). Intensity, classification (12, "overlap", reads as 1,
+//! "unclassified", as in the crate), return number, number of returns, point source id, GPS
+//! time (in seconds after the first record's: f32 cannot hold absolute GPS times) and, in
+//! formats 8 and 10, NIR become scalars, and so does every field an extra-bytes VLR (LASF_Spec
+//! record 4, LAS 1.4 R15 §2.5.8) describes, by its name, with its scale and offset.
 
 use std::fs::File;
 use std::io::{BufReader, Cursor, ErrorKind, Read, Seek};
@@ -53,16 +56,252 @@ fn truncated(index: u64, declared: u64, size: usize) -> String {
     )
 }
 
+/// The storage type of an extra-bytes field (data types 1-10 of LAS 1.4 R15 table 24).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    U64,
+    I64,
+    F32,
+    F64,
+}
+
+impl Kind {
+    const ALL: [Kind; 10] = [
+        Kind::U8,
+        Kind::I8,
+        Kind::U16,
+        Kind::I16,
+        Kind::U32,
+        Kind::I32,
+        Kind::U64,
+        Kind::I64,
+        Kind::F32,
+        Kind::F64,
+    ];
+
+    fn size(self) -> usize {
+        match self {
+            Kind::U8 | Kind::I8 => 1,
+            Kind::U16 | Kind::I16 => 2,
+            Kind::U32 | Kind::I32 | Kind::F32 => 4,
+            Kind::U64 | Kind::I64 | Kind::F64 => 8,
+        }
+    }
+
+    /// The value at the start of `b` (at least `size` bytes).
+    fn read(self, b: &[u8]) -> f64 {
+        let a = |n: usize| -> [u8; 8] {
+            let mut w = [0; 8];
+            w[..n].copy_from_slice(&b[..n]);
+            w
+        };
+        match self {
+            Kind::U8 => f64::from(b[0]),
+            Kind::I8 => f64::from(b[0] as i8),
+            Kind::U16 => f64::from(u16::from_le_bytes([b[0], b[1]])),
+            Kind::I16 => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            Kind::U32 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Kind::I32 => f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Kind::U64 => u64::from_le_bytes(a(8)) as f64,
+            Kind::I64 => i64::from_le_bytes(a(8)) as f64,
+            Kind::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Kind::F64 => f64::from_le_bytes(a(8)),
+        }
+    }
+}
+
+/// How one scalar field is read from a point record.
+#[derive(Clone, Copy, Debug)]
+enum Decode {
+    /// `kind` at byte `at`, then `* scale + offset`.
+    Value {
+        at: usize,
+        kind: Kind,
+        scale: f64,
+        offset: f64,
+    },
+    /// `(byte >> shift) & mask` of byte `at`.
+    Bits { at: usize, shift: u8, mask: u8 },
+    /// The classification code at byte `at` under `mask`; overlap reads as unclassified.
+    Class { at: usize, mask: u8 },
+    /// The f64 GPS time at byte `at`, in seconds after the first record's (f32 cannot hold
+    /// absolute GPS times; relative ones keep about a millisecond over a day).
+    Time { at: usize },
+}
+
+impl Decode {
+    /// Decodes the field of every record of `stride` bytes in `records` into `out`, one field
+    /// at a time over a block that stays in cache (the common fields without a per-record
+    /// dispatch).
+    /// `time_origin` is the first record's GPS time.
+    fn fill(self, records: &[u8], stride: usize, out: &mut [f32], time_origin: f64) {
+        let rows = records.chunks_exact(stride).zip(out);
+        match self {
+            Decode::Value {
+                at,
+                kind: Kind::U16,
+                scale,
+                offset,
+            } if scale == 1.0 && offset == 0.0 => {
+                rows.for_each(|(r, o)| *o = f32::from(u16_at(r, at)));
+            }
+            Decode::Bits { at, shift, mask } => {
+                rows.for_each(|(r, o)| *o = f32::from((r[at] >> shift) & mask));
+            }
+            d => rows.for_each(|(r, o)| *o = d.read(r, time_origin)),
+        }
+    }
+
+    fn read(self, r: &[u8], time_origin: f64) -> f32 {
+        match self {
+            Decode::Value {
+                at,
+                kind,
+                scale,
+                offset,
+            } => (kind.read(&r[at..]) * scale + offset) as f32,
+            Decode::Bits { at, shift, mask } => f32::from((r[at] >> shift) & mask),
+            Decode::Class { at, mask } => {
+                let code = r[at] & mask;
+                f32::from(if code == OVERLAP { 1 } else { code })
+            }
+            Decode::Time { at } => (Kind::F64.read(&r[at..]) - time_origin) as f32,
+        }
+    }
+}
+
+/// A field described by the extra-bytes VLR: its name and where it is in the bytes that follow
+/// a record's standard fields.
+#[derive(Clone, Debug)]
+struct ExtraField {
+    name: String,
+    decode: Decode,
+}
+
+/// Size of one extra-bytes descriptor.
+const DESCRIPTOR_BYTES: usize = 192;
+
+/// The fields the extra-bytes VLRs of `header` describe. Fails on a VLR that is not a whole
+/// number of descriptors, an unknown data type, or fields that need more bytes than the point
+/// records have after their standard fields.
+fn extra_fields(file: &str, header: &las::Header) -> Result<Vec<ExtraField>, LoadError> {
+    let format = header.point_format();
+    let available = usize::from(format.extra_bytes);
+    let mut fields = Vec::new();
+    let mut at = 0;
+    let descriptors = header
+        .all_vlrs()
+        .filter(|v| v.user_id.trim_end_matches('\0') == "LASF_Spec" && v.record_id == 4);
+    for vlr in descriptors {
+        if vlr.data.len() % DESCRIPTOR_BYTES != 0 {
+            return Err(LoadError::whole(
+                file,
+                format!(
+                    "extra-bytes VLR (LASF_Spec record 4) holds {} bytes, not a whole number of \
+                     {DESCRIPTOR_BYTES}-byte descriptors (truncated?)",
+                    vlr.data.len()
+                ),
+            ));
+        }
+        for d in vlr.data.chunks_exact(DESCRIPTOR_BYTES) {
+            let index = fields.len();
+            let raw_name = String::from_utf8_lossy(&d[4..36]);
+            let name = raw_name.trim_end_matches('\0').trim();
+            let name = if name.is_empty() {
+                format!("extra_{index}")
+            } else {
+                name.to_owned()
+            };
+            let (data_type, options) = (d[2], d[3]);
+            let f64_at = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().expect("8 bytes"));
+            let scale = if options & 8 != 0 { f64_at(112) } else { 1.0 };
+            let offset = if options & 16 != 0 { f64_at(136) } else { 0.0 };
+            // 0: undocumented bytes (the options byte holds their count); 1-10: one value;
+            // 11-30: the deprecated arrays of 2 or 3 values.
+            let (kind, count) = match data_type {
+                0 => {
+                    at += usize::from(options);
+                    continue;
+                }
+                1..=30 => (
+                    Kind::ALL[usize::from((data_type - 1) % 10)],
+                    usize::from((data_type - 1) / 10 + 1),
+                ),
+                t => {
+                    return Err(LoadError::whole(
+                        file,
+                        format!(
+                            "extra-bytes descriptor {index} ('{name}'): unknown data type {t} \
+                             (expected 0..=30)"
+                        ),
+                    ))
+                }
+            };
+            for k in 0..count {
+                fields.push(ExtraField {
+                    name: if count == 1 {
+                        name.clone()
+                    } else {
+                        format!("{name}_{k}")
+                    },
+                    decode: Decode::Value {
+                        at,
+                        kind,
+                        scale,
+                        offset,
+                    },
+                });
+                at += kind.size();
+            }
+        }
+    }
+    if at > available {
+        return Err(LoadError::whole(
+            file,
+            format!(
+                "the extra-bytes descriptors describe {at} bytes per point, but the records of \
+                 point format {} have {available} bytes after their standard fields",
+                format.to_u8().unwrap_or(0)
+            ),
+        ));
+    }
+    Ok(fields)
+}
+
+/// The scalar fields of every record of `format`: the standard ones, then the extra bytes'.
+fn standard_names(format: &las::point::Format) -> Vec<&'static str> {
+    let mut names = vec![
+        "intensity",
+        "classification",
+        "return_number",
+        "number_of_returns",
+        "point_source_id",
+    ];
+    if format.has_gps_time {
+        names.push("gps_time");
+    }
+    if format.has_nir {
+        names.push("nir");
+    }
+    names
+}
+
 /// Where the fields of an uncompressed point record are, and how coordinates are scaled.
 struct Layout {
     span: Span,
     transforms: las::Vector<las::Transform>,
-    /// Byte offset of the classification byte.
-    class_at: usize,
-    /// Formats 0-5 keep flags in the classification byte's top three bits.
-    class_mask: u8,
     /// Byte offset of red, green and blue (u16 each) when the format has colors.
     color_at: Option<usize>,
+    /// Names and decoders of the scalar fields, standard fields first.
+    fields: Vec<(String, Decode)>,
+    /// Byte offset of the GPS time when the format has one.
+    time_at: Option<usize>,
 }
 
 impl Layout {
@@ -70,6 +309,7 @@ impl Layout {
     /// Fails before anything is allocated when the declared points cannot fit in the file.
     fn new(file: &str, header: &las::Header, at: usize, size: usize) -> Result<Self, LoadError> {
         let format = header.point_format();
+        let extra = extra_fields(file, header)?;
         let stride = usize::from(format.len()).max(1);
         let declared = header.number_of_points();
         let needed = u128::from(declared) * stride as u128 + at as u128;
@@ -81,6 +321,70 @@ impl Layout {
         // angle, user data and point source id; GPS time and colors follow.
         let base = if format.is_extended { 22 } else { 20 };
         let gps = if format.has_gps_time { 8 } else { 0 };
+        let ext = format.is_extended;
+        let return_bits = if ext { 4 } else { 3 };
+        let mut decoders = vec![
+            Decode::Value {
+                at: 12,
+                kind: Kind::U16,
+                scale: 1.0,
+                offset: 0.0,
+            },
+            Decode::Class {
+                at: if ext { 16 } else { 15 },
+                mask: if ext { 0xff } else { 0x1f },
+            },
+            Decode::Bits {
+                at: 14,
+                shift: 0,
+                mask: (1 << return_bits) - 1,
+            },
+            Decode::Bits {
+                at: 14,
+                shift: return_bits,
+                mask: (1 << return_bits) - 1,
+            },
+            Decode::Value {
+                at: if ext { 20 } else { 18 },
+                kind: Kind::U16,
+                scale: 1.0,
+                offset: 0.0,
+            },
+        ];
+        if format.has_gps_time {
+            decoders.push(Decode::Time { at: base });
+        }
+        if format.has_nir {
+            decoders.push(Decode::Value {
+                at: base + gps + 6,
+                kind: Kind::U16,
+                scale: 1.0,
+                offset: 0.0,
+            });
+        }
+        let standard_len = stride - usize::from(format.extra_bytes);
+        let mut fields: Vec<(String, Decode)> = standard_names(format)
+            .into_iter()
+            .map(str::to_owned)
+            .zip(decoders)
+            .collect();
+        fields.extend(extra.into_iter().map(|f| {
+            let decode = match f.decode {
+                Decode::Value {
+                    at,
+                    kind,
+                    scale,
+                    offset,
+                } => Decode::Value {
+                    at: standard_len + at,
+                    kind,
+                    scale,
+                    offset,
+                },
+                other => other,
+            };
+            (f.name, decode)
+        }));
         Ok(Layout {
             span: Span {
                 at,
@@ -88,9 +392,9 @@ impl Layout {
                 stride,
             },
             transforms: *header.transforms(),
-            class_at: if format.is_extended { 16 } else { 15 },
-            class_mask: if format.is_extended { 0xff } else { 0x1f },
             color_at: format.has_color.then_some(base + gps),
+            fields,
+            time_at: format.has_gps_time.then_some(base),
         })
     }
 
@@ -100,8 +404,12 @@ impl Layout {
         Columns {
             raw: records::filled([0; 3], n),
             colors: self.color_at.map(|_| records::filled([0, 0, 0, 255], n)),
-            intensity: records::filled(0.0, n),
-            class: records::filled(0.0, n),
+            scalars: self
+                .fields
+                .iter()
+                .map(|_| records::filled(0.0, n))
+                .collect(),
+            time_origin: 0.0,
             bounds: Bounds::EMPTY,
             sixteen_bit: false,
         }
@@ -117,8 +425,10 @@ impl Layout {
 struct Columns {
     raw: Vec<[i32; 3]>,
     colors: Option<Vec<[u8; 4]>>,
-    intensity: Vec<f32>,
-    class: Vec<f32>,
+    /// One column per field of `Layout::fields`.
+    scalars: Vec<Vec<f32>>,
+    /// The first record's GPS time (GPS times are kept relative to it).
+    time_origin: f64,
     /// Bounds of the (scaled) points decoded so far.
     bounds: Bounds,
     /// Whether a color channel above 255 was seen (true 16-bit colors).
@@ -142,20 +452,32 @@ impl Columns {
         let per_task = records::task_records(stride);
         let rows = first..first + bytes.len() / stride;
         let shift = self.sixteen_bit;
+        if let (0, Some(at), Some(r)) = (first, layout.time_at, bytes.get(..stride)) {
+            self.time_origin = Kind::F64.read(&r[at..]);
+        }
+        let time_origin = self.time_origin;
+        // Per task, its slice of every scalar column.
+        let mut columns: Vec<Vec<&mut [f32]>> = Vec::new();
+        for column in &mut self.scalars {
+            for (t, chunk) in column[rows.clone()].chunks_mut(per_task).enumerate() {
+                if columns.len() <= t {
+                    columns.push(Vec::with_capacity(layout.fields.len()));
+                }
+                columns[t].push(chunk);
+            }
+        }
         let (bounds, max_channel) = self.raw[rows.clone()]
             .par_chunks_mut(per_task)
-            .zip(self.intensity[rows.clone()].par_chunks_mut(per_task))
-            .zip(self.class[rows.clone()].par_chunks_mut(per_task))
+            .zip(columns.into_par_iter())
             .zip(bytes.par_chunks(per_task * stride))
-            .map(|(((raw, intensity), class), b)| {
+            .map(|((raw, mut columns), b)| {
                 let mut bounds = Bounds::EMPTY;
-                for (((r, xyz), i), c) in b.chunks_exact(stride).zip(raw).zip(intensity).zip(class)
-                {
+                for (r, xyz) in b.chunks_exact(stride).zip(raw) {
                     *xyz = [i32_at(r, 0), i32_at(r, 4), i32_at(r, 8)];
                     bounds.add(layout.world(*xyz));
-                    *i = f32::from(u16_at(r, 12));
-                    let code = r[layout.class_at] & layout.class_mask;
-                    *c = f32::from(if code == OVERLAP { 1 } else { code });
+                }
+                for ((_, decode), column) in layout.fields.iter().zip(columns.iter_mut()) {
+                    decode.fill(b, stride, column, time_origin);
                 }
                 let max_channel = layout.color_at.map_or(0, |at| {
                     b.chunks_exact(stride)
@@ -207,40 +529,45 @@ impl Columns {
             let raw: [i32; 3] = bytemuck::cast(*p);
             *p = (layout.world(raw) - origin).as_vec3();
         });
+        let scalars = layout
+            .fields
+            .iter()
+            .map(|(name, _)| name.clone())
+            .zip(self.scalars)
+            .collect();
         finish(
             positions,
             self.colors.filter(|c| !c.is_empty()),
-            self.intensity,
-            self.class,
+            scalars,
             origin,
             declared,
         )
     }
 }
 
-/// The cloud of a decoded LAS/LAZ file (both decoders): intensity and classification as
-/// scalars, `declared` header records, non-finite points dropped.
+/// The cloud of a decoded LAS/LAZ file (both decoders): the named scalar columns, `declared`
+/// header records, non-finite points dropped. A name used twice (an extra-bytes field named
+/// like a standard one) gets its column index appended.
 fn finish(
     positions: Vec<Vec3>,
     colors: Option<Vec<[u8; 4]>>,
-    intensity: Vec<f32>,
-    class: Vec<f32>,
+    columns: Vec<(String, Vec<f32>)>,
     origin: DVec3,
     declared: u64,
 ) -> Cloud {
+    let mut scalars: Vec<Scalar> = Vec::with_capacity(columns.len());
+    for (k, (name, values)) in columns.into_iter().enumerate() {
+        let name = if scalars.iter().any(|s| s.name == name) {
+            format!("{name}_{k}")
+        } else {
+            name
+        };
+        scalars.push(Scalar { name, values });
+    }
     let mut cloud = Cloud {
         positions,
         colors,
-        scalars: vec![
-            Scalar {
-                name: "intensity".into(),
-                values: intensity,
-            },
-            Scalar {
-                name: "classification".into(),
-                values: class,
-            },
-        ],
+        scalars,
         origin,
         stats: LoadStats {
             records: usize::try_from(declared).unwrap_or(usize::MAX),
@@ -361,6 +688,9 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
 ) -> Result<Cloud, LoadError> {
     let mut reader = las::Reader::new(read).map_err(|e| header_error(file, e, size))?;
     let declared = reader.header().number_of_points();
+    let extra = extra_fields(file, reader.header())?;
+    let format = *reader.header().point_format();
+    let names = standard_names(&format);
     // Compressed records bound the count only loosely: reserve at most one point per two
     // bytes and let honest files that compress better grow the vectors.
     let capacity = usize::try_from(declared)
@@ -368,9 +698,11 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .min(size / 2);
     let mut world = Vec::with_capacity(capacity);
     let mut rgb16 = Vec::new();
-    let mut intensity = Vec::with_capacity(capacity);
-    let mut class = Vec::with_capacity(capacity);
+    let mut columns: Vec<Vec<f32>> = (0..names.len() + extra.len())
+        .map(|_| Vec::with_capacity(capacity))
+        .collect();
     let mut index = 0u64;
+    let mut time_origin = None;
     while let Some(point) = reader.read_point().map_err(|e| {
         let message = match e {
             _ if truncated_file => truncated(index, declared, size),
@@ -385,8 +717,27 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         if let Some(c) = point.color {
             rgb16.push([c.red, c.green, c.blue]);
         }
-        intensity.push(f32::from(point.intensity));
-        class.push(f32::from(u8::from(point.classification)));
+        let time = point.gps_time.unwrap_or(0.0);
+        let origin = *time_origin.get_or_insert(time);
+        let standard = [
+            f32::from(point.intensity),
+            f32::from(u8::from(point.classification)),
+            f32::from(point.return_number),
+            f32::from(point.number_of_returns),
+            f32::from(point.point_source_id),
+        ];
+        let optional = [
+            format.has_gps_time.then_some((time - origin) as f32),
+            point.nir.map(f32::from),
+        ];
+        let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes, 0.0));
+        let values = standard
+            .into_iter()
+            .chain(optional.into_iter().flatten())
+            .chain(extras);
+        for (column, value) in columns.iter_mut().zip(values) {
+            column.push(value);
+        }
         index += 1;
     }
     let bounds = world.iter().fold(Bounds::EMPTY, |mut b, p| {
@@ -405,9 +756,13 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
             .collect()
     });
     let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
-    Ok(finish(
-        positions, colors, intensity, class, origin, declared,
-    ))
+    let named = names
+        .iter()
+        .map(|n| (*n).to_owned())
+        .chain(extra.into_iter().map(|f| f.name))
+        .zip(columns)
+        .collect();
+    Ok(finish(positions, colors, named, origin, declared))
 }
 
 #[cfg(test)]
@@ -512,6 +867,154 @@ mod tests {
                 assert_matches_crate(&format!("f{format}-{wide_from}.las"), bytes);
             }
         }
+    }
+
+    /// An extra-bytes descriptor: `name`, data type, options, scale and offset.
+    fn descriptor(name: &str, data_type: u8, options: u8, scale: f64, offset: f64) -> Vec<u8> {
+        let mut d = vec![0u8; DESCRIPTOR_BYTES];
+        d[2] = data_type;
+        d[3] = options;
+        d[4..4 + name.len()].copy_from_slice(name.as_bytes());
+        d[112..120].copy_from_slice(&scale.to_le_bytes());
+        d[136..144].copy_from_slice(&offset.to_le_bytes());
+        d
+    }
+
+    /// A LAS 1.4 file of point `format` whose records carry `extra` extra bytes (the bytes of
+    /// point `i` from `bytes(i)`) described by the `descriptors` VLR data.
+    fn las_with_extra(
+        format: u8,
+        descriptors: Vec<u8>,
+        extra: u16,
+        n: usize,
+        bytes: impl Fn(usize) -> Vec<u8>,
+    ) -> Vec<u8> {
+        let mut builder = Builder::from((1, 4));
+        builder.point_format = Format::new(format).unwrap();
+        builder.point_format.extra_bytes = extra;
+        builder.vlrs.push(las::Vlr {
+            user_id: "LASF_Spec".into(),
+            record_id: 4,
+            description: "extra bytes".into(),
+            data: descriptors,
+        });
+        let point_format = builder.point_format;
+        let mut writer =
+            Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
+        for i in 0..n {
+            writer
+                .write_point(Point {
+                    x: i as f64,
+                    y: 2.0 * i as f64,
+                    z: 0.5,
+                    intensity: 100 + i as u16,
+                    return_number: 1 + (i % 3) as u8,
+                    number_of_returns: 3,
+                    point_source_id: 40 + i as u16,
+                    classification: Classification::new(2 + (i % 2) as u8 * 4).unwrap(),
+                    gps_time: point_format.has_gps_time.then_some(3.0e8 + i as f64 * 0.25),
+                    color: point_format.has_color.then(|| Color::new(1, 2, 3)),
+                    nir: point_format.has_nir.then_some(700 + i as u16),
+                    extra_bytes: bytes(i),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.into_inner().unwrap().into_inner()
+    }
+
+    /// f32 `Deviation`, u16 `amplitude` scaled by 0.5 and offset by 10, two undocumented bytes,
+    /// then the deprecated 2 x i8 array `tilt`: 10 extra bytes.
+    fn deviation_file(format: u8, n: usize) -> Vec<u8> {
+        let descriptors = [
+            descriptor("Deviation", 9, 0, 0.0, 0.0),
+            descriptor("amplitude", 3, 8 | 16, 0.5, 10.0),
+            descriptor("", 0, 2, 0.0, 0.0),
+            descriptor("tilt", 12, 0, 0.0, 0.0),
+        ]
+        .concat();
+        las_with_extra(format, descriptors, 10, n, |i| {
+            let mut b = (i as f32 * 0.25 - 1.0).to_le_bytes().to_vec();
+            b.extend((i as u16 * 3).to_le_bytes());
+            b.extend([0xee, 0xee, i as u8, (-(i as i8)) as u8]);
+            b
+        })
+    }
+
+    #[test]
+    fn extra_bytes_nir_and_returns_become_named_scalars() {
+        for format in [0, 1, 6, 8] {
+            let bytes = deviation_file(format, 1500);
+            let cloud = parse("x.las", bytes.clone()).unwrap();
+            let names: Vec<_> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
+            let mut expected = vec![
+                "intensity",
+                "classification",
+                "return_number",
+                "number_of_returns",
+                "point_source_id",
+            ];
+            if format != 0 {
+                expected.push("gps_time");
+            }
+            if format == 8 {
+                expected.push("nir");
+            }
+            expected.extend(["Deviation", "amplitude", "tilt_0", "tilt_1"]);
+            assert_eq!(names, expected, "format {format}");
+            let column = |name: &str| {
+                &cloud
+                    .scalars
+                    .iter()
+                    .find(|s| s.name == name)
+                    .unwrap()
+                    .values
+            };
+            for i in [0, 1, 2, 999, 1499] {
+                let f = i as f32;
+                assert_eq!(column("Deviation")[i], f * 0.25 - 1.0);
+                assert_eq!(column("amplitude")[i], (i * 3) as f32 * 0.5 + 10.0);
+                assert_eq!(column("tilt_0")[i], f32::from(i as u8 as i8));
+                assert_eq!(column("tilt_1")[i], f32::from(-(i as i8)));
+                assert_eq!(column("return_number")[i], (1 + i % 3) as f32);
+                assert_eq!(column("number_of_returns")[i], 3.0);
+                assert_eq!(column("point_source_id")[i], 40.0 + f);
+                assert_eq!(
+                    column("classification")[i],
+                    if i % 2 == 0 { 2.0 } else { 6.0 }
+                );
+                if format == 8 {
+                    assert_eq!(column("nir")[i], 700.0 + f);
+                }
+                if format != 0 {
+                    // Seconds after the first record, exact although 3e8 + 0.25 is not an f32.
+                    assert_eq!(column("gps_time")[i], f * 0.25);
+                }
+            }
+            assert_matches_crate(&format!("extra-f{format}.las"), bytes);
+        }
+    }
+
+    #[test]
+    fn bad_extra_bytes_descriptors_are_clear_errors() {
+        let message = |bytes: Vec<u8>| parse("bad.las", bytes).unwrap_err().to_string();
+        let short = descriptor("Deviation", 9, 0, 0.0, 0.0)[..191].to_vec();
+        assert_eq!(
+            message(las_with_extra(6, short, 4, 3, |_| vec![0; 4])),
+            "bad.las: extra-bytes VLR (LASF_Spec record 4) holds 191 bytes, not a whole number \
+             of 192-byte descriptors (truncated?)"
+        );
+        let wide = descriptor("Deviation", 10, 0, 0.0, 0.0);
+        assert_eq!(
+            message(las_with_extra(6, wide, 4, 3, |_| vec![0; 4])),
+            "bad.las: the extra-bytes descriptors describe 8 bytes per point, but the records \
+             of point format 6 have 4 bytes after their standard fields"
+        );
+        let unknown = descriptor("odd", 31, 0, 0.0, 0.0);
+        assert_eq!(
+            message(las_with_extra(6, unknown, 4, 3, |_| vec![0; 4])),
+            "bad.las: extra-bytes descriptor 0 ('odd'): unknown data type 31 (expected 0..=30)"
+        );
     }
 
     #[test]

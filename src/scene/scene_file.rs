@@ -4,6 +4,7 @@
 //! up = "z"                 # x | y | z | -x | -y | -z (default: from the file format)
 //! edl = { strength = 1.0, radius = 1.4 }   # eye-dome lighting (both optional)
 //! background = "#202020"   # #rrggbb | r,g,b | black | white | grey | transparent
+//! color_by = "intensity"   # any field `surfel info` lists (default: rgb, else none)
 //! [camera]
 //! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
 //! [[lights]]
@@ -34,6 +35,8 @@ pub struct SceneFile {
     pub edl: Option<Edl>,
     /// The background color (or `transparent`).
     pub background: Option<Background>,
+    /// The field to color by (`--color-by`).
+    pub color_by: Option<String>,
 }
 
 impl SceneFile {
@@ -103,6 +106,8 @@ mod tests {
         assert_eq!(u.up, Some(Up::NegZ));
         let j = SceneFile::parse(r#"{"up": "x"}"#, Path::new("u.json")).expect("valid up");
         assert_eq!(j.up, Some(Up::X));
+        let c = SceneFile::parse("color_by = \"Deviation\"\n", Path::new("c.toml")).expect("color");
+        assert_eq!(c.color_by.as_deref(), Some("Deviation"));
     }
 
     #[test]

@@ -5,8 +5,8 @@
 //! (Schütz, Kerbl, Wimmer 2021): f32 positions (12 B), three quantized position words
 //! (Schütz et al. 2022: 10 bits per axis each, relative to the batch's box, so a distant batch
 //! reads 4 bytes per point, a nearer one 8 and a close one 12), octahedral normals (4 B), f16
-//! radii (2 B), RGBA8 colors (4 B, only when the cloud has colors) and up to
-//! `MAX_SCALAR_STREAMS` f32 scalar attributes. Streams are split into segments of whole batches
+//! radii (2 B), RGBA8 colors (4 B, only when the cloud has colors) and the one f32 scalar
+//! attribute the frame is colored by (4 B, only when the color mode reads one). Streams are split into segments of whole batches
 //! that each fit the device's buffer limits; shaders reach them through buffer device addresses
 //! kept in a segment table (`upload.rs`).
 //!
@@ -19,7 +19,7 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::gpu::layout::{GpuBatch, BATCH_POINTS, MAX_SCALAR_STREAMS, QUANT_BITS};
+use crate::gpu::layout::{GpuBatch, BATCH_POINTS, QUANT_BITS};
 use crate::scene::pack::oct_encode;
 use crate::scene::Cloud;
 
@@ -53,7 +53,7 @@ pub enum Stream {
     Radius,
     /// RGBA8 sRGB color.
     Color,
-    /// The k-th scalar attribute as f32.
+    /// The k-th scalar attribute of the cloud as f32.
     Scalar(usize),
 }
 
@@ -98,7 +98,8 @@ pub struct StreamLayout {
 impl StreamLayout {
     /// Orders `cloud` along a Morton curve over its bounding box (ties by index) and cuts it
     /// into batches; `segment_points` is rounded down to whole batches (at least one).
-    pub fn new(cloud: &Cloud, segment_points: u64) -> Result<Self, String> {
+    /// `scalar` is the scalar field to upload (the one the frame is colored by), if any.
+    pub fn new(cloud: &Cloud, segment_points: u64, scalar: Option<usize>) -> Result<Self, String> {
         let n = cloud.len();
         if n as u64 > u64::from(u32::MAX) {
             return Err(format!(
@@ -130,7 +131,7 @@ impl StreamLayout {
                 }
             })
             .collect();
-        let streams = Self::streams_for(cloud);
+        let streams = Self::streams_for(cloud, scalar);
         Ok(Self {
             order,
             batches,
@@ -140,15 +141,18 @@ impl StreamLayout {
     }
 
     /// The streams a cloud needs: positions (f32 and quantized), normals, radii, colors when
-    /// it has them, and its first `MAX_SCALAR_STREAMS` scalars.
-    pub fn streams_for(cloud: &Cloud) -> Vec<Stream> {
+    /// it has them, and scalar field `scalar` when one is colored by.
+    pub fn streams_for(cloud: &Cloud, scalar: Option<usize>) -> Vec<Stream> {
         let mut streams = POSITION_STREAMS.to_vec();
         streams.extend([Stream::Normal, Stream::Radius]);
         if cloud.colors.is_some() {
             streams.push(Stream::Color);
         }
-        streams
-            .extend((0..cloud.scalars.len().min(MAX_SCALAR_STREAMS as usize)).map(Stream::Scalar));
+        streams.extend(
+            scalar
+                .filter(|&k| k < cloud.scalars.len())
+                .map(Stream::Scalar),
+        );
         streams
     }
 
@@ -478,7 +482,7 @@ mod tests {
     #[test]
     fn order_is_a_permutation_and_batches_bound_their_points() {
         let cloud = random_cloud(25_000, 7);
-        let layout = StreamLayout::new(&cloud, 20_480).unwrap();
+        let layout = StreamLayout::new(&cloud, 20_480, None).unwrap();
         let mut seen = layout.order.clone();
         seen.sort_unstable();
         assert!(seen.iter().enumerate().all(|(i, &v)| i as u32 == v));
@@ -510,17 +514,17 @@ mod tests {
     #[test]
     fn segments_are_whole_batches() {
         let cloud = random_cloud(100, 1);
-        let layout = StreamLayout::new(&cloud, 5).unwrap();
+        let layout = StreamLayout::new(&cloud, 5, None).unwrap();
         assert_eq!(layout.segment_points, BATCH_POINTS);
         assert_eq!(layout.segments(), vec![0..100]);
-        let empty = StreamLayout::new(&Cloud::default(), 1 << 30).unwrap();
+        let empty = StreamLayout::new(&Cloud::default(), 1 << 30, None).unwrap();
         assert!(empty.is_empty() && empty.batches.is_empty() && empty.segments().is_empty());
     }
 
     #[test]
     fn quantized_words_refine_to_the_cell_size() {
         let cloud = random_cloud(5_000, 3);
-        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        let layout = StreamLayout::new(&cloud, 1 << 30, None).unwrap();
         let b = layout.batches[0];
         let extent = Vec3::new(b.max_x - b.min_x, b.max_y - b.min_y, b.max_z - b.min_z);
         let mut words = vec![[0u32; 3]; 5_000];
@@ -550,7 +554,7 @@ mod tests {
     fn streams_encode_attributes_in_stream_order() {
         let mut cloud = random_cloud(7, 9);
         cloud.colors = Some((0..7).map(|i| [i as u8, 0, 0, 255]).collect());
-        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        let layout = StreamLayout::new(&cloud, 1 << 30, None).unwrap();
         assert!(layout.streams.contains(&Stream::Color));
         let mut pos = vec![0u8; 7 * 12];
         layout.encode(&cloud, Stream::Position, 0..7, &mut pos);
@@ -575,7 +579,17 @@ mod tests {
     fn a_fused_chunk_equals_the_streams_encoded_one_by_one() {
         let mut cloud = random_cloud(30_000, 5);
         cloud.colors = Some((0..30_000).map(|i| [i as u8, 1, 2, 3]).collect());
-        let layout = StreamLayout::new(&cloud, 1 << 30).unwrap();
+        for name in ["a", "b"] {
+            cloud.scalars.push(crate::scene::Scalar {
+                name: name.into(),
+                values: (0..30_000).map(|i| i as f32 * 0.5).collect(),
+            });
+        }
+        // Only the selected scalar field becomes a stream.
+        assert!(!StreamLayout::streams_for(&cloud, None).contains(&Stream::Scalar(0)));
+        let layout = StreamLayout::new(&cloud, 1 << 30, Some(1)).unwrap();
+        assert_eq!(layout.streams.last(), Some(&Stream::Scalar(1)));
+        assert!(!layout.streams.contains(&Stream::Scalar(0)));
         let range = 10_240..25_002;
         let n = range.end - range.start;
         let mut separate = Vec::new();

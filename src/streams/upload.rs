@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use super::{Stream, StreamLayout};
-use crate::gpu::layout::{GpuSegment, MAX_SCALAR_STREAMS};
+use crate::gpu::layout::GpuSegment;
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
 use crate::scene::Cloud;
@@ -20,6 +20,9 @@ pub struct UploadOptions {
     pub segment_points: Option<u64>,
     /// Bytes per staging chunk.
     pub chunk_bytes: u64,
+    /// The scalar field (index into `Cloud::scalars`) to upload: the one the frame is colored
+    /// by. Only that one reaches the GPU.
+    pub scalar: Option<usize>,
 }
 
 impl Default for UploadOptions {
@@ -27,6 +30,7 @@ impl Default for UploadOptions {
         Self {
             segment_points: None,
             chunk_bytes: 32 << 20,
+            scalar: None,
         }
     }
 }
@@ -37,6 +41,10 @@ pub struct GpuStreams {
     pub segments: Vec<Vec<(Stream, Buffer)>>,
     /// `GpuSegment` per segment.
     pub table: Arc<Buffer>,
+    /// The segment table's host copy (rewritten when the scalar stream changes).
+    entries: Vec<GpuSegment>,
+    /// The scalar field uploaded, if any.
+    pub scalar: Option<usize>,
     /// `GpuBatch` per batch.
     pub batches: Arc<Buffer>,
     pub point_count: u32,
@@ -53,6 +61,111 @@ fn address_pair(a: u64) -> [u32; 2] {
     [a as u32, (a >> 32) as u32]
 }
 
+/// The device-local buffer of `stream` for the `points` points of segment `segment`.
+fn stream_buffer(
+    ctx: &Arc<Context>,
+    segment: usize,
+    stream: Stream,
+    points: u64,
+) -> Result<Buffer> {
+    Buffer::new(
+        ctx,
+        &format!("stream.{segment}.{}", stream.name()),
+        StreamLayout::stream_bytes(stream, points),
+        vk::BufferUsageFlags::STORAGE_BUFFER
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+            | vk::BufferUsageFlags::TRANSFER_DST,
+        gpu_allocator::MemoryLocation::GpuOnly,
+    )
+}
+
+/// `GpuSegment.scalar` for the scalar stream among `buffers` (zeros without one).
+fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
+    buffers
+        .iter()
+        .find_map(|(s, b)| match s {
+            Stream::Scalar(k) => {
+                let [lo, hi] = address_pair(b.device_address());
+                Some([lo, hi, *k as u32, 0])
+            }
+            _ => None,
+        })
+        .unwrap_or([0; 4])
+}
+
+fn table_buffer(ctx: &Arc<Context>, entries: &[GpuSegment]) -> Result<Arc<Buffer>> {
+    Ok(Arc::new(Buffer::with_data(
+        ctx,
+        "stream.segments",
+        bytemuck::cast_slice(entries),
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?))
+}
+
+impl GpuStreams {
+    /// Replaces the uploaded scalar stream by field `scalar` of `cloud` (the cloud these
+    /// streams were uploaded from), or drops it (`None`): an event (the viewer cycling color
+    /// fields), not per frame. Waits for the device to be idle, since frames in flight read
+    /// the old buffers, and writes a new segment table: renderers built on the old `table`
+    /// must be rebuilt. The Morton order is recomputed (it is deterministic) rather than kept.
+    pub fn select_scalar(
+        &mut self,
+        ctx: &Arc<Context>,
+        cloud: &Cloud,
+        scalar: Option<usize>,
+        chunk_bytes: u64,
+    ) -> Result<()> {
+        if scalar == self.scalar {
+            return Ok(());
+        }
+        if scalar.is_some_and(|k| k >= cloud.scalars.len()) {
+            bail!("scalar field {scalar:?} is not in the cloud");
+        }
+        // SAFETY: waits for every submitted use of the buffers replaced below.
+        unsafe { ctx.device.device_wait_idle()? };
+        for buffers in &mut self.segments {
+            buffers.retain(|(s, _)| !matches!(s, Stream::Scalar(_)));
+        }
+        if let Some(k) = scalar {
+            let layout = StreamLayout::new(cloud, u64::from(self.segment_points), None)
+                .map_err(anyhow::Error::msg)?;
+            let stream = Stream::Scalar(k);
+            let chunk_points = (chunk_bytes / stream.bytes_per_point()).max(2) & !1;
+            let mut uploader = Uploader::new(ctx, chunk_points * stream.bytes_per_point())?;
+            for (s, range) in layout.segments().into_iter().enumerate() {
+                let buffer = stream_buffer(ctx, s, stream, range.end - range.start)?;
+                let mut start = range.start;
+                while start < range.end {
+                    let end = (start + chunk_points).min(range.end);
+                    let size = StreamLayout::stream_bytes(stream, end - start);
+                    uploader.upload(
+                        |staging| {
+                            layout.encode(cloud, stream, start..end, &mut staging[..size as usize]);
+                            Ok(())
+                        },
+                        &[CopyRegion {
+                            dst: buffer.raw,
+                            dst_offset: StreamLayout::stream_bytes(stream, start - range.start),
+                            src_offset: 0,
+                            size,
+                        }],
+                    )?;
+                    start = end;
+                }
+                self.segments[s].push((stream, buffer));
+            }
+            uploader.finish()?;
+        }
+        for (entry, buffers) in self.entries.iter_mut().zip(&self.segments) {
+            entry.color_first[3] = u32::from(scalar.is_some());
+            entry.scalar = scalar_entry(buffers);
+        }
+        self.table = table_buffer(ctx, &self.entries)?;
+        self.scalar = scalar;
+        Ok(())
+    }
+}
+
 /// Uploads `cloud`'s streams as laid out by `layout`.
 pub fn upload(
     ctx: &Arc<Context>,
@@ -60,9 +173,6 @@ pub fn upload(
     layout: &StreamLayout,
     options: UploadOptions,
 ) -> Result<GpuStreams> {
-    let usage = vk::BufferUsageFlags::STORAGE_BUFFER
-        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
-        | vk::BufferUsageFlags::TRANSFER_DST;
     let per_point: u64 = layout.streams.iter().map(|&s| s.bytes_per_point()).sum();
     // Whole radius pairs per chunk: an even number of points.
     let chunk_points = (options.chunk_bytes / per_point.max(1)) & !1;
@@ -80,17 +190,7 @@ pub fn upload(
         let buffers = layout
             .streams
             .iter()
-            .map(|&stream| {
-                let bytes = StreamLayout::stream_bytes(stream, points);
-                Buffer::new(
-                    ctx,
-                    &format!("stream.{s}.{}", stream.name()),
-                    bytes,
-                    usage,
-                    gpu_allocator::MemoryLocation::GpuOnly,
-                )
-                .map(|b| (stream, b))
-            })
+            .map(|&stream| stream_buffer(ctx, s, stream, points).map(|b| (stream, b)))
             .collect::<Result<Vec<_>>>()?;
         let mut start = range.start;
         while start < range.end {
@@ -126,21 +226,20 @@ pub fn upload(
             let (a, b) = (address(a), address(b));
             [a[0], a[1], b[0], b[1]]
         };
-        let scalars = |k: usize| pair(Stream::Scalar(k), Stream::Scalar(k + 1));
         let color = address(Stream::Color);
-        let scalar_count = layout
-            .streams
-            .iter()
-            .filter(|s| matches!(s, Stream::Scalar(_)))
-            .count() as u32;
-        debug_assert!(scalar_count <= MAX_SCALAR_STREAMS);
+        let scalar = scalar_entry(&buffers);
+        let has_scalar = buffers.iter().any(|(s, _)| matches!(s, Stream::Scalar(_)));
         table.push(GpuSegment {
             position_coarse: pair(Stream::Position, Stream::Coarse),
             medium_fine: pair(Stream::Medium, Stream::Fine),
             normal_radius: pair(Stream::Normal, Stream::Radius),
-            color_first: [color[0], color[1], range.start as u32, scalar_count],
-            scalars01: scalars(0),
-            scalars23: scalars(2),
+            color_first: [
+                color[0],
+                color[1],
+                range.start as u32,
+                u32::from(has_scalar),
+            ],
+            scalar,
         });
         segments.push(buffers);
     }
@@ -148,12 +247,12 @@ pub fn upload(
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     Ok(GpuStreams {
         segments,
-        table: Arc::new(Buffer::with_data(
-            ctx,
-            "stream.segments",
-            bytemuck::cast_slice(&table),
-            storage,
-        )?),
+        table: table_buffer(ctx, &table)?,
+        entries: table,
+        scalar: layout.streams.iter().find_map(|s| match s {
+            Stream::Scalar(k) => Some(*k),
+            _ => None,
+        }),
         batches: Arc::new(Buffer::with_data(
             ctx,
             "stream.batches",

@@ -115,3 +115,41 @@ pub fn render_with(
 pub fn render(cloud: &Cloud, method: &str, size: u32) -> surfel::eval::Frame {
     render_with(cloud, method, size, Default::default())
 }
+
+/// Renders `cloud` colored by `coloring` (`surfel::color::select`) with `method` at `size`²,
+/// framing the cloud, in a validated context: one frame, then a read-back one.
+pub fn render_colored(
+    cloud: &Cloud,
+    method: &str,
+    size: u32,
+    coloring: surfel::color::Coloring,
+) -> surfel::eval::Frame {
+    use surfel::render::{upload_colored, Extras, Renderer, View};
+    let ctx = context();
+    let (scene, info) = upload_colored(&ctx, cloud, coloring).expect("upload");
+    let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let mut r = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        size,
+        size,
+        Extras {
+            readback: true,
+            ..Extras::default()
+        },
+    )
+    .expect("renderer");
+    let view = View {
+        camera: surfel::scene::Camera::framing(info.centre, info.radius),
+        lights: vec![surfel::scene::Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    r.render(&view, false).expect("frame 1");
+    let frame = r.render(&view, true).expect("frame 2").expect("readback");
+    drop(r);
+    assert_clean(&ctx);
+    frame
+}
