@@ -189,6 +189,77 @@ fn a_scripted_tour_shows_and_hides_the_hud_saves_and_loads_the_camera_and_resize
     assert_eq!(png(&dir.join("small.png")).dimensions(), (320, 200));
 }
 
+/// Sum of the RGB channels.
+fn brightness(img: &RgbImage) -> u64 {
+    img.pixels().flat_map(|p| p.0).map(u64::from).sum()
+}
+
+#[test]
+fn a_lidar_tour_switches_color_by_and_eye_dome_lighting_with_the_hud_shown() {
+    // The issue's tour: a LAS file, the HUD, color-by and EDL switched by keys, screenshots.
+    let dir = tmp_dir("lidar");
+    std::fs::write(
+        dir.join("tour.txt"),
+        "frames 2\n\
+         screenshot hud.png\n\
+         key Tab\n\
+         screenshot intensity.png\n\
+         key E              # eye-dome lighting on\n\
+         screenshot edl.png\n\
+         key E              # and off\n\
+         key V              # intensity -> classification\n\
+         screenshot classes.png\n\
+         key Tab\n\
+         key E\n\
+         screenshot classes-edl-hud.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "1024x768",
+        &data("lidar/autzen_trim.las"),
+        &[
+            "--size",
+            "400x300",
+            "--color-by",
+            "intensity",
+            "--script",
+            "tour.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    assert!(
+        stdout.lines().any(|l| l == "color by classification"),
+        "{stdout}"
+    );
+    let intensity = png(&dir.join("intensity.png"));
+    let edl = png(&dir.join("edl.png"));
+    let classes = png(&dir.join("classes.png"));
+    // EDL only darkens: some pixels change, none gets brighter.
+    let (darkened, _) = difference(&intensity, &edl);
+    assert!(darkened > 100, "EDL changed only {darkened} pixels");
+    assert!(intensity.pixels().zip(edl.pixels()).all(|(a, b)| a
+        .0
+        .iter()
+        .zip(b.0)
+        .all(|(x, y)| y <= *x)));
+    assert!(brightness(&edl) < brightness(&intensity));
+    // Classification colors (unlit palette): ground is class 2.
+    let ground = [0xa0, 0x72, 0x4a];
+    let ground_pixels = classes.pixels().filter(|p| p.0 == ground).count();
+    assert!(
+        ground_pixels > 1000,
+        "{ground_pixels} ground-colored pixels"
+    );
+    assert_eq!(intensity.pixels().filter(|p| p.0 == ground).count(), 0);
+    // With the HUD shown again, its panel (and the legend) is drawn over the EDL image.
+    let hud = png(&dir.join("classes-edl-hud.png"));
+    let (changed, bbox) = difference(&classes, &hud);
+    assert!(changed > 0 && bbox.is_some());
+    assert_eq!(hud.dimensions(), (400, 300));
+}
+
 #[test]
 fn without_size_the_window_takes_80_percent_of_the_monitor() {
     let dir = tmp_dir("monitor");

@@ -4,6 +4,7 @@
 
 use std::time::{Duration, Instant};
 
+use crate::color::LegendEntry;
 use crate::overlay::{Corner, HudLine, Panel};
 
 /// Every viewer key and mouse control, as shown by the help panel (`H`).
@@ -14,6 +15,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("M / N", "next / previous method"),
     ("C", "toggle point colors"),
     ("E", "toggle eye-dome lighting"),
+    ("V", "color by the next field"),
     ("R", "reset the camera"),
     ("K", "save the camera (--camera-file)"),
     ("L", "load the camera (--camera-file)"),
@@ -71,6 +73,11 @@ pub struct Stats<'a> {
     /// Bytes allocated and reserved by the GPU allocator.
     pub memory: Option<(u64, u64)>,
     pub use_color: bool,
+    /// The field colored by (`V`).
+    pub color_by: &'a str,
+    /// The classes present with their palette colors, shown while coloring by
+    /// classification (empty otherwise).
+    pub legend: &'a [LegendEntry],
     /// The last action's outcome (camera saved, screenshot written, ...).
     pub status: &'a str,
 }
@@ -142,6 +149,22 @@ impl Hud {
             },
             HudLine::TEXT,
         ));
+        stats.push(HudLine::new(
+            format!("color by {} (V)", s.color_by),
+            HudLine::TEXT,
+        ));
+        for entry in s.legend {
+            let [r, g, b] = entry.color;
+            stats.push(HudLine::new(
+                format!(
+                    "  {:>3} {}  {}",
+                    entry.class,
+                    entry.name,
+                    thousands(entry.count as u64)
+                ),
+                [r, g, b, 255],
+            ));
+        }
         if !s.use_color {
             stats.push(HudLine::new("point colors off (C)", HudLine::DIM));
         }
@@ -185,6 +208,8 @@ mod tests {
             fps: Some(59.94),
             memory: Some((3 << 20, 64 << 20)),
             use_color: true,
+            color_by: "rgb",
+            legend: &[],
             status: "",
         }
     }
@@ -208,10 +233,44 @@ mod tests {
                 "points 110,000 (all submitted each frame)",
                 "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
                 "59.9 frames/s  800x600",
+                "color by rgb (V)",
                 "H help   Tab hide HUD",
             ]
         );
         assert_eq!(hud.panels().len(), 1);
+    }
+
+    #[test]
+    fn coloring_by_classification_shows_the_legend_in_the_class_colors() {
+        let legend = [
+            LegendEntry {
+                class: 2,
+                name: "ground".into(),
+                color: [170, 85, 0],
+                count: 26_107,
+            },
+            LegendEntry {
+                class: 6,
+                name: "building".into(),
+                color: [255, 80, 80],
+                count: 9,
+            },
+        ];
+        let s = Stats {
+            color_by: "classification",
+            legend: &legend,
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        let at = hud
+            .stats
+            .iter()
+            .position(|l| l.text == "color by classification (V)")
+            .expect("color line");
+        assert_eq!(hud.stats[at + 1].text, "    2 ground  26,107");
+        assert_eq!(hud.stats[at + 1].color, [170, 85, 0, 255]);
+        assert_eq!(hud.stats[at + 2].text, "    6 building  9");
+        assert_eq!(hud.stats[at + 2].color, [255, 80, 80, 255]);
     }
 
     #[test]
@@ -221,7 +280,9 @@ mod tests {
         assert_eq!(panels.len(), 2);
         assert_eq!(panels[1].corner, Corner::TopRight);
         assert_eq!(panels[1].lines.len(), KEYS.len() + 1);
-        for key in ["M / N", "C", "R", "K", "L", "P", "H", "Tab", "F11", "Esc"] {
+        for key in [
+            "M / N", "C", "E", "V", "R", "K", "L", "P", "H", "Tab", "F11", "Esc",
+        ] {
             assert!(
                 panels[1]
                     .lines

@@ -21,8 +21,9 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::raw_window_handle::HasDisplayHandle;
 use winit::window::{Fullscreen, Window, WindowId};
 
-use crate::color::{self, Coloring};
+use crate::color::{self, Coloring, LegendEntry};
 use crate::frame::Frame;
+use crate::gpu::layout::COLOR_CLASSIFICATION;
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
@@ -149,11 +150,22 @@ struct Viewer {
     quit: bool,
     /// The post-processing shown now (`E` switches EDL on and off).
     post: PostOptions,
+    /// The classification legend while coloring by classification (shown in the HUD).
+    legend: Vec<LegendEntry>,
     drag: Option<(MouseButton, Vec2)>,
     cursor: Vec2,
     frames: u64,
     start: Instant,
     error: Option<anyhow::Error>,
+}
+
+/// The HUD's classification legend: the classes present while coloring by classification.
+fn legend_for(cloud: &Cloud, coloring: &Coloring) -> Vec<LegendEntry> {
+    if coloring.mode == COLOR_CLASSIFICATION {
+        color::legend(cloud)
+    } else {
+        Vec::new()
+    }
 }
 
 /// Opens the viewer window on `cloud` and runs until it is closed (or its script ends).
@@ -168,6 +180,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     let mut viewer = Viewer {
         orbit: Orbit::from_camera(&opts.camera, opts.up),
         post: opts.post,
+        legend: legend_for(&cloud, &opts.coloring),
         opts,
         cloud,
         ctx: None,
@@ -412,6 +425,7 @@ impl Viewer {
                 .select_scalar(&ctx, &self.cloud, coloring.scalar, chunk)?;
             info.coloring = coloring;
         }
+        self.legend = legend_for(&self.cloud, &coloring);
         println!("color by {name}");
         self.opts.color_by = name;
         self.rebuild()
@@ -522,6 +536,8 @@ impl Viewer {
                 fps: self.rate.fps,
                 memory: self.memory,
                 use_color: self.use_color,
+                color_by: &self.opts.color_by,
+                legend: &self.legend,
                 status: &self.status,
             },
             self.help,
@@ -532,9 +548,10 @@ impl Viewer {
             .map(|(n, ms)| format!("{n} {ms:.2}"))
             .collect();
         gpu.window.set_title(&format!(
-            "{} - {} - {} ms{}",
+            "{} - {} - color: {} - {} ms{}",
             self.opts.title,
             label,
+            self.opts.color_by,
             ms.join(" | "),
             if self.use_color { "" } else { " (no color)" }
         ));
