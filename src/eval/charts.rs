@@ -639,6 +639,21 @@ fn slice_with_most<K: Ord + Copy, O: Ord>(
         .map(|(k, _)| k)
 }
 
+/// Removes the PNG and SVG files a previous run left in `dir`, so a chart this run does not
+/// draw (too few points now) cannot be mistaken for one of its results.
+fn remove_old_charts(dir: &Path) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| anyhow!("reading {}: {e}", dir.display()))?;
+    for entry in entries {
+        let path = entry
+            .map_err(|e| anyhow!("reading {}: {e}", dir.display()))?
+            .path();
+        if path.is_file() && path.extension().is_some_and(|e| e == "png" || e == "svg") {
+            std::fs::remove_file(&path).map_err(|e| anyhow!("removing {}: {e}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
 /// Writes every chart the data supports into `dir` (created if missing) and returns the
 /// paths written, PNG and SVG for each chart. Empty results write nothing.
 pub fn write_charts(results: &Results, dir: &Path) -> Result<Vec<PathBuf>> {
@@ -655,6 +670,7 @@ pub fn write_charts_by_model(
 ) -> Result<Vec<(Option<String>, PathBuf)>> {
     register_font()?;
     std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
+    remove_old_charts(dir)?;
     let device = if results.device.is_empty() {
         "unknown device"
     } else {
@@ -1025,6 +1041,19 @@ mod tests {
         for (l, c) in labels.iter().zip(&picked) {
             assert_eq!(again.label(l), *c, "{l}");
         }
+    }
+
+    #[test]
+    fn charts_of_an_earlier_run_are_removed() {
+        let dir = std::env::temp_dir().join(format!("surfel_charts_stale_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("old_time_vs_points.png"), b"stale").unwrap();
+        std::fs::write(dir.join("notes.txt"), b"kept").unwrap();
+        let written = write_charts(&Results::default(), &dir).unwrap();
+        assert!(written.is_empty());
+        assert!(!dir.join("old_time_vs_points.png").exists());
+        assert!(dir.join("notes.txt").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
