@@ -67,6 +67,8 @@ pub struct Stats<'a> {
     /// Per-pass GPU milliseconds of the newest completed frame.
     pub passes: &'a [(String, f64)],
     pub points: u64,
+    /// Points the method projects this frame when it culls batches; `None`: all of them.
+    pub projected: Option<u64>,
     pub width: u32,
     pub height: u32,
     pub fps: Option<f64>,
@@ -124,11 +126,17 @@ impl Hud {
         for (name, ms) in s.passes {
             stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
         }
-        // Every method submits every point each frame; how many survive clipping and batch
-        // culling (`compute`) is decided on the GPU and not counted, so this is the number
-        // submitted, not the number that reached a pixel.
+        // Batch-culling methods project the points of the batches inside the frustum (counted
+        // on the host with the shader's own test); the others project every point.
         stats.push(HudLine::new(
-            format!("points {} (all submitted each frame)", thousands(s.points)),
+            match s.projected {
+                Some(n) => format!(
+                    "points {}, {} projected (batches in view)",
+                    thousands(s.points),
+                    thousands(n)
+                ),
+                None => format!("points {}, all projected", thousands(s.points)),
+            },
             HudLine::TEXT,
         ));
         stats.push(HudLine::new(
@@ -203,6 +211,7 @@ mod tests {
             file: "autzen.las",
             passes,
             points: 110_000,
+            projected: Some(54_321),
             width: 800,
             height: 600,
             fps: Some(59.94),
@@ -230,7 +239,7 @@ mod tests {
                 "GPU 1.75 ms per frame",
                 "  compute.project  1.25 ms",
                 "  compute.resolve  0.50 ms",
-                "points 110,000 (all submitted each frame)",
+                "points 110,000, 54,321 projected (batches in view)",
                 "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
                 "59.9 frames/s  800x600",
                 "color by rgb (V)",
@@ -238,6 +247,19 @@ mod tests {
             ]
         );
         assert_eq!(hud.panels().len(), 1);
+    }
+
+    #[test]
+    fn methods_without_batch_culling_project_every_point() {
+        let s = Stats {
+            projected: None,
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        assert!(hud
+            .stats
+            .iter()
+            .any(|l| l.text == "points 110,000, all projected"));
     }
 
     #[test]

@@ -525,12 +525,25 @@ impl Viewer {
             .filter(|(n, _)| !n.starts_with("present"))
             .collect();
         let label = gpu.renderer.config.label();
+        let projected = match &self.scene {
+            Some((scene, _)) if gpu.renderer.config.method.culls_batches => {
+                let camera = self.orbit.camera();
+                let aspect = gpu.renderer.width as f32 / gpu.renderer.height.max(1) as f32;
+                let view_proj = camera.projection(aspect) * camera.view();
+                Some(crate::streams::projected_points(
+                    view_proj,
+                    &scene.streams.host_batches,
+                ))
+            }
+            _ => None,
+        };
         let hud = Hud::new(
             &Stats {
                 method: &label,
                 file: &self.opts.file,
                 passes: &passes,
                 points: u64::from(gpu.renderer.info.points),
+                projected,
                 width: gpu.renderer.width,
                 height: gpu.renderer.height,
                 fps: self.rate.fps,

@@ -26,6 +26,7 @@ pub const INFO: MethodInfo = MethodInfo {
     }],
     needs_faces: true,
     features: &[],
+    culls_batches: false,
     build,
 };
 

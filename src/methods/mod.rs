@@ -44,6 +44,9 @@ pub struct MethodInfo {
     pub needs_faces: bool,
     /// Device features the method cannot run without.
     pub features: &'static [Feature],
+    /// Projects only the points of batches inside the view frustum (`streams::batch_visible`);
+    /// otherwise every point goes through projection each frame.
+    pub culls_batches: bool,
     pub build: fn(&mut BuildContext<'_>) -> Result<()>,
 }
 

@@ -25,6 +25,7 @@ pub const INFO: MethodInfo = MethodInfo {
     }],
     needs_faces: false,
     features: &[],
+    culls_batches: false,
     build,
 };
 

@@ -16,7 +16,7 @@ pub mod upload;
 
 use std::ops::Range;
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
 use crate::gpu::layout::{GpuBatch, BATCH_POINTS, QUANT_BITS};
@@ -414,6 +414,41 @@ impl Quantizer {
     }
 }
 
+/// Whether the compute rasterizer projects batch `b` under `view_proj`: the same test as
+/// `glsl/compute/raster.comp`, which skips a batch when all eight corners of its box lie
+/// outside one of the left, right, bottom, top and near clip planes (reversed infinite Z has
+/// no far plane).
+pub fn batch_visible(view_proj: Mat4, b: &GpuBatch) -> bool {
+    let (lo, hi) = (
+        Vec3::new(b.min_x, b.min_y, b.min_z),
+        Vec3::new(b.max_x, b.max_y, b.max_z),
+    );
+    let mut out = [true; 5];
+    for k in 0..8 {
+        let p = Vec3::new(
+            if k & 1 != 0 { hi.x } else { lo.x },
+            if k & 2 != 0 { hi.y } else { lo.y },
+            if k & 4 != 0 { hi.z } else { lo.z },
+        );
+        let c = view_proj * p.extend(1.0);
+        let inside = [c.x >= -c.w, c.x <= c.w, c.y >= -c.w, c.y <= c.w, c.z <= c.w];
+        for (o, i) in out.iter_mut().zip(inside) {
+            *o &= !i;
+        }
+    }
+    !out.iter().any(|&o| o)
+}
+
+/// Points in the batches [`batch_visible`] keeps: what a batch-culling method projects in a
+/// frame (O(batches), one per `BATCH_POINTS` points).
+pub fn projected_points(view_proj: Mat4, batches: &[GpuBatch]) -> u64 {
+    batches
+        .iter()
+        .filter(|b| batch_visible(view_proj, b))
+        .map(|b| u64::from(b.count))
+        .sum()
+}
+
 /// `p` quantized to `QUANT_FULL_BITS` per axis relative to the batch box.
 pub fn quantize(p: Vec3, b: &GpuBatch) -> [u32; 3] {
     Quantizer::new(b).quantize(p)
@@ -509,6 +544,42 @@ mod tests {
             .iter()
             .enumerate()
             .all(|(s, &c)| inv[c as usize] == s as u32));
+    }
+
+    #[test]
+    fn batches_outside_the_frustum_are_not_projected() {
+        let camera = crate::scene::Camera::look_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 1.0);
+        let vp = camera.projection(1.0) * camera.view();
+        let batch = |lo: Vec3, hi: Vec3, count: u32| GpuBatch {
+            min_x: lo.x,
+            min_y: lo.y,
+            min_z: lo.z,
+            first: 0,
+            max_x: hi.x,
+            max_y: hi.y,
+            max_z: hi.z,
+            count,
+        };
+        let centre = batch(Vec3::splat(-0.5), Vec3::splat(0.5), 100);
+        let left = batch(
+            Vec3::new(-200.0, -0.5, -0.5),
+            Vec3::new(-100.0, 0.5, 0.5),
+            10,
+        );
+        let behind = batch(Vec3::new(-0.5, -0.5, 20.0), Vec3::new(0.5, 0.5, 30.0), 20);
+        // Straddles the left plane: partly inside, so projected.
+        let edge = batch(Vec3::new(-100.0, -0.5, -0.5), Vec3::new(0.0, 0.5, 0.5), 30);
+        // Surrounds the camera: corners on both sides of every plane.
+        let around = batch(Vec3::splat(-50.0), Vec3::splat(50.0), 40);
+        assert!(batch_visible(vp, &centre));
+        assert!(!batch_visible(vp, &left));
+        assert!(!batch_visible(vp, &behind));
+        assert!(batch_visible(vp, &edge));
+        assert!(batch_visible(vp, &around));
+        assert_eq!(
+            projected_points(vp, &[centre, left, behind, edge, around]),
+            170
+        );
     }
 
     #[test]

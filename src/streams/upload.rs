@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use super::{Stream, StreamLayout};
-use crate::gpu::layout::GpuSegment;
+use crate::gpu::layout::{GpuBatch, GpuSegment};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
 use crate::scene::Cloud;
@@ -47,6 +47,9 @@ pub struct GpuStreams {
     pub scalar: Option<usize>,
     /// `GpuBatch` per batch.
     pub batches: Arc<Buffer>,
+    /// The batches' host copy (32 bytes per `BATCH_POINTS` points), for counting the points
+    /// a culling method projects (`super::projected_points`).
+    pub host_batches: Vec<GpuBatch>,
     pub point_count: u32,
     pub batch_count: u32,
     pub segment_points: u32,
@@ -259,6 +262,7 @@ pub fn upload(
             bytemuck::cast_slice(&layout.batches),
             storage,
         )?),
+        host_batches: layout.batches.clone(),
         point_count: layout.len() as u32,
         batch_count: layout.batches.len() as u32,
         segment_points: layout.segment_points,

@@ -37,6 +37,7 @@ pub const COMPUTE: MethodInfo = MethodInfo {
     params: &[QUANTIZED],
     needs_faces: false,
     features: &[Feature::Int64Atomics],
+    culls_batches: true,
     build: build_nearest,
 };
 
@@ -55,6 +56,7 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
     ],
     needs_faces: false,
     features: &[Feature::Int64Atomics],
+    culls_batches: true,
     build: build_high_quality,
 };
 
