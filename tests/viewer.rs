@@ -261,6 +261,37 @@ fn a_lidar_tour_switches_color_by_and_eye_dome_lighting_with_the_hud_shown() {
 }
 
 #[test]
+fn digit_keys_set_the_number_of_lights() {
+    let dir = tmp_dir("lights");
+    std::fs::write(
+        dir.join("t.txt"),
+        "key Tab\nkey 0\nscreenshot none.png\nkey 1\nscreenshot one.png\nkey 9\n\
+         screenshot nine.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &["--size", "200x160", "--script", "t.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    for line in ["lights: 0", "lights: 1", "lights: 9"] {
+        assert!(
+            stdout.lines().any(|l| l == line),
+            "{line:?} not in {stdout}"
+        );
+    }
+    let none = brightness(&png(&dir.join("none.png")));
+    let one = brightness(&png(&dir.join("one.png")));
+    let nine = brightness(&png(&dir.join("nine.png")));
+    // Ambient only is darkest; the ring of nine splits one light's intensity off-axis.
+    assert!(none < one && none < nine, "{none} {one} {nine}");
+    assert_ne!(one, nine);
+}
+
+#[test]
 fn without_size_the_window_takes_80_percent_of_the_monitor() {
     let dir = tmp_dir("monitor");
     std::fs::write(dir.join("s.txt"), "screenshot full.png\nquit\nframes 100\n").expect("script");

@@ -16,6 +16,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("C", "toggle point colors"),
     ("E", "toggle eye-dome lighting"),
     ("V", "color by the next field"),
+    ("0 - 9", "lights: none, headlight, ring of N"),
     ("R", "reset the camera"),
     ("K", "save the camera (--camera-file)"),
     ("L", "load the camera (--camera-file)"),

@@ -459,6 +459,12 @@ impl Viewer {
             ViewerKey::Char('c') => self.use_color = !self.use_color,
             ViewerKey::Char('e') => self.toggle_edl()?,
             ViewerKey::Char('v') => self.cycle_color()?,
+            ViewerKey::Char(digit @ '0'..='9') => {
+                let count = digit.to_digit(10).unwrap_or(1);
+                let radius = self.scene.as_ref().map_or(1.0, |(_, info)| info.radius);
+                self.opts.lights = crate::scene::lights::sweep(count, radius);
+                self.outcome(Ok(format!("lights: {count}")))?;
+            }
             ViewerKey::Char('r') => {
                 self.orbit = Orbit::from_camera(&self.orbit.home, self.orbit.up)
             }

@@ -25,7 +25,7 @@ use super::Frame;
 use crate::gpu::Context;
 use crate::methods::{GpuScene, MethodConfig};
 use crate::render::{upload, Extras, Renderer, SceneInfo, View};
-use crate::scene::{lights, load_prepared, sample, Camera, Cloud, Light, LoadOptions, Pose};
+use crate::scene::{lights, load_prepared, sample, Camera, Cloud, LoadOptions, Pose};
 
 /// Shortest warm-up per job, in seconds of wall time (at most [`WARMUP_MAX_FRAMES`] frames).
 pub const WARMUP_MIN_SECONDS: f64 = 0.5;
@@ -121,16 +121,6 @@ fn stressed(cloud: &Cloud, kind: StressKind, value: f64) -> Result<Cloud> {
         StressKind::Nonuniform => stress::nonuniform(cloud, value, SEED)?,
         StressKind::Grazing | StressKind::Magnification | StressKind::Inside => cloud.clone(),
     })
-}
-
-fn job_lights(count: u32, radius: f32) -> Vec<Light> {
-    if count == 0 {
-        Vec::new()
-    } else if count == 1 {
-        vec![Light::headlight()]
-    } else {
-        lights::ring(count, radius)
-    }
 }
 
 /// Median point spacing from the radii (the density form radius is ~0.89 x the spacing).
@@ -318,7 +308,7 @@ pub fn run(
         }
         let spacing = point_spacing(&scene.cloud, scene.info.radius / 100.0);
         let camera = job_camera(job, &original.info, spacing);
-        let lights = job_lights(job.lights, original.info.radius);
+        let lights = lights::sweep(job.lights, original.info.radius);
         let baseline = job.points.is_none() && job.stress.is_none();
         let view_at = |step: usize| {
             let mut c = camera;

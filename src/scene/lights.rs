@@ -60,6 +60,16 @@ pub fn ring(count: u32, radius: f32) -> Vec<Light> {
         .collect()
 }
 
+/// The lights of the light-count sweeps (002 ch. 6) and of the viewer's digit keys: none, the
+/// headlight, or a ring of `count` camera lights (`ring`).
+pub fn sweep(count: u32, radius: f32) -> Vec<Light> {
+    match count {
+        0 => Vec::new(),
+        1 => vec![Light::headlight()],
+        n => ring(n, radius),
+    }
+}
+
 /// Resolves lights to view space for a frame at `time` seconds; orbiting lights circle `up`.
 /// At most `MAX_LIGHTS`.
 pub fn resolve(
@@ -110,6 +120,17 @@ mod tests {
         assert_eq!(g[0].position.truncate(), Vec3::ZERO);
         assert_eq!(g[1].position.truncate(), Vec3::new(1.0, 0.0, -5.0));
         assert_eq!(g[1].color_kind.w, LIGHT_STATIC as f32);
+    }
+
+    #[test]
+    fn the_sweep_has_exactly_the_asked_number_of_lights() {
+        assert!(sweep(0, 1.0).is_empty());
+        assert_eq!(sweep(1, 1.0), vec![Light::headlight()]);
+        for n in [3, 5, 7, 9, 16] {
+            let l = sweep(n, 2.0);
+            assert_eq!(l.len(), n as usize);
+            assert!(l.iter().all(|l| l.kind == LightKind::Camera));
+        }
     }
 
     #[test]
