@@ -118,6 +118,14 @@ pub static METHODS: &[MethodInfo] = &[
     splat::SQUARES_DEFERRED_INFO,
     splat::AFFINE_DEFERRED_INFO,
     splat::PERSPECTIVE_DEFERRED_INFO,
+    splat::POINTS_GOURAUD_INFO,
+    splat::SQUARES_GOURAUD_INFO,
+    splat::AFFINE_GOURAUD_INFO,
+    splat::PERSPECTIVE_GOURAUD_INFO,
+    splat::POINTS_PHONG_INFO,
+    splat::SQUARES_PHONG_INFO,
+    splat::AFFINE_PHONG_INFO,
+    splat::PERSPECTIVE_PHONG_INFO,
 ];
 
 /// Looks a method up by name.

@@ -1,8 +1,10 @@
 //! The splatting family (002 sections 5.2-5.3): four rasterizations of a point as a hardware
 //! point sprite (fixed-size points, image-aligned squares, affinely projected sprites,
-//! perspective-correct splats), each with flat shading (one pass) or deferred shading (a depth
-//! visibility pass, additive accumulation of weighted albedo and normal within a relative depth
-//! `epsilon` of the visible surface, and a normalization pass that lights once per pixel).
+//! perspective-correct splats), each with four shadings: flat (one pass, lit per splat) and the
+//! three blended ones, which share a depth-only visibility pass, an additive accumulation of
+//! weighted color and normal within a relative depth `epsilon` of the visible surface and a
+//! normalization pass: Gouraud (lit per splat), Phong (a linear normal field per splat, lit per
+//! fragment) and deferred (albedo and normal blended, lit once per pixel in the normalization).
 //! Every combination is one pair of shaders specialized by constants; the method name
 //! `{raster}-{shading}` picks them.
 
@@ -115,6 +117,47 @@ pub const AFFINE_DEFERRED_INFO: MethodInfo = info(
 pub const PERSPECTIVE_DEFERRED_INFO: MethodInfo = info(
     "perspective-deferred",
     "perspective-correct splats (002 eqs. 5.4-5.5), deferred shading (002 5.3.4)",
+    SPLATS_BLENDED,
+);
+
+pub const POINTS_GOURAUD_INFO: MethodInfo = info(
+    "points-gouraud",
+    "fixed-size point sprites, Gouraud shading: per-splat colors blended (002 5.3.2)",
+    POINTS_BLENDED,
+);
+pub const SQUARES_GOURAUD_INFO: MethodInfo = info(
+    "squares-gouraud",
+    "image-aligned squares (002 eq. 5.1), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const AFFINE_GOURAUD_INFO: MethodInfo = info(
+    "affine-gouraud",
+    "affinely projected discs (002 eqs. 5.2-5.3), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const PERSPECTIVE_GOURAUD_INFO: MethodInfo = info(
+    "perspective-gouraud",
+    "perspective-correct splats (002 eqs. 5.4-5.5), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const POINTS_PHONG_INFO: MethodInfo = info(
+    "points-phong",
+    "fixed-size point sprites, Phong shading: linear normal field lit per fragment, blended (002 5.3.3)",
+    POINTS_BLENDED,
+);
+pub const SQUARES_PHONG_INFO: MethodInfo = info(
+    "squares-phong",
+    "image-aligned squares (002 eq. 5.1), Phong shading (002 eq. 5.7)",
+    SPLATS_BLENDED,
+);
+pub const AFFINE_PHONG_INFO: MethodInfo = info(
+    "affine-phong",
+    "affinely projected discs (002 eqs. 5.2-5.3), Phong shading (002 eq. 5.7)",
+    SPLATS_BLENDED,
+);
+pub const PERSPECTIVE_PHONG_INFO: MethodInfo = info(
+    "perspective-phong",
+    "perspective-correct splats (002 eqs. 5.4-5.5), Phong shading (002 eq. 5.7)",
     SPLATS_BLENDED,
 );
 
