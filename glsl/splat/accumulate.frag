@@ -19,7 +19,10 @@ void main() {
     vec3 c = v_color;
     if (SHADING == SPLAT_SHADING_PHONG) {
         // Eq. 5.7: the splat's linear normal field, n_i = ((q + n) - p) / |(q + n) - p|, lit per
-        // fragment at q.
+        // fragment at q. As in the paper, q - p is in view units while n is a unit vector, so
+        // the field tilts by atan(|q - p|) (up to atan(r) at the rim): strongly for splats of
+        // radius near 1, hardly for small ones. Botsch et al. fit the field's slopes to the
+        // neighbours' normals instead; the paper's construction is kept.
         n = normalize(hit.q + n - v_centre);
         c = shade(v_color, n, hit.q);
     }
