@@ -92,6 +92,16 @@ pub struct PostParams {
     pub pad2: u32,
 }
 
+/// Push constants of the splatting family (`SplatParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SplatParams {
+    pub radius_scale: f32,
+    pub epsilon: f32,
+    pub max_point_size: f32,
+    pub pad0: u32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -199,6 +209,12 @@ pub fn mirrors() -> Vec<Mirror> {
             pad0,
             pad1,
             pad2
+        }),
+        mirror!(SplatParams {
+            radius_scale,
+            epsilon,
+            max_point_size,
+            pad0
         }),
     ]
 }

@@ -109,6 +109,19 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("OVERLAY_SOLID", 1),
     // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
     ("EDL_NEIGHBOURS", 8),
+    // Splatting family (src/methods/splat, 002 sections 5.2-5.3): specialization constant ids
+    // and their values.
+    ("SPLAT_SPEC_RASTER", 0),
+    ("SPLAT_SPEC_SHADING", 1),
+    ("SPLAT_SPEC_CULL", 2),
+    ("SPLAT_RASTER_POINTS", 0),
+    ("SPLAT_RASTER_SQUARES", 1),
+    ("SPLAT_RASTER_AFFINE", 2),
+    ("SPLAT_RASTER_PERSPECTIVE", 3),
+    ("SPLAT_SHADING_FLAT", 0),
+    ("SPLAT_SHADING_GOURAUD", 1),
+    ("SPLAT_SHADING_PHONG", 2),
+    ("SPLAT_SHADING_DEFERRED", 3),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -215,6 +228,19 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "pad0"),
             f("uint", "pad1"),
             f("uint", "pad2"),
+        ],
+    },
+    // Push constants of the splatting family (src/methods/splat).
+    StructSpec {
+        name: "SplatParams",
+        fields: &[
+            // Scale of every point's radius (`radius` parameter).
+            f("float", "radius_scale"),
+            // Blending depth offset, relative to the linear depth (`epsilon` parameter).
+            f("float", "epsilon"),
+            // The device's largest point size: the sprite sizes are clamped to it.
+            f("float", "max_point_size"),
+            f("uint", "pad0"),
         ],
     },
 ];

@@ -5,6 +5,7 @@
 pub mod compute;
 mod mesh;
 mod points;
+mod splat;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -109,6 +110,22 @@ pub static METHODS: &[MethodInfo] = &[
     compute::COMPUTE,
     compute::COMPUTE_HQ,
     mesh::INFO,
+    splat::POINTS_FLAT_INFO,
+    splat::SQUARES_FLAT_INFO,
+    splat::AFFINE_FLAT_INFO,
+    splat::PERSPECTIVE_FLAT_INFO,
+    splat::POINTS_DEFERRED_INFO,
+    splat::SQUARES_DEFERRED_INFO,
+    splat::AFFINE_DEFERRED_INFO,
+    splat::PERSPECTIVE_DEFERRED_INFO,
+    splat::POINTS_GOURAUD_INFO,
+    splat::SQUARES_GOURAUD_INFO,
+    splat::AFFINE_GOURAUD_INFO,
+    splat::PERSPECTIVE_GOURAUD_INFO,
+    splat::POINTS_PHONG_INFO,
+    splat::SQUARES_PHONG_INFO,
+    splat::AFFINE_PHONG_INFO,
+    splat::PERSPECTIVE_PHONG_INFO,
 ];
 
 /// Looks a method up by name.

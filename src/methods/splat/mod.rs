@@ -1,0 +1,421 @@
+//! The splatting family (002 sections 5.2-5.3): four rasterizations of a point as a hardware
+//! point sprite (fixed-size points, image-aligned squares, affinely projected sprites,
+//! perspective-correct splats), each with four shadings: flat (one pass, lit per splat) and the
+//! three blended ones, which share a depth-only visibility pass, an additive accumulation of
+//! weighted color and normal within a relative depth `epsilon` of the visible surface and a
+//! normalization pass: Gouraud (lit per splat), Phong (a linear normal field per splat, lit per
+//! fragment) and deferred (albedo and normal blended, lit once per pixel in the normalization).
+//! Every combination is one pair of shaders specialized by constants; the method name
+//! `{raster}-{shading}` picks them.
+
+use std::sync::Arc;
+
+use anyhow::{anyhow, Result};
+use ash::vk;
+
+use super::{
+    BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
+};
+use crate::gpu::layout::{
+    SplatParams, BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
+    BINDING_SEGMENTS, RESOLVE_GROUP, SPLAT_RASTER_AFFINE, SPLAT_RASTER_PERSPECTIVE,
+    SPLAT_RASTER_POINTS, SPLAT_RASTER_SQUARES, SPLAT_SHADING_DEFERRED, SPLAT_SHADING_FLAT,
+    SPLAT_SHADING_GOURAUD, SPLAT_SHADING_PHONG, SPLAT_SPEC_CULL, SPLAT_SPEC_RASTER,
+    SPLAT_SPEC_SHADING,
+};
+use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{Access, Descriptor, ImageId, Load, Stages};
+
+/// The accumulation targets: (sum w c, sum w) and (sum w n, sum w), 16-bit float (002 5.3.2).
+const ACCUM_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+
+const SIZE: ParamSpec = ParamSpec {
+    name: "size",
+    default: 1.0,
+    min: 1.0,
+    max: 64.0,
+    doc: "point size in pixels",
+};
+const RADIUS: ParamSpec = ParamSpec {
+    name: "radius",
+    default: 1.0,
+    min: 0.05,
+    max: 20.0,
+    doc: "scale of every point's radius",
+};
+const CULL: ParamSpec = ParamSpec {
+    name: "cull",
+    default: 0.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "1: cull splats whose normal faces away (needs consistently oriented normals)",
+};
+const EPSILON: ParamSpec = ParamSpec {
+    name: "epsilon",
+    default: 0.01,
+    min: 0.0,
+    max: 0.5,
+    doc: "blending depth offset, relative to the depth",
+};
+
+const POINTS_FLAT: &[ParamSpec] = &[SIZE, CULL];
+const SPLATS_FLAT: &[ParamSpec] = &[RADIUS, CULL];
+const POINTS_BLENDED: &[ParamSpec] = &[SIZE, CULL, EPSILON];
+const SPLATS_BLENDED: &[ParamSpec] = &[RADIUS, CULL, EPSILON];
+
+const fn info(
+    name: &'static str,
+    summary: &'static str,
+    params: &'static [ParamSpec],
+) -> MethodInfo {
+    MethodInfo {
+        name,
+        summary,
+        params,
+        needs_faces: false,
+        features: &[],
+        culls_batches: false,
+        build,
+    }
+}
+
+pub const POINTS_FLAT_INFO: MethodInfo = info(
+    "points-flat",
+    "fixed-size point sprites, flat shading per splat (002 5.2.1, 5.3.1)",
+    POINTS_FLAT,
+);
+pub const SQUARES_FLAT_INFO: MethodInfo = info(
+    "squares-flat",
+    "image-aligned squares of the projected radius (002 eq. 5.1), flat shading",
+    SPLATS_FLAT,
+);
+pub const AFFINE_FLAT_INFO: MethodInfo = info(
+    "affine-flat",
+    "affinely projected oriented discs with corrected depth (002 eqs. 5.2-5.3), flat shading",
+    SPLATS_FLAT,
+);
+pub const PERSPECTIVE_FLAT_INFO: MethodInfo = info(
+    "perspective-flat",
+    "perspective-correct splats: pixel rays meet the splat plane (002 eqs. 5.4-5.5), flat shading",
+    SPLATS_FLAT,
+);
+pub const POINTS_DEFERRED_INFO: MethodInfo = info(
+    "points-deferred",
+    "fixed-size point sprites, deferred shading: albedo and normal blended, lit per pixel (002 5.3.4)",
+    POINTS_BLENDED,
+);
+pub const SQUARES_DEFERRED_INFO: MethodInfo = info(
+    "squares-deferred",
+    "image-aligned squares (002 eq. 5.1), deferred shading (002 5.3.4)",
+    SPLATS_BLENDED,
+);
+pub const AFFINE_DEFERRED_INFO: MethodInfo = info(
+    "affine-deferred",
+    "affinely projected discs (002 eqs. 5.2-5.3), deferred shading (002 5.3.4)",
+    SPLATS_BLENDED,
+);
+pub const PERSPECTIVE_DEFERRED_INFO: MethodInfo = info(
+    "perspective-deferred",
+    "perspective-correct splats (002 eqs. 5.4-5.5), deferred shading (002 5.3.4)",
+    SPLATS_BLENDED,
+);
+
+pub const POINTS_GOURAUD_INFO: MethodInfo = info(
+    "points-gouraud",
+    "fixed-size point sprites, Gouraud shading: per-splat colors blended (002 5.3.2)",
+    POINTS_BLENDED,
+);
+pub const SQUARES_GOURAUD_INFO: MethodInfo = info(
+    "squares-gouraud",
+    "image-aligned squares (002 eq. 5.1), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const AFFINE_GOURAUD_INFO: MethodInfo = info(
+    "affine-gouraud",
+    "affinely projected discs (002 eqs. 5.2-5.3), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const PERSPECTIVE_GOURAUD_INFO: MethodInfo = info(
+    "perspective-gouraud",
+    "perspective-correct splats (002 eqs. 5.4-5.5), Gouraud shading (002 5.3.2)",
+    SPLATS_BLENDED,
+);
+pub const POINTS_PHONG_INFO: MethodInfo = info(
+    "points-phong",
+    "fixed-size point sprites, Phong shading: linear normal field lit per fragment, blended (002 5.3.3)",
+    POINTS_BLENDED,
+);
+pub const SQUARES_PHONG_INFO: MethodInfo = info(
+    "squares-phong",
+    "image-aligned squares (002 eq. 5.1), Phong shading (002 eq. 5.7)",
+    SPLATS_BLENDED,
+);
+pub const AFFINE_PHONG_INFO: MethodInfo = info(
+    "affine-phong",
+    "affinely projected discs (002 eqs. 5.2-5.3), Phong shading (002 eq. 5.7)",
+    SPLATS_BLENDED,
+);
+pub const PERSPECTIVE_PHONG_INFO: MethodInfo = info(
+    "perspective-phong",
+    "perspective-correct splats (002 eqs. 5.4-5.5), Phong shading (002 eq. 5.7)",
+    SPLATS_BLENDED,
+);
+
+/// The rasterization and shading a method name `{raster}-{shading}` stands for.
+fn variant(name: &str) -> Result<(u32, u32)> {
+    let (raster, shading) = name
+        .split_once('-')
+        .ok_or_else(|| anyhow!("'{name}' is not a splatting method"))?;
+    let raster = match raster {
+        "points" => SPLAT_RASTER_POINTS,
+        "squares" => SPLAT_RASTER_SQUARES,
+        "affine" => SPLAT_RASTER_AFFINE,
+        "perspective" => SPLAT_RASTER_PERSPECTIVE,
+        _ => return Err(anyhow!("'{name}': unknown splat rasterization")),
+    };
+    let shading = match shading {
+        "flat" => SPLAT_SHADING_FLAT,
+        "gouraud" => SPLAT_SHADING_GOURAUD,
+        "phong" => SPLAT_SHADING_PHONG,
+        "deferred" => SPLAT_SHADING_DEFERRED,
+        _ => return Err(anyhow!("'{name}': unknown splat shading")),
+    };
+    Ok((raster, shading))
+}
+
+fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    let (raster, shading) = variant(b.config.method.name)?;
+    let cull = u32::from(b.config.get("cull") >= 0.5);
+    let specialization = [
+        (SPLAT_SPEC_RASTER, raster),
+        (SPLAT_SPEC_SHADING, shading),
+        (SPLAT_SPEC_CULL, cull),
+    ];
+    let params = SplatParams {
+        radius_scale: b.config.get("radius"),
+        epsilon: b.config.get("epsilon"),
+        max_point_size: b.ctx.caps.point_size_range[1],
+        pad0: 0,
+    };
+    let zbuffer = b.graph.image(
+        "splat.zbuffer",
+        ImageDesc {
+            format: ZBUFFER_FORMAT,
+            width: b.width,
+            height: b.height,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+        },
+    );
+    let splats = Splats {
+        specialization,
+        params,
+        zbuffer,
+    };
+    if shading == SPLAT_SHADING_FLAT {
+        splats.flat(b)
+    } else {
+        splats.blended(b)
+    }
+}
+
+/// What every pass of one method shares.
+struct Splats {
+    specialization: [(u32, u32); 3],
+    params: SplatParams,
+    zbuffer: ImageId,
+}
+
+impl Splats {
+    /// A point-sprite pipeline with `fragment`, writing `formats` with `blend`.
+    fn pipeline(
+        &self,
+        b: &BuildContext<'_>,
+        fragment: &str,
+        formats: &[vk::Format],
+        blend: Blend,
+        visibility: bool,
+    ) -> Result<Arc<Pipeline>> {
+        let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        let blends = vec![blend; formats.len()];
+        Ok(Arc::new(Pipeline::graphics(
+            b.ctx,
+            &GraphicsDesc {
+                shaders: &["splat/splat.vert", fragment],
+                bindings: &[
+                    Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
+                    Binding::new(
+                        BINDING_SEGMENTS,
+                        vk::DescriptorType::STORAGE_BUFFER,
+                        vk::ShaderStageFlags::VERTEX,
+                    ),
+                ],
+                color_formats: formats,
+                blends: &blends,
+                depth_format: Some(ZBUFFER_FORMAT),
+                depth_test: true,
+                // The blending pass tests against the visibility depth without writing it.
+                depth_write: visibility,
+                depth_compare: if visibility {
+                    vk::CompareOp::GREATER
+                } else {
+                    vk::CompareOp::GREATER_OR_EQUAL
+                },
+                topology: vk::PrimitiveTopology::POINT_LIST,
+                cull: vk::CullModeFlags::NONE,
+                specialization: &self.specialization,
+            },
+        )?))
+    }
+
+    /// Flat shading: one pass into the standard targets.
+    fn flat(self, b: &mut BuildContext<'_>) -> Result<()> {
+        let pipeline = self.pipeline(
+            b,
+            "splat/flat.frag",
+            &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+            Blend::Replace,
+            true,
+        )?;
+        let (frame, segments, t) = (b.frame, b.segments, b.targets);
+        let (count, params) = (b.scene.point_count, self.params);
+        b.graph
+            .pass("splat.flat")
+            .buffer(frame, Access::UniformRead(Stages::Graphics))
+            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .color(t.color, Load::Clear([0.0; 4]))
+            .color(t.depth, Load::Clear([0.0; 4]))
+            .color(t.normal, Load::Clear([0.0; 4]))
+            .depth(self.zbuffer, Load::Clear([0.0; 4]))
+            .record(move |ctx| {
+                ctx.bind(
+                    &pipeline,
+                    &[
+                        Descriptor::Buffer(BINDING_FRAME, frame),
+                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    ],
+                );
+                ctx.push(&pipeline, bytemuck::bytes_of(&params));
+                ctx.draw(count, 1);
+            });
+        Ok(())
+    }
+
+    /// The three passes of the blended shadings: visibility, accumulation, normalization.
+    fn blended(self, b: &mut BuildContext<'_>) -> Result<()> {
+        let visibility = self.pipeline(
+            b,
+            "splat/visibility.frag",
+            &[DEPTH_FORMAT],
+            Blend::Replace,
+            true,
+        )?;
+        let accumulate = self.pipeline(
+            b,
+            "splat/accumulate.frag",
+            &[ACCUM_FORMAT, ACCUM_FORMAT],
+            Blend::Additive,
+            false,
+        )?;
+        let comp = vk::ShaderStageFlags::COMPUTE;
+        let storage = vk::DescriptorType::STORAGE_IMAGE;
+        let normalize = Arc::new(Pipeline::compute_specialized(
+            b.ctx,
+            "splat/normalize.comp",
+            &[
+                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, comp),
+                Binding::new(BINDING_INPUT0, storage, comp),
+                Binding::new(BINDING_INPUT1, storage, comp),
+                Binding::new(BINDING_INPUT2, storage, comp),
+                Binding::new(BINDING_OUTPUT0, storage, comp),
+                Binding::new(BINDING_OUTPUT0 + 1, storage, comp),
+            ],
+            &self.specialization,
+        )?);
+        let accum = |b: &mut BuildContext<'_>, name| {
+            b.graph.image(
+                name,
+                ImageDesc {
+                    format: ACCUM_FORMAT,
+                    width: b.width,
+                    height: b.height,
+                    mip_levels: 1,
+                    usage: vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE,
+                },
+            )
+        };
+        let accum_color = accum(b, "splat.accum_color");
+        let accum_normal = accum(b, "splat.accum_normal");
+        let (frame, segments, t) = (b.frame, b.segments, b.targets);
+        let (count, params) = (b.scene.point_count, self.params);
+        let draw = move |ctx: &crate::graph::PassContext<'_>, pipeline: &Pipeline| {
+            ctx.bind(
+                pipeline,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                ],
+            );
+            ctx.push(pipeline, bytemuck::bytes_of(&params));
+            ctx.draw(count, 1);
+        };
+        b.graph
+            .pass("splat.visibility")
+            .buffer(frame, Access::UniformRead(Stages::Graphics))
+            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .color(t.depth, Load::Clear([0.0; 4]))
+            .depth(self.zbuffer, Load::Clear([0.0; 4]))
+            .record(move |ctx| draw(ctx, &visibility));
+        b.graph
+            .pass("splat.accumulate")
+            .buffer(frame, Access::UniformRead(Stages::Graphics))
+            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .color(accum_color, Load::Clear([0.0; 4]))
+            .color(accum_normal, Load::Clear([0.0; 4]))
+            .depth(self.zbuffer, Load::Load)
+            .record(move |ctx| draw(ctx, &accumulate));
+        let (w, h) = (b.width, b.height);
+        b.graph
+            .pass("splat.normalize")
+            .buffer(frame, Access::UniformRead(Stages::Compute))
+            .image(accum_color, Access::StorageRead(Stages::Compute))
+            .image(accum_normal, Access::StorageRead(Stages::Compute))
+            .image(t.depth, Access::StorageRead(Stages::Compute))
+            .image(t.color, Access::StorageWrite(Stages::Compute))
+            .image(t.normal, Access::StorageWrite(Stages::Compute))
+            .record(move |ctx| {
+                ctx.bind(
+                    &normalize,
+                    &[
+                        Descriptor::Buffer(BINDING_FRAME, frame),
+                        Descriptor::StorageImage(BINDING_INPUT0, accum_color, 0),
+                        Descriptor::StorageImage(BINDING_INPUT1, accum_normal, 0),
+                        Descriptor::StorageImage(BINDING_INPUT2, t.depth, 0),
+                        Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
+                        Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.normal, 0),
+                    ],
+                );
+                ctx.dispatch(w.div_ceil(RESOLVE_GROUP), h.div_ceil(RESOLVE_GROUP), 1);
+            });
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_select_their_variants() {
+        assert_eq!(
+            variant("perspective-deferred").unwrap(),
+            (SPLAT_RASTER_PERSPECTIVE, SPLAT_SHADING_DEFERRED)
+        );
+        assert_eq!(
+            variant("points-flat").unwrap(),
+            (SPLAT_RASTER_POINTS, SPLAT_SHADING_FLAT)
+        );
+        assert!(variant("discs-flat").is_err());
+        assert!(variant("points").is_err());
+    }
+}

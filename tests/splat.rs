@@ -1,0 +1,338 @@
+//! The splatting family (002 sections 5.2-5.3) on splats of known position, normal and radius,
+//! seen by a camera on the +z axis: coverage and depth as the rasterization equations predict,
+//! and the blending of the three-pass shadings. Lavapipe, validation and synchronization
+//! validation on.
+
+mod common;
+
+use glam::Vec3;
+use surfel::eval::Frame;
+use surfel::scene::{Camera, Cloud};
+
+/// One splat: centre, unit normal, radius, sRGB color.
+struct Splat {
+    centre: Vec3,
+    normal: Vec3,
+    radius: f32,
+    color: [u8; 4],
+}
+
+fn cloud(splats: &[Splat]) -> Cloud {
+    Cloud {
+        positions: splats.iter().map(|s| s.centre).collect(),
+        normals: Some(splats.iter().map(|s| s.normal).collect()),
+        radii: Some(splats.iter().map(|s| s.radius).collect()),
+        colors: Some(splats.iter().map(|s| s.color).collect()),
+        ..Default::default()
+    }
+}
+
+fn grey(centre: Vec3, normal: Vec3, radius: f32) -> Splat {
+    Splat {
+        centre,
+        normal,
+        radius,
+        color: [180, 180, 180, 255],
+    }
+}
+
+/// The camera: at (0, 0, `distance`) looking at the origin, +y up, 45° vertical field of view.
+fn camera(distance: f32) -> Camera {
+    Camera::look_at(Vec3::new(0.0, 0.0, distance), Vec3::ZERO, 1.0)
+}
+
+/// Pixels per view-space unit at distance 1 for a `size`-pixel image: h / 2 / tan(fov / 2).
+fn pixels_per_unit(size: u32) -> f64 {
+    let fov = camera(1.0).fov_y as f64;
+    size as f64 / 2.0 / (fov / 2.0).tan()
+}
+
+fn render(splats: &[Splat], method: &str, size: u32, distance: f32) -> Frame {
+    let frame = common::render_view(&cloud(splats), method, size, Default::default(), |_, _| {
+        camera(distance)
+    });
+    for i in 0..frame.pixels() {
+        let alpha = frame.color[i][3];
+        assert_eq!(
+            frame.covered(i),
+            alpha == 255,
+            "{method}: pixel {i} depth {} alpha {alpha}",
+            frame.depth[i]
+        );
+    }
+    frame
+}
+
+fn covered(frame: &Frame) -> Vec<usize> {
+    (0..frame.pixels()).filter(|&i| frame.covered(i)).collect()
+}
+
+/// The view-space ray through the centre of pixel `i`, scaled to z = -1.
+fn pixel_ray(frame: &Frame, i: usize) -> glam::DVec3 {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let k = pixels_per_unit(frame.height);
+    let x = (i % w) as f64 + 0.5 - w as f64 / 2.0;
+    let y = (i / w) as f64 + 0.5 - h as f64 / 2.0;
+    glam::DVec3::new(x / k, -y / k, -1.0)
+}
+
+#[test]
+fn fixed_size_points_cover_size_squared_pixels_at_the_points_depth() {
+    let splats = [grey(Vec3::ZERO, Vec3::Z, 0.1)];
+    for (size, method) in [(6, "points-flat:size=6"), (11, "points-flat:size=11")] {
+        let frame = render(&splats, method, 64, 3.0);
+        let pixels = covered(&frame);
+        // A square of 6 px centred on the pixel corner (32, 32) covers 6 x 6 pixels; one of
+        // 11 px spans [26.5, 37.5), whose 11 x 11 pixel centres are 27..=37.
+        assert_eq!(pixels.len(), size * size, "{method}");
+        for &i in &pixels {
+            assert!(
+                (frame.depth[i] - 3.0).abs() < 1e-5,
+                "{method}: depth {}",
+                frame.depth[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn image_aligned_squares_follow_eq_5_1() {
+    // Eq. 5.1: the side is 2 r n / p_z * h / (t - b) = 2 r k / d pixels. With r = 0.25 and the
+    // camera at d = 2 r k / 20 the side is 20 px: 400 pixels; `radius=1.5` gives 30 px: 900.
+    let size = 128;
+    let d = (2.0 * 0.25 * pixels_per_unit(size) / 20.0) as f32;
+    let splats = [grey(Vec3::ZERO, Vec3::Z, 0.25)];
+    for (method, side) in [("squares-flat", 20), ("squares-flat:radius=1.5", 30)] {
+        let frame = render(&splats, method, size, d);
+        let pixels = covered(&frame);
+        assert_eq!(pixels.len(), side * side, "{method}");
+        for &i in &pixels {
+            assert!(
+                (frame.depth[i] - d).abs() < 1e-5 * d,
+                "{method}: depth {}",
+                frame.depth[i]
+            );
+            let n = frame.normal.as_ref().unwrap()[i];
+            assert!(n[2] > 0.999, "{method}: normal {n:?}");
+        }
+    }
+}
+
+/// A disc of radius 0.25 at the origin whose normal is tilted by 60° about +y from the view
+/// axis, and the analytic area of its parallel projection: an ellipse of semi-axes a and a cos 60°.
+fn tilted_disc() -> (Splat, Vec3) {
+    let t = 60f32.to_radians();
+    let n = Vec3::new(t.sin(), 0.0, t.cos());
+    (grey(Vec3::ZERO, n, 0.25), n)
+}
+
+#[test]
+fn affine_sprites_cover_the_ellipse_of_a_disc_at_60_degrees_with_corrected_depth() {
+    let size = 256;
+    let k = pixels_per_unit(size);
+    // Semi-major axis a = 30 px: the camera at d = r k / a.
+    let d = 0.25 * k / 30.0;
+    let (disc, n) = tilted_disc();
+    let frame = render(&[disc], "affine-flat", size, d as f32);
+    let pixels = covered(&frame);
+    let ellipse = std::f64::consts::PI * 30.0 * 30.0 * 0.5;
+    let count = pixels.len() as f64;
+    assert!(
+        (count - ellipse).abs() < 0.03 * ellipse,
+        "{count} px vs {ellipse}"
+    );
+    // Eq. 5.2 at every covered pixel: the offset (x, y) in the plane z = p_z and the depth
+    // correction dz = -(nx / nz) x - (ny / nz) y; linear depth d - dz.
+    let (nx, ny, nz) = (n.x as f64, n.y as f64, n.z as f64);
+    for &i in &pixels {
+        let ray = pixel_ray(&frame, i);
+        let (x, y) = (ray.x * d, ray.y * d);
+        let dz = -(nx / nz) * x - (ny / nz) * y;
+        assert!(
+            (x * x + y * y + dz * dz).sqrt() <= 0.25 * 1.02,
+            "pixel {i} outside the disc"
+        );
+        let depth = frame.depth[i] as f64;
+        assert!(
+            (depth - (d - dz)).abs() < 2e-4 * d,
+            "pixel {i}: {depth} vs {}",
+            d - dz
+        );
+    }
+}
+
+#[test]
+fn perspective_splats_cover_exactly_the_pixels_whose_ray_meets_the_disc() {
+    // Close enough for perspective to matter (r / d = 0.26): every pixel ray is intersected
+    // with the splat plane (eqs. 5.4-5.5) on the CPU.
+    let size = 128;
+    let d = 0.25 * pixels_per_unit(size) / 40.0;
+    let (disc, n) = tilted_disc();
+    let frame = render(&[disc], "perspective-flat", size, d as f32);
+    let eye = glam::DVec3::new(0.0, 0.0, d);
+    let n = n.as_dvec3();
+    let mut expected = 0;
+    let mut mismatched = 0;
+    for i in 0..frame.pixels() {
+        let ray = pixel_ray(&frame, i);
+        // View space: the disc's centre is at (0, 0, -d), its normal is n (the view is a
+        // translation along z).
+        let p = -eye;
+        let q = ray * (p.dot(n) / ray.dot(n));
+        let inside = (q - p).length() <= 0.25;
+        expected += usize::from(inside);
+        let near_rim = ((q - p).length() - 0.25).abs() < 2e-3;
+        if inside != frame.covered(i) && !near_rim {
+            mismatched += 1;
+        }
+        if inside && frame.covered(i) {
+            let depth = frame.depth[i] as f64;
+            assert!(
+                (depth + q.z).abs() < 1e-4 * d,
+                "pixel {i}: {depth} vs {}",
+                -q.z
+            );
+        }
+    }
+    assert_eq!(mismatched, 0);
+    let count = covered(&frame).len();
+    assert!(
+        count.abs_diff(expected) * 200 < expected,
+        "{count} vs {expected}"
+    );
+    // The near half of the disc is magnified: more pixels than the parallel projection's
+    // ellipse of semi-axis 40 px, which the affine sprite approximates.
+    let ellipse = std::f64::consts::PI * 40.0 * 40.0 * 0.5;
+    assert!(count as f64 > 1.03 * ellipse, "{count} vs {ellipse}");
+}
+
+#[test]
+fn normal_culling_drops_splats_facing_away() {
+    let away = [grey(Vec3::ZERO, -Vec3::Z, 0.25)];
+    let towards = [grey(Vec3::ZERO, Vec3::Z, 0.25)];
+    for raster in ["points", "squares", "affine", "perspective"] {
+        let shown = format!("{raster}-flat");
+        let culled = format!("{raster}-flat:cull=1");
+        assert!(
+            !covered(&render(&away, &shown, 64, 3.0)).is_empty(),
+            "{shown}"
+        );
+        assert!(
+            covered(&render(&away, &culled, 64, 3.0)).is_empty(),
+            "{culled}"
+        );
+        assert!(
+            !covered(&render(&towards, &culled, 64, 3.0)).is_empty(),
+            "{culled}"
+        );
+    }
+}
+
+/// A red and a green splat side by side on the plane z = 0, overlapping around x = 0, and a
+/// blue one `behind` below the plane, centred.
+fn overlapping(behind: f32) -> Vec<Splat> {
+    let splat = |x: f32, z: f32, color| Splat {
+        centre: Vec3::new(x, 0.0, z),
+        normal: Vec3::Z,
+        radius: 0.25,
+        color,
+    };
+    vec![
+        splat(-0.15, 0.0, [255, 0, 0, 255]),
+        splat(0.15, 0.0, [0, 255, 0, 255]),
+        splat(0.0, -behind, [0, 0, 255, 255]),
+    ]
+}
+
+#[test]
+fn blended_shadings_mix_overlapping_splats_of_one_surface_only() {
+    // Camera at d = 3; the blue splat is 0.1 (3.3 % of the depth) behind the plane.
+    // An odd image size puts the centre pixel's centre on the view axis, equidistant from the
+    // red and green splats.
+    let scene = overlapping(0.1);
+    let size = 127;
+    let k = pixels_per_unit(size) / 3.0;
+    let centre = 63 * size as usize + 63;
+    // Only the red splat covers x = -0.35.
+    let red_only = 63 * size as usize + (63.5 - 0.35 * k) as usize;
+    for raster in ["points", "squares", "affine", "perspective"] {
+        let size_param = if raster == "points" {
+            "size=40"
+        } else {
+            "radius=1"
+        };
+        for shading in ["gouraud", "phong", "deferred"] {
+            let method = format!("{raster}-{shading}:{size_param}");
+            let frame = render(&scene, &method, size, 3.0);
+            let c = frame.color[centre];
+            // Equal weights of red and green at the centre: R = G, and no blue from behind.
+            assert!(
+                c[0] > 60 && c[0].abs_diff(c[1]) <= 2,
+                "{method}: centre {c:?}"
+            );
+            assert_eq!(c[2], 0, "{method}: the splat behind blended in: {c:?}");
+            assert!((frame.depth[centre] - 3.0).abs() < 1e-4, "{method}");
+            let r = frame.color[red_only];
+            assert!(
+                r[0] > 60 && r[1] == 0 && r[2] == 0,
+                "{method}: red only {r:?}"
+            );
+            // With epsilon beyond the 3.3 % gap the splat behind blends in.
+            let wide = render(&scene, &format!("{method},epsilon=0.05"), size, 3.0);
+            let c = wide.color[centre];
+            assert!(c[2] > 40, "{method},epsilon=0.05: centre {c:?}");
+        }
+        // Flat shading does not blend: the nearest fragment's splat wins the centre.
+        let flat = format!("{raster}-flat:{size_param}");
+        let c = render(&scene, &flat, size, 3.0).color[centre];
+        assert!(c[0].min(c[1]) == 0 && c[2] == 0, "{flat}: centre {c:?}");
+    }
+}
+
+#[test]
+fn phong_normals_follow_eq_5_7_and_gouraud_normals_are_the_splats() {
+    // One splat facing the camera: eq. 5.7 tilts the normal to (q + n) - p; the only splat
+    // blends with itself, so the normal target is that normal exactly (up to f16).
+    let size = 64;
+    let splats = [grey(Vec3::ZERO, Vec3::Z, 0.5)];
+    let phong = render(&splats, "perspective-phong", size, 3.0);
+    let gouraud = render(&splats, "perspective-gouraud", size, 3.0);
+    let p = glam::DVec3::new(0.0, 0.0, -3.0);
+    let pixels = covered(&phong);
+    assert!(pixels.len() > 100);
+    assert_eq!(pixels, covered(&gouraud));
+    let mut tilted = 0;
+    for &i in &pixels {
+        let ray = pixel_ray(&phong, i);
+        let q = ray * 3.0;
+        let expected = (q + glam::DVec3::Z - p).normalize();
+        let n = phong.normal.as_ref().unwrap()[i];
+        let got = glam::DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+        assert!(
+            (got - expected).length() < 5e-3,
+            "pixel {i}: {got} vs {expected}"
+        );
+        tilted += usize::from(expected.z < 0.95);
+        let g = gouraud.normal.as_ref().unwrap()[i];
+        assert!(g[2] > 0.999, "gouraud normal {g:?}");
+        // Gouraud lights once per splat: one color.
+        assert_eq!(gouraud.color[i], gouraud.color[pixels[0]]);
+    }
+    assert!(tilted > 0, "the normal field varies over the splat");
+}
+
+#[test]
+fn deferred_lights_per_pixel_and_gouraud_per_splat() {
+    // A large splat facing the camera under the headlight: deferred shading lights every pixel
+    // at its own point, so the rim (seen at an angle from the light) is darker than the centre.
+    let size = 64;
+    let splats = [grey(Vec3::ZERO, Vec3::Z, 1.0)];
+    let deferred = render(&splats, "affine-deferred", size, 2.0);
+    let centre = 32 * size as usize + 32;
+    let rim = 32 * size as usize + 5;
+    assert!(deferred.covered(rim));
+    let (c, r) = (deferred.color[centre], deferred.color[rim]);
+    assert!(c[0] > r[0] + 5, "centre {c:?} rim {r:?}");
+    let gouraud = render(&splats, "affine-gouraud", size, 2.0);
+    assert_eq!(gouraud.color[centre], gouraud.color[rim]);
+}
