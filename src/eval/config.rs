@@ -975,7 +975,14 @@ values = [1.0, 0.1]
         // Both resolve against the file's directory, wherever the process runs.
         assert!(q.models[0].path.starts_with(&dir), "{:?}", q.models[0].path);
         q.check_models().unwrap();
-        for name in ["lavapipe.toml", "full.toml", "compute.toml"] {
+        for name in [
+            "lavapipe.toml",
+            "full.toml",
+            "compute.toml",
+            "splat.toml",
+            "splat-lights.toml",
+            "splat-stress.toml",
+        ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()
                 .check_models()
