@@ -12,6 +12,8 @@
 //!   counts, averaged per (label, points) across models;
 //! - time vs resolution, per model: the baseline records at the point count with the most
 //!   distinct resolutions, averaged per (label, pixels);
+//! - time vs lights, per model: the baseline records at the (points, resolution) with the most
+//!   distinct light counts, averaged per (label, lights) (002 ch. 6's light sweeps);
 //! - metric vs stress, per model and stress kind: hole ratio (with the
 //!   [`BREAK_HOLE_RATIO`] threshold and each method's first breaking value marked) and PSNR.
 //!
@@ -761,6 +763,29 @@ pub fn write_charts_by_model(
                 &format!("{}_time_vs_resolution", slug(&model)),
             )?));
         }
+        let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
+        if let Some(key) = slice_with_most(&of_model, |r| (r.points, r.pixels()), |r| r.lights) {
+            let slice: Vec<&Record> = of_model
+                .into_iter()
+                .filter(|r| (r.points, r.pixels()) == key)
+                .collect();
+            let res = slice.first().map(|r| r.resolution()).unwrap_or_default();
+            let chart = LineChart {
+                caption: format!("{model} {res}: GPU time vs lights, {device}"),
+                x_desc: "lights".into(),
+                y_desc: "GPU time per frame (ms)".into(),
+                log_x: false,
+                series: time_series(&slice, |r| u64::from(r.lights)),
+                threshold: None,
+                marks: Vec::new(),
+                colors: colors.clone(),
+            };
+            written.extend(tag(write_both(
+                &chart,
+                dir,
+                &format!("{}_time_vs_lights", slug(&model)),
+            )?));
+        }
     }
 
     let all: Vec<&Record> = baseline(results).collect();
@@ -1041,6 +1066,29 @@ mod tests {
         for (l, c) in labels.iter().zip(&picked) {
             assert_eq!(again.label(l), *c, "{l}");
         }
+    }
+
+    #[test]
+    fn a_light_sweep_draws_time_vs_lights() {
+        let mut results = Results::default();
+        for (lights, ms) in [(0, 1.0), (1, 1.5), (16, 4.0)] {
+            let mut r = record("perspective-phong", "", ms, 30.0);
+            r.lights = lights;
+            results.records.push(r);
+        }
+        let dir = std::env::temp_dir().join(format!("surfel_charts_lights_{}", std::process::id()));
+        let written = write_charts(&results, &dir).unwrap();
+        assert!(
+            written.contains(&dir.join("bunny_time_vs_lights.png")),
+            "{written:?}"
+        );
+        // One light count: no chart.
+        results.records.retain(|r| r.lights == 1);
+        let written = write_charts(&results, &dir).unwrap();
+        assert!(!written
+            .iter()
+            .any(|p| p.to_string_lossy().contains("vs_lights")));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
