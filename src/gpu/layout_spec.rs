@@ -109,6 +109,9 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("OVERLAY_SOLID", 1),
     // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
     ("EDL_NEIGHBOURS", 8),
+    // EWA splatting (000 ch. 3): the largest half-extent in pixels of a resampling ellipse's
+    // bounding box; larger ellipses are truncated to it (bounded work per splat).
+    ("EWA_MAX_RADIUS", 64),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -215,6 +218,23 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "pad0"),
             f("uint", "pad1"),
             f("uint", "pad2"),
+        ],
+    },
+    // Push constants of the EWA splatting passes (000 ch. 3, src/methods/ewa).
+    StructSpec {
+        name: "EwaParams",
+        fields: &[
+            // Scale of the per-point radius: the reconstruction kernel's standard deviation
+            // in object space is radius * stream_radius (V_r = r^2 I, eq. 3.30).
+            f("float", "radius"),
+            // The Gaussian is truncated at this many standard deviations (Mahalanobis
+            // distance of the resampling filter).
+            f("float", "cutoff"),
+            // Standard deviation of the screen-space prefilter in pixels (V_h, eq. 3.31).
+            f("float", "prefilter"),
+            // Half-width of a fragment's depth interval in units of the splat's standard
+            // deviation (the adaptive interval of 3.2.3).
+            f("float", "interval"),
         ],
     },
 ];

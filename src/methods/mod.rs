@@ -3,6 +3,7 @@
 //! method to the viewer, the headless renderer and the benchmark sweeps needs only an entry here.
 
 pub mod compute;
+mod ewa;
 mod mesh;
 mod points;
 
@@ -109,6 +110,7 @@ pub static METHODS: &[MethodInfo] = &[
     compute::COMPUTE,
     compute::COMPUTE_HQ,
     mesh::INFO,
+    ewa::INFO,
 ];
 
 /// Looks a method up by name.
