@@ -51,10 +51,11 @@ pub const INFO: MethodInfo = MethodInfo {
         },
         ParamSpec {
             name: "cutoff",
-            default: 1.5,
+            default: 1.0,
             min: 0.5,
             max: 4.0,
-            doc: "the Gaussian is truncated at this many standard deviations",
+            doc: "the Gaussian is truncated at this many standard deviations (1: at the splat's \
+                  disc of radius r)",
         },
         ParamSpec {
             name: "prefilter",
