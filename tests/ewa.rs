@@ -71,7 +71,11 @@ fn ternary_depth_test_replaces_blends_and_discards() {
     let [r, g, b, a] = frame.color[front];
     assert_eq!(a, 255);
     assert!(r >= 245 && g >= 245 && b == 0, "replaced: {:?}", [r, g, b]);
-    assert!((frame.depth[front] - 2.7).abs() < 2e-3, "{}", frame.depth[front]);
+    assert!(
+        (frame.depth[front] - 2.7).abs() < 2e-3,
+        "{}",
+        frame.depth[front]
+    );
     // The right half: red and blue averaged with equal weights (linear 0.5 is sRGB 188), no
     // green.
     let blend = at(size / 2 + 12);
@@ -79,9 +83,17 @@ fn ternary_depth_test_replaces_blends_and_discards() {
     assert_eq!(a, 255);
     assert_eq!(g, 0, "the layer behind is discarded: {:?}", [r, g, b]);
     assert!(r.abs_diff(b) <= 3, "equal weights: {:?}", [r, g, b]);
-    assert!((180..=190).contains(&r), "average of red and blue: {:?}", [r, g, b]);
+    assert!(
+        (180..=190).contains(&r),
+        "average of red and blue: {:?}",
+        [r, g, b]
+    );
     // The pixel's depth is the front-most fragment's (red, z = 0).
-    assert!((frame.depth[blend] - 3.0).abs() < 2e-3, "{}", frame.depth[blend]);
+    assert!(
+        (frame.depth[blend] - 3.0).abs() < 2e-3,
+        "{}",
+        frame.depth[blend]
+    );
     let normal = frame.normal.as_ref().unwrap()[blend];
     assert!(normal[2] > 0.99, "normal {normal:?} faces the camera");
     // With a zero interval blue lies behind red's interval and is discarded: pure red.
