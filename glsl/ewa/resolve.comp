@@ -29,9 +29,9 @@ void main() {
         imageStore(out_normal, px, vec4(0.0));
         return;
     }
-    // The front-most fragment's interval is centred on its plane's depth at the pixel (unless
-    // it was cut at the eye, where its back end less the half-width would be exact; the
-    // midpoint is within the interval either way).
+    // The front-most fragment's interval is centred on its plane's depth at the pixel (an
+    // interval cut at the eye, front = 0, gives a midpoint nearer than that plane but still
+    // inside the interval).
     float front = uintBitsToFloat(uint(key >> 32));
     float back = uintBitsToFloat(uint(key & 0xffffffffu));
     float depth = 0.5 * (front + back);
