@@ -103,6 +103,46 @@ fn ternary_depth_test_replaces_blends_and_discards() {
 }
 
 #[test]
+fn two_splats_blend_with_the_weights_of_their_resampling_gaussians() {
+    // A red and a blue splat facing a camera 3 units away, 0.05 left and right of the axis,
+    // σ = 0.1. At 64² with a 45° field of view one unit at depth 3 spans
+    // 32 / tan(22.5°) / 3 pixels, so both resampling filters are Gaussians of variance
+    // s² = (σ · px)² + 1 (prefilter) centred ±0.05 · px from the image centre, and the red
+    // share of a pixel at x pixels right of it is 1 / (1 + exp(2 x (0.05 px) / s²)).
+    let splat = |x: f32, color: [u8; 4]| Cloud {
+        positions: vec![Vec3::new(x, 0.0, 0.0)],
+        normals: Some(vec![Vec3::Z]),
+        radii: Some(vec![0.1]),
+        colors: Some(vec![color]),
+        ..Default::default()
+    };
+    let cloud = merge(vec![
+        splat(-0.05, [255, 0, 0, 255]),
+        splat(0.05, [0, 0, 255, 255]),
+    ]);
+    let size = 64;
+    let frame = render_view(&cloud, "ewa:cutoff=3", size, Default::default(), |_, _| {
+        Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0)
+    });
+    let px = 32.0 / (22.5f64.to_radians().tan() * 3.0);
+    let (d, s2) = (0.05 * px, (0.1 * px).powi(2) + 1.0);
+    let srgb = |c: f64| (255.0 * (1.055 * c.powf(1.0 / 2.4) - 0.055)).round();
+    for column in 29..35u32 {
+        let x = f64::from(column) + 0.5 - 32.0;
+        let red = 1.0 / (1.0 + (2.0 * x * d / s2).exp());
+        let [r, g, b, a] = frame.color[(32 * size + column) as usize];
+        assert_eq!((g, a), (0, 255));
+        // The headlight lights these pixels within 0.2 % of normal incidence.
+        assert!(
+            (f64::from(r) - srgb(red)).abs() <= 2.0
+                && (f64::from(b) - srgb(1.0 - red)).abs() <= 2.0,
+            "column {column}: {:?}, expected red share {red}",
+            [r, g, b]
+        );
+    }
+}
+
+#[test]
 fn a_densely_sampled_plane_has_no_holes_and_matches_its_mesh() {
     // The square [-1, 1]² as two triangles plus 64 × 64 points whose radius is the grid
     // spacing, about 2.6 pixels at 128².
