@@ -143,6 +143,42 @@ fn two_splats_blend_with_the_weights_of_their_resampling_gaussians() {
 }
 
 #[test]
+fn a_splat_larger_than_a_thread_takes_covers_its_whole_ellipse() {
+    // One splat of σ = 1 facing a camera 3 units away at 64²: its resampling filter is a
+    // circle of s² = (σ · px)² + 1 around the image centre (about 26 pixels, beyond
+    // EWA_MAX_RADIUS: a whole workgroup rasterizes it), cut at one standard deviation.
+    let cloud = Cloud {
+        positions: vec![Vec3::ZERO],
+        normals: Some(vec![Vec3::Z]),
+        radii: Some(vec![1.0]),
+        ..Default::default()
+    };
+    let size = 64u32;
+    let frame = render_view(&cloud, "ewa", size, Default::default(), |_, _| {
+        Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0)
+    });
+    assert!(f64::from(surfel::gpu::layout::EWA_MAX_RADIUS) < 25.0);
+    let px = 32.0 / (22.5f64.to_radians().tan() * 3.0);
+    let s2 = px * px + 1.0;
+    let mut mismatched = 0;
+    for i in 0..frame.pixels() {
+        let (x, y) = (
+            (i as u32 % size) as f64 + 0.5,
+            (i as u32 / size) as f64 + 0.5,
+        );
+        let d2 = (x - 32.0).powi(2) + (y - 32.0).powi(2);
+        // Pixels within a hundredth of a pixel of the contour may go either way.
+        if (d2.sqrt() - s2.sqrt()).abs() > 0.01 && frame.covered(i) != (d2 <= s2) {
+            mismatched += 1;
+        }
+    }
+    assert_eq!(
+        mismatched, 0,
+        "pixels outside or inside the ellipse wrongly"
+    );
+}
+
+#[test]
 fn a_densely_sampled_plane_has_no_holes_and_matches_its_mesh() {
     // The square [-1, 1]² as two triangles plus 64 × 64 points whose radius is the grid
     // spacing, about 2.6 pixels at 128².

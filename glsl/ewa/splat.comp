@@ -1,7 +1,10 @@
 #version 460
 // EWA surface splatting (Marroquim 2008, ch. 3), rasterized in compute. One workgroup per batch
 // of Morton-ordered points; every thread sets up its splats and rasterizes each resampling
-// ellipse's bounding box.
+// ellipse's bounding box. A splat whose box reaches further than EWA_MAX_RADIUS pixels from its
+// centre is left to the LARGE variant: the visibility pass appends it to the large splats'
+// list, and one workgroup per listed splat shares its box among its threads (bounded work per
+// thread; a box is at most the viewport).
 //   MODE_VISIBILITY: every fragment's depth interval [front, back] goes through a 64-bit
 //       atomicMin of (front bits << 32 | back bits): per pixel, the interval of the front-most
 //       fragment, the surface the pixel shows.
@@ -23,10 +26,19 @@ layout(local_size_x = RASTER_GROUP) in;
 #define MODE_VISIBILITY 0u
 #define MODE_ACCUMULATE 1u
 layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
+// One workgroup per splat of the large splats' list (dispatched indirectly) instead of one per
+// batch.
+layout(constant_id = 1) const bool LARGE = false;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer Accum { uint accum[]; };
+// The large splats: x = workgroups to dispatch (at most 65,535), y = z = 1, w = splats listed,
+// then their indices.
+layout(std430, set = 0, binding = BINDING_EWA_LARGE) buffer Large {
+    uint header[4];
+    uint list[];
+} large;
 
 layout(push_constant) uniform Push { EwaParams p; } pc;
 
@@ -54,6 +66,8 @@ struct Splat {
     // Inclusive pixel bounding box of the truncated ellipse, inside the viewport.
     ivec2 lo;
     ivec2 hi;
+    // The box reaches further than EWA_MAX_RADIUS pixels from the centre.
+    bool large;
 };
 
 // Sets up splat `i`; false when it is clipped or covers no pixel centre.
@@ -105,9 +119,9 @@ bool setup(uint i, out Splat s) {
     s.zmin = -s.p.z - reach;
     s.zmax = -s.p.z + reach;
     // Bounding box of the isocontour at the cutoff (the ellipse x^T V^-1 x = cutoff^2 spans
-    // cutoff * sqrt(V_xx) and cutoff * sqrt(V_yy)), capped at EWA_MAX_RADIUS pixels so the work
-    // per splat is bounded: a larger ellipse is truncated to its central box.
-    vec2 extent = min(pc.p.cutoff * sqrt(vec2(v[0][0], v[1][1])), vec2(EWA_MAX_RADIUS));
+    // cutoff * sqrt(V_xx) and cutoff * sqrt(V_yy)), cut to the viewport.
+    vec2 extent = pc.p.cutoff * sqrt(vec2(v[0][0], v[1][1]));
+    s.large = any(greaterThan(extent, vec2(EWA_MAX_RADIUS)));
     vec2 lo = max(ceil(s.centre - extent - 0.5), vec2(0.0));
     vec2 hi = min(floor(s.centre + extent - 0.5), frame.u.viewport.xy - 1.0);
     if (any(greaterThan(lo, hi))) {
@@ -129,69 +143,97 @@ float plane_depth(Splat s, ivec2 px) {
     return clamp(z, s.zmin, s.zmax);
 }
 
+// Rasterizes splat `s` at pixel (x, y) of its box: the fragment's visibility key or, after the
+// visibility pass, its contribution.
+void fragment(Splat s, vec3 albedo, int x, int y) {
+    vec2 d = vec2(x, y) + 0.5 - s.centre;
+    float d2 = s.conic.x * d.x * d.x + 2.0 * s.conic.y * d.x * d.y + s.conic.z * d.y * d.y;
+    if (d2 > pc.p.cutoff * pc.p.cutoff) {
+        return;
+    }
+    uint pixel = uint(y) * uint(frame.u.viewport.x) + uint(x);
+    // The fragment's depth interval: the splat plane's depth at the pixel plus and minus
+    // `interval` standard deviations (an adaptive interval, 3.2.3, in place of a fixed
+    // epsilon, eq. 3.37). `precise`: every pass computes the same bits.
+    precise float z = plane_depth(s, ivec2(x, y));
+    precise float half_width = pc.p.interval * s.sigma;
+    // Positive floats order like their bits; an interval reaching behind the eye starts at 0.
+    precise float front = max(z - half_width, 0.0);
+    precise float back = z + half_width;
+    if (MODE == MODE_VISIBILITY) {
+        uint64_t key = (uint64_t(floatBitsToUint(front)) << 32) | uint64_t(floatBitsToUint(back));
+        if (key < keys[pixel]) {
+            atomicMin(keys[pixel], key);
+        }
+        return;
+    }
+    // Behind the nearest interval: another surface, discarded.
+    float nearest_back = uintBitsToFloat(uint(keys[pixel] & 0xffffffffu));
+    if (front > nearest_back) {
+        return;
+    }
+    // Inside: blend with the Gaussian weight. Every fragment adds at least one unit, so the
+    // nearest fragment always leaves a weight to divide by.
+    float w = s.scale * exp(-0.5 * d2);
+    uint wq = max(uint(round(w * EWA_WEIGHT_SCALE)), 1u);
+    uvec3 color = uvec3(round(albedo * float(wq)));
+    ivec3 normal = ivec3(round(s.n * float(wq)));
+    uint a = 8u * pixel;
+    atomicAdd(accum[a], color.r);
+    atomicAdd(accum[a + 1u], color.g);
+    atomicAdd(accum[a + 2u], color.b);
+    atomicAdd(accum[a + 3u], wq);
+    atomicAdd(accum[a + 4u], uint(normal.x));
+    atomicAdd(accum[a + 5u], uint(normal.y));
+    atomicAdd(accum[a + 6u], uint(normal.z));
+}
+
+vec3 albedo_of(uint i) {
+    return MODE == MODE_ACCUMULATE ? clamp(stream_albedo(i), 0.0, 1.0) : vec3(0.0);
+}
+
 void main() {
+    if (LARGE) {
+        // Every thread sets up the listed splat and takes every RASTER_GROUP-th pixel of its box.
+        for (uint k = gl_WorkGroupID.x; k < large.header[3]; k += gl_NumWorkGroups.x) {
+            uint i = large.list[k];
+            Splat s;
+            if (!setup(i, s)) {
+                continue;
+            }
+            vec3 albedo = albedo_of(i);
+            uint width = uint(s.hi.x - s.lo.x + 1);
+            uint count = width * uint(s.hi.y - s.lo.y + 1);
+            for (uint p = gl_LocalInvocationIndex; p < count; p += RASTER_GROUP) {
+                fragment(s, albedo, s.lo.x + int(p % width), s.lo.y + int(p / width));
+            }
+        }
+        return;
+    }
     uint b = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     if (b >= frame.u.batch_count) {
         return;
     }
     GpuBatch batch = batches[b];
-    uint width = uint(frame.u.viewport.x);
-    float cutoff2 = pc.p.cutoff * pc.p.cutoff;
     for (uint k = gl_LocalInvocationIndex; k < batch.count; k += RASTER_GROUP) {
         uint i = batch.first + k;
         Splat s;
         if (!setup(i, s)) {
             continue;
         }
-        vec3 albedo = vec3(0.0);
-        if (MODE == MODE_ACCUMULATE) {
-            albedo = clamp(stream_albedo(i), 0.0, 1.0);
+        if (s.large) {
+            // Listed once, by the visibility pass; both passes rasterize it in the LARGE variant.
+            if (MODE == MODE_VISIBILITY) {
+                uint slot = atomicAdd(large.header[3], 1u);
+                large.list[slot] = i;
+                atomicMax(large.header[0], min(slot + 1u, 65535u));
+            }
+            continue;
         }
+        vec3 albedo = albedo_of(i);
         for (int y = s.lo.y; y <= s.hi.y; ++y) {
             for (int x = s.lo.x; x <= s.hi.x; ++x) {
-                vec2 d = vec2(x, y) + 0.5 - s.centre;
-                float d2 = s.conic.x * d.x * d.x + 2.0 * s.conic.y * d.x * d.y
-                         + s.conic.z * d.y * d.y;
-                if (d2 > cutoff2) {
-                    continue;
-                }
-                uint pixel = uint(y) * width + uint(x);
-                // The fragment's depth interval: the splat plane's depth at the pixel plus and
-                // minus `interval` standard deviations (an adaptive interval, 3.2.3, in place of
-                // a fixed epsilon, eq. 3.37). `precise`: both passes compute the same bits.
-                precise float z = plane_depth(s, ivec2(x, y));
-                precise float half_width = pc.p.interval * s.sigma;
-                // Positive floats order like their bits; an interval reaching behind the eye
-                // starts at 0.
-                precise float front = max(z - half_width, 0.0);
-                precise float back = z + half_width;
-                if (MODE == MODE_VISIBILITY) {
-                    uint64_t key = (uint64_t(floatBitsToUint(front)) << 32)
-                                 | uint64_t(floatBitsToUint(back));
-                    if (key < keys[pixel]) {
-                        atomicMin(keys[pixel], key);
-                    }
-                } else {
-                    // Behind the nearest interval: another surface, discarded.
-                    float nearest_back = uintBitsToFloat(uint(keys[pixel] & 0xffffffffu));
-                    if (front > nearest_back) {
-                        continue;
-                    }
-                    // Inside: blend with the Gaussian weight. Every fragment adds at least one
-                    // unit, so the nearest fragment always leaves a weight to divide by.
-                    float w = s.scale * exp(-0.5 * d2);
-                    uint wq = max(uint(round(w * EWA_WEIGHT_SCALE)), 1u);
-                    uvec3 color = uvec3(round(albedo * float(wq)));
-                    ivec3 normal = ivec3(round(s.n * float(wq)));
-                    uint a = 8u * pixel;
-                    atomicAdd(accum[a], color.r);
-                    atomicAdd(accum[a + 1u], color.g);
-                    atomicAdd(accum[a + 2u], color.b);
-                    atomicAdd(accum[a + 3u], wq);
-                    atomicAdd(accum[a + 4u], uint(normal.x));
-                    atomicAdd(accum[a + 5u], uint(normal.y));
-                    atomicAdd(accum[a + 6u], uint(normal.z));
-                }
+                fragment(s, albedo, x, y);
             }
         }
     }

@@ -109,9 +109,11 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("OVERLAY_SOLID", 1),
     // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
     ("EDL_NEIGHBOURS", 8),
-    // EWA splatting (000 ch. 3): the largest half-extent in pixels of a resampling ellipse's
-    // bounding box; larger ellipses are truncated to it (bounded work per splat).
-    ("EWA_MAX_RADIUS", 64),
+    // EWA splatting (000 ch. 3): a resampling ellipse whose bounding box reaches further than
+    // EWA_MAX_RADIUS pixels from its centre is rasterized by a whole workgroup (the large
+    // splats' list at BINDING_EWA_LARGE) instead of one thread.
+    ("EWA_MAX_RADIUS", 16),
+    ("BINDING_EWA_LARGE", 14),
 ];
 
 /// Structs shared between GLSL and Rust.

@@ -6,14 +6,17 @@
 //! affine approximation of the projection at its centre (eq. 3.25), the screen-space
 //! resampling filter V_ρ = J V_r Jᵀ + V_h with a prefilter of `prefilter` pixels (eqs. 3.23,
 //! 3.31), truncated at `cutoff` standard deviations; the bounding box of that ellipse is
-//! rasterized (at most `EWA_MAX_RADIUS` pixels from the centre) with Gaussian weights.
+//! rasterized with Gaussian weights, by the splat's thread when it reaches at most
+//! `EWA_MAX_RADIUS` pixels from the centre, else by a whole workgroup (the large splats' list).
 //!
-//! * `ewa.clear`, `ewa.clear-accum`: the 64-bit visibility keys to all ones, the accumulators
-//!   to zero.
-//! * `ewa.visibility`: every fragment's depth interval (the splat plane's depth at the pixel ±
-//!   `interval` standard deviations) through `atomicMin` of front ‖ back: the front-most
-//!   interval per pixel.
-//! * `ewa.accumulate`: the ternary depth test against that interval: fragments inside it blend
+//! * `ewa.clear`, `ewa.clear-accum`, `ewa.clear-large`: the 64-bit visibility keys to all
+//!   ones, the accumulators to zero, the large splats' list to empty.
+//! * `ewa.visibility` (one workgroup per batch; large splats are listed) and
+//!   `ewa.visibility-large` (one workgroup per listed splat, dispatched indirectly): every
+//!   fragment's depth interval (the splat plane's depth at the pixel ± `interval` standard
+//!   deviations) through `atomicMin` of front ‖ back: the front-most interval per pixel.
+//! * `ewa.accumulate` and `ewa.accumulate-large`: the ternary depth test against that
+//!   interval: fragments inside it blend
 //!   (w·albedo, w·normal, w added with fixed-point atomics), fragments behind it are discarded,
 //!   and the front-most one is the fragment every "in front → replace" of the sequential test
 //!   would have ended with (`glsl/ewa/splat.comp` states the mapping).
@@ -31,8 +34,8 @@ use ash::vk;
 
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
-    EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS,
-    BINDING_VISIBILITY, RESOLVE_GROUP,
+    EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_OUTPUT0,
+    BINDING_SEGMENTS, BINDING_VISIBILITY, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Pipeline};
 use crate::graph::{Access, BufferRange, Descriptor, Stages};
@@ -78,6 +81,9 @@ pub const INFO: MethodInfo = MethodInfo {
     build,
 };
 
+/// Bytes of the large splats' list header: a `VkDispatchIndirectCommand` and the count listed.
+const LARGE_HEADER: u64 = 16;
+
 /// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz, unused.
 const ACCUM_BYTES: u64 = 32;
 
@@ -109,19 +115,33 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let usage = vk::BufferUsageFlags::empty();
     let visibility = b.graph.buffer("ewa.visibility", pixels * 8, usage);
     let accum = b.graph.buffer("ewa.accum", pixels * ACCUM_BYTES, usage);
+    // The large splats' list: a dispatch header (x, y, z, listed) and one index per point.
+    let large = b.graph.buffer(
+        "ewa.large",
+        LARGE_HEADER + 4 * u64::from(b.scene.point_count.max(1)),
+        usage,
+    );
     let bindings = [
         storage(BINDING_FRAME),
         storage(BINDING_SEGMENTS),
         storage(BINDING_BATCHES),
         storage(BINDING_VISIBILITY),
         storage(BINDING_ACCUM),
+        storage(BINDING_EWA_LARGE),
     ];
-    let splat = |mode: u32| {
-        Pipeline::compute_specialized(b.ctx, "ewa/splat.comp", &bindings, &[(0, mode)])
-            .map(Arc::new)
+    let splat = |mode: u32, large: bool| {
+        Pipeline::compute_specialized(
+            b.ctx,
+            "ewa/splat.comp",
+            &bindings,
+            &[(0, mode), (1, u32::from(large))],
+        )
+        .map(Arc::new)
     };
-    let visibility_pipeline = splat(0)?;
-    let accumulate_pipeline = splat(1)?;
+    let visibility_small = splat(0, false)?;
+    let visibility_large = splat(0, true)?;
+    let accumulate_small = splat(1, false)?;
+    let accumulate_large = splat(1, true)?;
     let resolve = Arc::new(Pipeline::compute_specialized(
         b.ctx,
         "ewa/resolve.comp",
@@ -143,6 +163,9 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         .fill_buffer("ewa.clear", visibility, BufferRange::WHOLE, u32::MAX);
     b.graph
         .fill_buffer("ewa.clear-accum", accum, BufferRange::WHOLE, 0);
+    let empty: [u32; 4] = [0, 1, 1, 0];
+    b.graph
+        .update_buffer("ewa.clear-large", large, 0, bytemuck::bytes_of(&empty));
     // One workgroup per batch, folded into 2D past the 65,535 groups every device allows.
     let batch_count = b.scene.streams.batch_count;
     let (gx, gy) = (batch_count.min(65_535), batch_count.div_ceil(65_535));
@@ -152,21 +175,40 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         Descriptor::Buffer(BINDING_BATCHES, batches),
         Descriptor::Buffer(BINDING_VISIBILITY, visibility),
         Descriptor::Buffer(BINDING_ACCUM, accum),
+        Descriptor::Buffer(BINDING_EWA_LARGE, large),
     ];
-    // The visibility pass never touches the accumulators (dead code under its specialization,
+    // The visibility passes never touch the accumulators (dead code under its specialization,
     // but statically present): alias them to the visibility buffer it declares.
     let mut visibility_only = descriptors;
     visibility_only[4] = Descriptor::Buffer(BINDING_ACCUM, visibility);
+    // The dispatch arguments of the large splats. Only `ewa.visibility` appends to the list,
+    // but every variant of the shader declares it writable, so every splat pass declares it
+    // read-write (synchronization validation tracks the shader's static access).
+    let args = BufferRange::new(0, 12);
     b.graph
         .pass("ewa.visibility")
         .buffer(frame, Access::UniformRead(compute))
         .buffer(segments, Access::StorageRead(compute))
         .buffer(batches, Access::StorageRead(compute))
         .buffer(visibility, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
         .record(move |ctx| {
-            ctx.bind(&visibility_pipeline, &visibility_only);
-            ctx.push(&visibility_pipeline, bytemuck::bytes_of(&params));
+            ctx.bind(&visibility_small, &visibility_only);
+            ctx.push(&visibility_small, bytemuck::bytes_of(&params));
             ctx.dispatch(gx, gy, 1);
+        });
+    b.graph
+        .pass("ewa.visibility-large")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .buffer_range(large, args, Access::IndirectRead)
+        .record(move |ctx| {
+            ctx.bind(&visibility_large, &visibility_only);
+            ctx.push(&visibility_large, bytemuck::bytes_of(&params));
+            ctx.dispatch_indirect(large, 0);
         });
     b.graph
         .pass("ewa.accumulate")
@@ -175,10 +217,25 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         .buffer(batches, Access::StorageRead(compute))
         .buffer(visibility, Access::StorageRead(compute))
         .buffer(accum, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
         .record(move |ctx| {
-            ctx.bind(&accumulate_pipeline, &descriptors);
-            ctx.push(&accumulate_pipeline, bytemuck::bytes_of(&params));
+            ctx.bind(&accumulate_small, &descriptors);
+            ctx.push(&accumulate_small, bytemuck::bytes_of(&params));
             ctx.dispatch(gx, gy, 1);
+        });
+    b.graph
+        .pass("ewa.accumulate-large")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageRead(compute))
+        .buffer(accum, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .buffer_range(large, args, Access::IndirectRead)
+        .record(move |ctx| {
+            ctx.bind(&accumulate_large, &descriptors);
+            ctx.push(&accumulate_large, bytemuck::bytes_of(&params));
+            ctx.dispatch_indirect(large, 0);
         });
     let groups = (
         b.width.div_ceil(RESOLVE_GROUP),
