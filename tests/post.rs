@@ -177,7 +177,7 @@ fn eye_dome_lighting_follows_strength_and_radius_with_every_method() {
     let cloud = depth_step(200, 0.02);
     let ctx = common::context();
     let edl = Edl::new(0.5, 3.0).expect("valid");
-    for method in ["points:size=2", "compute", "compute-hq", "mesh"] {
+    for method in ["points:size=2", "compute", "compute-hq", "mesh", "ewa"] {
         let name = method.split(':').next().expect("name");
         if let Some(why) = surfel::methods::find(name)
             .expect("method")

@@ -102,6 +102,16 @@ pub struct SplatParams {
     pub pad0: u32,
 }
 
+/// Push constants of the EWA splatting passes (`EwaParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct EwaParams {
+    pub radius: f32,
+    pub cutoff: f32,
+    pub prefilter: f32,
+    pub interval: f32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -215,6 +225,12 @@ pub fn mirrors() -> Vec<Mirror> {
             epsilon,
             max_point_size,
             pad0
+        }),
+        mirror!(EwaParams {
+            radius,
+            cutoff,
+            prefilter,
+            interval
         }),
     ]
 }

@@ -122,6 +122,11 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("SPLAT_SHADING_GOURAUD", 1),
     ("SPLAT_SHADING_PHONG", 2),
     ("SPLAT_SHADING_DEFERRED", 3),
+    // EWA splatting (000 ch. 3): a resampling ellipse whose bounding box reaches further than
+    // EWA_MAX_RADIUS pixels from its centre is rasterized by a whole workgroup (the large
+    // splats' list at BINDING_EWA_LARGE) instead of one thread.
+    ("EWA_MAX_RADIUS", 16),
+    ("BINDING_EWA_LARGE", 14),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -241,6 +246,23 @@ pub const STRUCTS: &[StructSpec] = &[
             // The device's largest point size: the sprite sizes are clamped to it.
             f("float", "max_point_size"),
             f("uint", "pad0"),
+        ],
+    },
+    // Push constants of the EWA splatting passes (000 ch. 3, src/methods/ewa).
+    StructSpec {
+        name: "EwaParams",
+        fields: &[
+            // Scale of the per-point radius: the reconstruction kernel's standard deviation
+            // in object space is radius * stream_radius (V_r = r^2 I, eq. 3.30).
+            f("float", "radius"),
+            // The Gaussian is truncated at this many standard deviations (Mahalanobis
+            // distance of the resampling filter).
+            f("float", "cutoff"),
+            // Standard deviation of the screen-space prefilter in pixels (V_h, eq. 3.31).
+            f("float", "prefilter"),
+            // Half-width of a fragment's depth interval in units of the splat's standard
+            // deviation (the adaptive interval of 3.2.3).
+            f("float", "interval"),
         ],
     },
 ];

@@ -3,6 +3,7 @@
 //! method to the viewer, the headless renderer and the benchmark sweeps needs only an entry here.
 
 pub mod compute;
+mod ewa;
 mod mesh;
 mod points;
 mod splat;
@@ -126,6 +127,7 @@ pub static METHODS: &[MethodInfo] = &[
     splat::SQUARES_PHONG_INFO,
     splat::AFFINE_PHONG_INFO,
     splat::PERSPECTIVE_PHONG_INFO,
+    ewa::INFO,
 ];
 
 /// Looks a method up by name.

@@ -1,0 +1,49 @@
+#version 460
+// EWA splatting, normalization and deferred lighting (000 §3.2.3, eq. 3.36): the accumulated
+// weighted albedo and normal are divided by the weight sum and shaded per pixel with the
+// frame's lights at the depth of the pixel's front-most fragment.
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#include "streams.glsl"
+
+layout(local_size_x = RESOLVE_GROUP, local_size_y = RESOLVE_GROUP) in;
+
+layout(std430, set = 0, binding = BINDING_VISIBILITY) readonly buffer Visibility {
+    uint64_t keys[];
+};
+layout(std430, set = 0, binding = BINDING_ACCUM) readonly buffer Accum { uint accum[]; };
+layout(set = 0, binding = BINDING_OUTPUT0, rgba8) uniform writeonly image2D out_color;
+layout(set = 0, binding = BINDING_OUTPUT0 + 1, r32f) uniform writeonly image2D out_depth;
+layout(set = 0, binding = BINDING_OUTPUT0 + 2, rgba16f) uniform writeonly image2D out_normal;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 size = ivec2(frame.u.viewport.xy);
+    if (any(greaterThanEqual(px, size))) {
+        return;
+    }
+    uint pixel = uint(px.y) * uint(size.x) + uint(px.x);
+    uint64_t key = keys[pixel];
+    if (key == ~0ul) {
+        imageStore(out_color, px, vec4(0.0));
+        imageStore(out_depth, px, vec4(0.0));
+        imageStore(out_normal, px, vec4(0.0));
+        return;
+    }
+    // The front-most fragment's interval is centred on its plane's depth at the pixel (an
+    // interval cut at the eye, front = 0, gives a midpoint nearer than that plane but still
+    // inside the interval).
+    float front = uintBitsToFloat(uint(key >> 32));
+    float back = uintBitsToFloat(uint(key & 0xffffffffu));
+    float depth = 0.5 * (front + back);
+    uint a = 8u * pixel;
+    float weight = float(max(accum[a + 3u], 1u));
+    vec3 albedo = vec3(accum[a], accum[a + 1u], accum[a + 2u]) / weight;
+    vec2 ndc = (vec2(px) + 0.5) * frame.u.viewport.zw * 2.0 - 1.0;
+    vec3 view_pos = vec3(ndc.x * depth / frame.u.proj[0][0], ndc.y * depth / frame.u.proj[1][1],
+                         -depth);
+    vec3 sum = vec3(ivec3(accum[a + 4u], accum[a + 5u], accum[a + 6u]));
+    vec3 n = length(sum) > 0.0 ? normalize(sum) : normalize(-view_pos);
+    imageStore(out_color, px, vec4(linear_to_srgb(shade(albedo, n, view_pos)), 1.0));
+    imageStore(out_depth, px, vec4(depth));
+    imageStore(out_normal, px, vec4(n, 1.0));
+}

@@ -1,0 +1,269 @@
+//! EWA surface splatting (Marroquim 2008, ch. 3; Zwicker et al. 2001), the quality reference
+//! of the splatting methods, rasterized in compute like `compute-hq` (`glsl/ewa/`).
+//!
+//! Per splat: a tangent frame from its normal (a view-facing disc without normals), the
+//! reconstruction Gaussian V_r = r² I from its radius (eq. 3.30), the Jacobian of the local
+//! affine approximation of the projection at its centre (eq. 3.25), the screen-space
+//! resampling filter V_ρ = J V_r Jᵀ + V_h with a prefilter of `prefilter` pixels (eqs. 3.23,
+//! 3.31), truncated at `cutoff` standard deviations; the bounding box of that ellipse is
+//! rasterized with Gaussian weights, by the splat's thread when it reaches at most
+//! `EWA_MAX_RADIUS` pixels from the centre, else by a whole workgroup (the large splats' list).
+//!
+//! * `ewa.clear`, `ewa.clear-accum`, `ewa.clear-large`: the 64-bit visibility keys to all
+//!   ones, the accumulators to zero, the large splats' list to empty.
+//! * `ewa.visibility` (one workgroup per batch; large splats are listed) and
+//!   `ewa.visibility-large` (one workgroup per listed splat, dispatched indirectly): every
+//!   fragment's depth interval (the splat plane's depth at the pixel ± `interval` standard
+//!   deviations) through `atomicMin` of front ‖ back: the front-most interval per pixel.
+//! * `ewa.accumulate` and `ewa.accumulate-large`: the ternary depth test against that
+//!   interval: fragments inside it blend
+//!   (w·albedo, w·normal, w added with fixed-point atomics), fragments behind it are discarded,
+//!   and the front-most one is the fragment every "in front → replace" of the sequential test
+//!   would have ended with (`glsl/ewa/splat.comp` states the mapping).
+//! * `ewa.resolve`: normalization (eq. 3.36) and deferred per-pixel lighting into the standard
+//!   targets.
+//!
+//! The splat set-up is recomputed in both rasterization passes rather than stored (no buffer
+//! of per-splat ellipses). Every point is set up each frame (no batch culling: a batch's box
+//! does not bound its splats' footprints).
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use ash::vk;
+
+use super::{BuildContext, Feature, MethodInfo, ParamSpec};
+use crate::gpu::layout::{
+    EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_OUTPUT0,
+    BINDING_SEGMENTS, BINDING_VISIBILITY, RESOLVE_GROUP,
+};
+use crate::gpu::{Binding, Pipeline};
+use crate::graph::{Access, BufferRange, Descriptor, Stages};
+
+pub const INFO: MethodInfo = MethodInfo {
+    name: "ewa",
+    summary: "EWA surface splatting: Gaussian resampling filters, ternary depth test, \
+              normalization and deferred lighting (000 ch. 3)",
+    params: &[
+        ParamSpec {
+            name: "radius",
+            default: 1.0,
+            min: 0.01,
+            max: 16.0,
+            doc: "scale of the per-point radius, the reconstruction kernel's standard deviation",
+        },
+        ParamSpec {
+            name: "cutoff",
+            default: 1.0,
+            min: 0.5,
+            max: 4.0,
+            doc: "the Gaussian is truncated at this many standard deviations (1: at the splat's \
+                  disc of radius r)",
+        },
+        ParamSpec {
+            name: "prefilter",
+            default: 1.0,
+            min: 0.0,
+            max: 4.0,
+            doc: "standard deviation of the screen-space prefilter in pixels",
+        },
+        ParamSpec {
+            name: "interval",
+            default: 1.0,
+            min: 0.0,
+            max: 16.0,
+            doc: "half-width of a fragment's depth interval in standard deviations of its splat",
+        },
+    ],
+    needs_faces: false,
+    features: &[Feature::Int64Atomics],
+    culls_batches: false,
+    build,
+};
+
+/// Bytes of the large splats' list header: a `VkDispatchIndirectCommand` and the count listed.
+const LARGE_HEADER: u64 = 16;
+
+/// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz, unused.
+const ACCUM_BYTES: u64 = 32;
+
+fn storage(binding: u32) -> Binding {
+    Binding::new(
+        binding,
+        vk::DescriptorType::STORAGE_BUFFER,
+        vk::ShaderStageFlags::COMPUTE,
+    )
+}
+
+fn storage_image(binding: u32) -> Binding {
+    Binding::new(
+        binding,
+        vk::DescriptorType::STORAGE_IMAGE,
+        vk::ShaderStageFlags::COMPUTE,
+    )
+}
+
+fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    let pixels = u64::from(b.width) * u64::from(b.height);
+    let params = EwaParams {
+        radius: b.config.get("radius"),
+        cutoff: b.config.get("cutoff"),
+        prefilter: b.config.get("prefilter"),
+        interval: b.config.get("interval"),
+    };
+    // Usage flags follow from the declared accesses.
+    let usage = vk::BufferUsageFlags::empty();
+    let visibility = b.graph.buffer("ewa.visibility", pixels * 8, usage);
+    let accum = b.graph.buffer("ewa.accum", pixels * ACCUM_BYTES, usage);
+    // The large splats' list: a dispatch header (x, y, z, listed) and one index per point.
+    let large = b.graph.buffer(
+        "ewa.large",
+        LARGE_HEADER + 4 * u64::from(b.scene.point_count.max(1)),
+        usage,
+    );
+    let bindings = [
+        storage(BINDING_FRAME),
+        storage(BINDING_SEGMENTS),
+        storage(BINDING_BATCHES),
+        storage(BINDING_VISIBILITY),
+        storage(BINDING_ACCUM),
+        storage(BINDING_EWA_LARGE),
+    ];
+    let splat = |mode: u32, large: bool| {
+        Pipeline::compute_specialized(
+            b.ctx,
+            "ewa/splat.comp",
+            &bindings,
+            &[(0, mode), (1, u32::from(large))],
+        )
+        .map(Arc::new)
+    };
+    let visibility_small = splat(0, false)?;
+    let visibility_large = splat(0, true)?;
+    let accumulate_small = splat(1, false)?;
+    let accumulate_large = splat(1, true)?;
+    let resolve = Arc::new(Pipeline::compute_specialized(
+        b.ctx,
+        "ewa/resolve.comp",
+        &[
+            storage(BINDING_FRAME),
+            storage(BINDING_SEGMENTS),
+            storage(BINDING_VISIBILITY),
+            storage(BINDING_ACCUM),
+            storage_image(BINDING_OUTPUT0),
+            storage_image(BINDING_OUTPUT0 + 1),
+            storage_image(BINDING_OUTPUT0 + 2),
+        ],
+        &[],
+    )?);
+    let (frame, segments, batches, t) = (b.frame, b.segments, b.batches, b.targets);
+    let compute = Stages::Compute;
+    // Empty pixels hold the largest key; the accumulators start at zero.
+    b.graph
+        .fill_buffer("ewa.clear", visibility, BufferRange::WHOLE, u32::MAX);
+    b.graph
+        .fill_buffer("ewa.clear-accum", accum, BufferRange::WHOLE, 0);
+    let empty: [u32; 4] = [0, 1, 1, 0];
+    b.graph
+        .update_buffer("ewa.clear-large", large, 0, bytemuck::bytes_of(&empty));
+    // One workgroup per batch, folded into 2D past the 65,535 groups every device allows.
+    let batch_count = b.scene.streams.batch_count;
+    let (gx, gy) = (batch_count.min(65_535), batch_count.div_ceil(65_535));
+    let descriptors = [
+        Descriptor::Buffer(BINDING_FRAME, frame),
+        Descriptor::Buffer(BINDING_SEGMENTS, segments),
+        Descriptor::Buffer(BINDING_BATCHES, batches),
+        Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+        Descriptor::Buffer(BINDING_ACCUM, accum),
+        Descriptor::Buffer(BINDING_EWA_LARGE, large),
+    ];
+    // The visibility passes never touch the accumulators (dead code under its specialization,
+    // but statically present): alias them to the visibility buffer it declares.
+    let mut visibility_only = descriptors;
+    visibility_only[4] = Descriptor::Buffer(BINDING_ACCUM, visibility);
+    // The dispatch arguments of the large splats. Only `ewa.visibility` appends to the list,
+    // but every variant of the shader declares it writable, so every splat pass declares it
+    // read-write (synchronization validation tracks the shader's static access).
+    let args = BufferRange::new(0, 12);
+    b.graph
+        .pass("ewa.visibility")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .record(move |ctx| {
+            ctx.bind(&visibility_small, &visibility_only);
+            ctx.push(&visibility_small, bytemuck::bytes_of(&params));
+            ctx.dispatch(gx, gy, 1);
+        });
+    b.graph
+        .pass("ewa.visibility-large")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .buffer_range(large, args, Access::IndirectRead)
+        .record(move |ctx| {
+            ctx.bind(&visibility_large, &visibility_only);
+            ctx.push(&visibility_large, bytemuck::bytes_of(&params));
+            ctx.dispatch_indirect(large, 0);
+        });
+    b.graph
+        .pass("ewa.accumulate")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageRead(compute))
+        .buffer(accum, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .record(move |ctx| {
+            ctx.bind(&accumulate_small, &descriptors);
+            ctx.push(&accumulate_small, bytemuck::bytes_of(&params));
+            ctx.dispatch(gx, gy, 1);
+        });
+    b.graph
+        .pass("ewa.accumulate-large")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(batches, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageRead(compute))
+        .buffer(accum, Access::StorageReadWrite(compute))
+        .buffer(large, Access::StorageReadWrite(compute))
+        .buffer_range(large, args, Access::IndirectRead)
+        .record(move |ctx| {
+            ctx.bind(&accumulate_large, &descriptors);
+            ctx.push(&accumulate_large, bytemuck::bytes_of(&params));
+            ctx.dispatch_indirect(large, 0);
+        });
+    let groups = (
+        b.width.div_ceil(RESOLVE_GROUP),
+        b.height.div_ceil(RESOLVE_GROUP),
+    );
+    b.graph
+        .pass("ewa.resolve")
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageRead(compute))
+        .buffer(accum, Access::StorageRead(compute))
+        .image(t.color, Access::StorageWrite(compute))
+        .image(t.depth, Access::StorageWrite(compute))
+        .image(t.normal, Access::StorageWrite(compute))
+        .record(move |ctx| {
+            ctx.bind(
+                &resolve,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+                    Descriptor::Buffer(BINDING_ACCUM, accum),
+                    Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
+                    Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
+                    Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
+                ],
+            );
+            ctx.dispatch(groups.0, groups.1, 1);
+        });
+    Ok(())
+}
