@@ -7,7 +7,7 @@ mod common;
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{upload, Extras, Renderer, View};
+use surfel::render::{upload, Extras};
 use surfel::scene::{Camera, Cloud};
 
 const SIZE: u32 = 64;
@@ -48,32 +48,12 @@ fn depth_step(n: usize, step: f32) -> Cloud {
 fn render(cloud: &Cloud, method: &str, post: PostOptions) -> Frame {
     let ctx = common::context();
     let (scene, info) = upload(&ctx, cloud).expect("upload");
-    let config = surfel::methods::MethodConfig::parse(method).expect("method");
-    let mut r = Renderer::new(
-        &ctx,
-        &scene,
-        info,
-        &config,
-        SIZE,
-        SIZE,
-        Extras {
-            readback: true,
-            post,
-            ..Extras::default()
-        },
-    )
-    .expect("renderer");
-    let view = View {
-        camera: Camera::framing(Vec3::ZERO, 2f32.sqrt()),
-        lights: vec![surfel::scene::Light::headlight()],
-        use_color: true,
-        time: 0.0,
+    let extras = Extras {
+        post,
+        ..Extras::default()
     };
-    r.render(&view, false).expect("frame 1");
-    let frame = r.render(&view, true).expect("frame 2").expect("readback");
-    drop(r);
-    common::assert_clean(&ctx);
-    frame
+    let camera = Camera::framing(Vec3::ZERO, 2f32.sqrt());
+    common::two_frames(&ctx, &scene, info, method, SIZE, extras, camera)
 }
 
 /// The EDL response of pixel `(x, y)` computed on the CPU from the read-back depth (infinite

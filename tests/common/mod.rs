@@ -71,25 +71,41 @@ pub fn render_view(
     options: surfel::streams::UploadOptions,
     camera: impl Fn(Vec3, f32) -> surfel::scene::Camera,
 ) -> surfel::eval::Frame {
-    use surfel::render::{upload_with, Extras, Renderer, View};
     let ctx = context();
-    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
+    let (scene, info) = surfel::render::upload_with(&ctx, cloud, options).expect("upload");
+    let camera = camera(info.centre, info.radius);
+    two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
+}
+
+/// Renders `method` at `size`² with the headlight from `camera`, with `extras` plus readback:
+/// one frame with the first-frame barriers, then a read-back frame with the steady-state ones.
+/// Fails on any validation error.
+pub fn two_frames(
+    ctx: &Arc<Context>,
+    scene: &surfel::methods::GpuScene,
+    info: surfel::render::SceneInfo,
+    method: &str,
+    size: u32,
+    extras: surfel::render::Extras,
+    camera: surfel::scene::Camera,
+) -> surfel::eval::Frame {
+    use surfel::render::{Extras, Renderer, View};
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let mut r = Renderer::new(
-        &ctx,
-        &scene,
+        ctx,
+        scene,
         info,
         &config,
         size,
         size,
         Extras {
             readback: true,
-            ..Extras::default()
+            ..extras
         },
     )
     .expect("renderer");
     let view = View {
-        camera: camera(info.centre, info.radius),
+        camera,
         lights: vec![surfel::scene::Light::headlight()],
         use_color: true,
         time: 0.0,
@@ -97,7 +113,7 @@ pub fn render_view(
     r.render(&view, false).expect("frame 1");
     let frame = r.render(&view, true).expect("frame 2").expect("readback");
     drop(r);
-    assert_clean(&ctx);
+    assert_clean(ctx);
     frame
 }
 
@@ -124,32 +140,8 @@ pub fn render_colored(
     size: u32,
     coloring: surfel::color::Coloring,
 ) -> surfel::eval::Frame {
-    use surfel::render::{upload_colored, Extras, Renderer, View};
     let ctx = context();
-    let (scene, info) = upload_colored(&ctx, cloud, coloring).expect("upload");
-    let config = surfel::methods::MethodConfig::parse(method).expect("method");
-    let mut r = Renderer::new(
-        &ctx,
-        &scene,
-        info,
-        &config,
-        size,
-        size,
-        Extras {
-            readback: true,
-            ..Extras::default()
-        },
-    )
-    .expect("renderer");
-    let view = View {
-        camera: surfel::scene::Camera::framing(info.centre, info.radius),
-        lights: vec![surfel::scene::Light::headlight()],
-        use_color: true,
-        time: 0.0,
-    };
-    r.render(&view, false).expect("frame 1");
-    let frame = r.render(&view, true).expect("frame 2").expect("readback");
-    drop(r);
-    assert_clean(&ctx);
-    frame
+    let (scene, info) = surfel::render::upload_colored(&ctx, cloud, coloring).expect("upload");
+    let camera = surfel::scene::Camera::framing(info.centre, info.radius);
+    two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
 }
