@@ -63,7 +63,7 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
 /// Bytes of the high-quality accumulators per pixel: r, g, b, count, nx, ny, nz, unused.
 const ACCUM_BYTES: u64 = 32;
 
-fn storage(binding: u32) -> Binding {
+pub(crate) fn storage(binding: u32) -> Binding {
     Binding::new(
         binding,
         vk::DescriptorType::STORAGE_BUFFER,
@@ -194,9 +194,28 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
         "compute"
     };
     let projection = project(b, prefix, high_quality)?;
-    let resolve = Arc::new(Pipeline::compute_specialized(
+    let resolve = resolve_pipeline(b, "compute/resolve.comp", &[(0, u32::from(high_quality))])?;
+    add_resolve(
+        b,
+        &format!("{prefix}.resolve"),
+        resolve,
+        projection,
+        high_quality,
+    );
+    Ok(())
+}
+
+/// The pipeline of a per-pixel resolve shader (`compute` and `compute-hq`, `ewa`): the frame,
+/// the point streams, a projection's visibility and accumulator buffers in, the three
+/// standard targets out.
+pub(crate) fn resolve_pipeline(
+    b: &BuildContext<'_>,
+    shader: &str,
+    specialization: &[(u32, u32)],
+) -> Result<Arc<Pipeline>> {
+    Ok(Arc::new(Pipeline::compute_specialized(
         b.ctx,
-        "compute/resolve.comp",
+        shader,
         &[
             storage(BINDING_FRAME),
             storage(BINDING_SEGMENTS),
@@ -206,18 +225,30 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
             storage_image(BINDING_OUTPUT0 + 1),
             storage_image(BINDING_OUTPUT0 + 2),
         ],
-        &[(0, u32::from(high_quality))],
-    )?);
+        specialization,
+    )?))
+}
+
+/// Adds the resolve pass `name`: one thread per pixel of `resolve` (`resolve_pipeline`) over
+/// `projection`, reading its accumulators only when `reads_accum`, writing the standard
+/// targets.
+pub(crate) fn add_resolve(
+    b: &mut BuildContext<'_>,
+    name: &str,
+    resolve: Arc<Pipeline>,
+    projection: Projection,
+    reads_accum: bool,
+) {
     let (frame, segments, t) = (b.frame, b.segments, b.targets);
     let Projection { visibility, accum } = projection;
     let compute = Stages::Compute;
     let mut pass = b
         .graph
-        .pass(&format!("{prefix}.resolve"))
+        .pass(name)
         .buffer(frame, Access::UniformRead(compute))
         .buffer(segments, Access::StorageRead(compute))
         .buffer(visibility, Access::StorageRead(compute));
-    if high_quality {
+    if reads_accum {
         pass = pass.buffer(accum, Access::StorageRead(compute));
     }
     let groups = (
@@ -242,7 +273,6 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
             );
             ctx.dispatch(groups.0, groups.1, 1);
         });
-    Ok(())
 }
 
 fn build_nearest(b: &mut BuildContext<'_>) -> Result<()> {

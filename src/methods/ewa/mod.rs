@@ -32,12 +32,13 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
+use super::compute::{add_resolve, resolve_pipeline, storage, Projection};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
-    EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_OUTPUT0,
-    BINDING_SEGMENTS, BINDING_VISIBILITY, RESOLVE_GROUP,
+    EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_SEGMENTS,
+    BINDING_VISIBILITY,
 };
-use crate::gpu::{Binding, Pipeline};
+use crate::gpu::Pipeline;
 use crate::graph::{Access, BufferRange, Descriptor, Stages};
 
 pub const INFO: MethodInfo = MethodInfo {
@@ -87,22 +88,6 @@ const LARGE_HEADER: u64 = 16;
 /// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz, unused.
 const ACCUM_BYTES: u64 = 32;
 
-fn storage(binding: u32) -> Binding {
-    Binding::new(
-        binding,
-        vk::DescriptorType::STORAGE_BUFFER,
-        vk::ShaderStageFlags::COMPUTE,
-    )
-}
-
-fn storage_image(binding: u32) -> Binding {
-    Binding::new(
-        binding,
-        vk::DescriptorType::STORAGE_IMAGE,
-        vk::ShaderStageFlags::COMPUTE,
-    )
-}
-
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let pixels = u64::from(b.width) * u64::from(b.height);
     let params = EwaParams {
@@ -142,21 +127,8 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let visibility_large = splat(0, true)?;
     let accumulate_small = splat(1, false)?;
     let accumulate_large = splat(1, true)?;
-    let resolve = Arc::new(Pipeline::compute_specialized(
-        b.ctx,
-        "ewa/resolve.comp",
-        &[
-            storage(BINDING_FRAME),
-            storage(BINDING_SEGMENTS),
-            storage(BINDING_VISIBILITY),
-            storage(BINDING_ACCUM),
-            storage_image(BINDING_OUTPUT0),
-            storage_image(BINDING_OUTPUT0 + 1),
-            storage_image(BINDING_OUTPUT0 + 2),
-        ],
-        &[],
-    )?);
-    let (frame, segments, batches, t) = (b.frame, b.segments, b.batches, b.targets);
+    let resolve = resolve_pipeline(b, "ewa/resolve.comp", &[])?;
+    let (frame, segments, batches) = (b.frame, b.segments, b.batches);
     let compute = Stages::Compute;
     // Empty pixels hold the largest key; the accumulators start at zero.
     b.graph
@@ -185,85 +157,49 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     // but every variant of the shader declares it writable, so every splat pass declares it
     // read-write (synchronization validation tracks the shader's static access).
     let args = BufferRange::new(0, 12);
-    b.graph
-        .pass("ewa.visibility")
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageReadWrite(compute))
-        .buffer(large, Access::StorageReadWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(&visibility_small, &visibility_only);
-            ctx.push(&visibility_small, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
+    for (name, pipeline, accumulates, listed) in [
+        ("ewa.visibility", visibility_small, false, false),
+        ("ewa.visibility-large", visibility_large, false, true),
+        ("ewa.accumulate", accumulate_small, true, false),
+        ("ewa.accumulate-large", accumulate_large, true, true),
+    ] {
+        let descriptors = if accumulates {
+            descriptors
+        } else {
+            visibility_only
+        };
+        let mut pass = b
+            .graph
+            .pass(name)
+            .buffer(frame, Access::UniformRead(compute))
+            .buffer(segments, Access::StorageRead(compute))
+            .buffer(batches, Access::StorageRead(compute));
+        pass = if accumulates {
+            pass.buffer(visibility, Access::StorageRead(compute))
+                .buffer(accum, Access::StorageReadWrite(compute))
+        } else {
+            pass.buffer(visibility, Access::StorageReadWrite(compute))
+        };
+        pass = pass.buffer(large, Access::StorageReadWrite(compute));
+        if listed {
+            pass = pass.buffer_range(large, args, Access::IndirectRead);
+        }
+        pass.record(move |ctx| {
+            ctx.bind(&pipeline, &descriptors);
+            ctx.push(&pipeline, bytemuck::bytes_of(&params));
+            if listed {
+                ctx.dispatch_indirect(large, 0);
+            } else {
+                ctx.dispatch(gx, gy, 1);
+            }
         });
-    b.graph
-        .pass("ewa.visibility-large")
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageReadWrite(compute))
-        .buffer(large, Access::StorageReadWrite(compute))
-        .buffer_range(large, args, Access::IndirectRead)
-        .record(move |ctx| {
-            ctx.bind(&visibility_large, &visibility_only);
-            ctx.push(&visibility_large, bytemuck::bytes_of(&params));
-            ctx.dispatch_indirect(large, 0);
-        });
-    b.graph
-        .pass("ewa.accumulate")
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageRead(compute))
-        .buffer(accum, Access::StorageReadWrite(compute))
-        .buffer(large, Access::StorageReadWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(&accumulate_small, &descriptors);
-            ctx.push(&accumulate_small, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
-        });
-    b.graph
-        .pass("ewa.accumulate-large")
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageRead(compute))
-        .buffer(accum, Access::StorageReadWrite(compute))
-        .buffer(large, Access::StorageReadWrite(compute))
-        .buffer_range(large, args, Access::IndirectRead)
-        .record(move |ctx| {
-            ctx.bind(&accumulate_large, &descriptors);
-            ctx.push(&accumulate_large, bytemuck::bytes_of(&params));
-            ctx.dispatch_indirect(large, 0);
-        });
-    let groups = (
-        b.width.div_ceil(RESOLVE_GROUP),
-        b.height.div_ceil(RESOLVE_GROUP),
+    }
+    add_resolve(
+        b,
+        "ewa.resolve",
+        resolve,
+        Projection { visibility, accum },
+        true,
     );
-    b.graph
-        .pass("ewa.resolve")
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageRead(compute))
-        .buffer(accum, Access::StorageRead(compute))
-        .image(t.color, Access::StorageWrite(compute))
-        .image(t.depth, Access::StorageWrite(compute))
-        .image(t.normal, Access::StorageWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(
-                &resolve,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-                    Descriptor::Buffer(BINDING_ACCUM, accum),
-                    Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
-                ],
-            );
-            ctx.dispatch(groups.0, groups.1, 1);
-        });
     Ok(())
 }
