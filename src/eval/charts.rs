@@ -450,6 +450,28 @@ struct LineChart {
     colors: Colors,
 }
 
+impl LineChart {
+    /// GPU time per frame against `x_desc`, one line per method configuration.
+    fn time(
+        caption: String,
+        x_desc: &str,
+        log_x: bool,
+        series: Vec<(String, Vec<(f64, f64)>)>,
+        colors: &Colors,
+    ) -> Self {
+        Self {
+            caption,
+            x_desc: x_desc.into(),
+            y_desc: "GPU time per frame (ms)".into(),
+            log_x,
+            series,
+            threshold: None,
+            marks: Vec::new(),
+            colors: colors.clone(),
+        }
+    }
+}
+
 impl Chart for LineChart {
     /// Distinct x values: lines over a single x show nothing.
     fn points(&self) -> usize {
@@ -741,45 +763,39 @@ pub fn write_charts_by_model(
         let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
         if let Some(points) = slice_with_most(&of_model, |r| r.points, |r| r.pixels()) {
             let slice: Vec<&Record> = of_model
-                .into_iter()
+                .iter()
+                .copied()
                 .filter(|r| r.points == points)
                 .collect();
-            let chart = LineChart {
-                caption: format!(
+            let chart = LineChart::time(
+                format!(
                     "{model} ({} points): GPU time vs resolution, {device}",
                     compact(points as f64)
                 ),
-                x_desc: "pixels".into(),
-                y_desc: "GPU time per frame (ms)".into(),
-                log_x: false,
-                series: time_series(&slice, Record::pixels),
-                threshold: None,
-                marks: Vec::new(),
-                colors: colors.clone(),
-            };
+                "pixels",
+                false,
+                time_series(&slice, Record::pixels),
+                &colors,
+            );
             written.extend(tag(write_both(
                 &chart,
                 dir,
                 &format!("{}_time_vs_resolution", slug(&model)),
             )?));
         }
-        let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
         if let Some(key) = slice_with_most(&of_model, |r| (r.points, r.pixels()), |r| r.lights) {
             let slice: Vec<&Record> = of_model
                 .into_iter()
                 .filter(|r| (r.points, r.pixels()) == key)
                 .collect();
             let res = slice.first().map(|r| r.resolution()).unwrap_or_default();
-            let chart = LineChart {
-                caption: format!("{model} {res}: GPU time vs lights, {device}"),
-                x_desc: "lights".into(),
-                y_desc: "GPU time per frame (ms)".into(),
-                log_x: false,
-                series: time_series(&slice, |r| u64::from(r.lights)),
-                threshold: None,
-                marks: Vec::new(),
-                colors: colors.clone(),
-            };
+            let chart = LineChart::time(
+                format!("{model} {res}: GPU time vs lights, {device}"),
+                "lights",
+                false,
+                time_series(&slice, |r| u64::from(r.lights)),
+                &colors,
+            );
             written.extend(tag(write_both(
                 &chart,
                 dir,
@@ -794,16 +810,13 @@ pub fn write_charts_by_model(
             .into_iter()
             .filter(|r| (r.width, r.height) == res)
             .collect();
-        let chart = LineChart {
-            caption: format!("GPU time vs points at {}x{}, {device}", res.0, res.1),
-            x_desc: "points (log scale)".into(),
-            y_desc: "GPU time per frame (ms)".into(),
-            log_x: true,
-            series: time_series(&slice, |r| r.points),
-            threshold: None,
-            marks: Vec::new(),
-            colors: colors.clone(),
-        };
+        let chart = LineChart::time(
+            format!("GPU time vs points at {}x{}, {device}", res.0, res.1),
+            "points (log scale)",
+            true,
+            time_series(&slice, |r| r.points),
+            &colors,
+        );
         written.extend(
             write_both(&chart, dir, "time_vs_points")?
                 .into_iter()
