@@ -87,13 +87,7 @@ impl OverlayPass {
                 ],
                 color_formats: &[g.desc(color).format],
                 blends: &[Blend::Alpha],
-                depth_format: None,
-                depth_test: false,
-                depth_write: false,
-                depth_compare: vk::CompareOp::ALWAYS,
-                topology: vk::PrimitiveTopology::TRIANGLE_LIST,
-                cull: vk::CullModeFlags::NONE,
-                specialization: &[],
+                ..GraphicsDesc::default()
             },
         )?);
         let glyphs = g.external_buffer("overlay.glyphs", bytes, usage);
