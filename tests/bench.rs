@@ -87,7 +87,8 @@ fn quick_sweep_writes_results_charts_and_report() {
         "bunny_speed_psnr.png",
         "bunny_speed_ssim.svg",
         "bunny_passes.png",
-        "time_vs_points.png",
+        "time_vs_points_128x128.png",
+        "time_vs_points_64x64.png",
         "bunny_time_vs_resolution.png",
         "bunny_stress_magnification_holes.png",
     ] {

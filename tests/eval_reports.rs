@@ -202,18 +202,27 @@ fn assert_chart(path: &Path) {
 fn charts_are_written_as_png_and_svg() {
     let dir = scratch("charts");
     let written = write_charts(&synthetic(), &dir).unwrap();
-    let stems = [
+    // The headline slice (128x128, 100,000 points) is named after the model, the other
+    // (resolution, points) slices after themselves.
+    let mut stems: Vec<String> = [
         "bunny_speed_psnr",
         "bunny_speed_ssim",
         "bunny_passes",
         "bunny_time_vs_resolution",
-        "time_vs_points",
+        "time_vs_points_64x64",
         "bunny_stress_subsample_holes",
         "bunny_stress_subsample_psnr",
         "bunny_stress_grazing_holes",
         "bunny_stress_grazing_psnr",
-    ];
-    for stem in stems {
+    ]
+    .map(String::from)
+    .to_vec();
+    for slice in ["1000000pts_64x64", "100000pts_64x64", "10000pts_64x64"] {
+        for chart in ["speed_psnr", "speed_ssim", "passes"] {
+            stems.push(format!("bunny_{slice}_{chart}"));
+        }
+    }
+    for stem in &stems {
         for ext in ["png", "svg"] {
             let path = dir.join(format!("{stem}.{ext}"));
             assert!(written.contains(&path), "{} not written", path.display());
@@ -273,7 +282,7 @@ fn report_lists_methods_pareto_set_and_stability() {
     for link in [
         "charts/bunny_speed_psnr.png",
         "charts/bunny_passes.png",
-        "charts/time_vs_points.png",
+        "charts/time_vs_points_64x64.png",
     ] {
         assert!(md.contains(&format!("]({link})")), "no link to {link}");
         assert!(out.join(link).exists());

@@ -79,11 +79,11 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
     };
     match kind {
         // Tilt the view by `value` degrees away from the pose's direction (for a surface facing
-        // the pose's camera, the angle between view and surface normal).
+        // the pose's camera, the angle between view and surface normal), at the pose's distance.
         StressKind::Grazing => {
-            let (az, el) = match base {
-                Pose::Orbit { orbit, .. } => (orbit[0], orbit[1]),
-                Pose::LookAt { .. } => (0.0, 0.0),
+            let (az, el, distance) = match base {
+                Pose::Orbit { orbit, distance } => (orbit[0], orbit[1], distance),
+                Pose::LookAt { .. } => (0.0, 0.0, 1.0),
             };
             Camera::orbit_about(
                 info.up,
@@ -91,7 +91,7 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
                 info.radius,
                 az,
                 (el + value).min(89.0),
-                1.0,
+                distance,
             )
         }
         // Move in until the mean point spacing covers `value` pixels.

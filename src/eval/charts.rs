@@ -2,14 +2,16 @@
 //!
 //! Which records feed which chart (records with a stress are only used by the stress
 //! charts; the rest are the "baseline"):
-//! - speed vs accuracy and per-pass times, per model: the baseline records at the model's
-//!   largest resolution and, within it, its largest point count, averaged per method
-//!   configuration ([`Record::label`]) over poses and light counts. The ground truth
+//! - speed vs accuracy and per-pass times, per model and slice ([`model_slices`]: one
+//!   resolution and point count; the headline slice, the largest resolution and within it the
+//!   largest count, is named after the model alone, the others `MODEL_Npts_WxH`), averaged per
+//!   method configuration ([`Record::label`]) over poses and light counts. The ground truth
 //!   ([`Record::is_reference`]) is left off the speed-vs-accuracy axes and named in the legend
 //!   with its time; the time axis is logarithmic when the times span more than
 //!   [`LOG_TIME_RATIO`];
-//! - time vs points: the baseline records at the resolution with the most distinct point
-//!   counts, averaged per (label, points) across models;
+//! - time vs points, per resolution with at least two point counts
+//!   (`time_vs_points_WxH`): the baseline records at that resolution, averaged per
+//!   (label, points) across models;
 //! - time vs resolution, per model: the baseline records at the point count with the most
 //!   distinct resolutions, averaged per (label, pixels);
 //! - time vs lights, per model: the baseline records at the (points, resolution) with the most
@@ -563,20 +565,19 @@ pub fn models(results: &Results) -> Vec<String> {
     out
 }
 
-/// The baseline records of `model` at its largest resolution and, within that, its largest
-/// point count: the slice the speed-vs-accuracy and per-pass charts (and the report's
-/// Pareto set) compare.
-pub fn headline_records<'a>(results: &'a Results, model: &str) -> Vec<&'a Record> {
-    let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
-    let Some(pixels) = of_model.iter().map(|r| r.pixels()).max() else {
-        return Vec::new();
-    };
-    let at_res: Vec<&Record> = of_model
-        .into_iter()
-        .filter(|r| r.pixels() == pixels)
-        .collect();
-    let points = at_res.iter().map(|r| r.points).max().unwrap_or(0);
-    at_res.into_iter().filter(|r| r.points == points).collect()
+/// The baseline records of `model` grouped by (resolution, point count), each a slice the
+/// speed-vs-accuracy and per-pass charts (and the report's Pareto sets) compare: the headline
+/// slice (largest resolution and, within it, largest point count) first, then the others by
+/// decreasing pixels and points.
+pub fn model_slices<'a>(results: &'a Results, model: &str) -> Vec<Vec<&'a Record>> {
+    let mut slices: BTreeMap<(u64, u64, (u32, u32)), Vec<&Record>> = BTreeMap::new();
+    for r in baseline(results).filter(|r| r.model == model) {
+        slices
+            .entry((r.pixels(), r.points, (r.width, r.height)))
+            .or_default()
+            .push(r);
+    }
+    slices.into_values().rev().collect()
 }
 
 /// Per label (in first-appearance order): the records with that label.
@@ -703,62 +704,72 @@ pub fn write_charts_by_model(
     let colors = Colors::new(results);
     let mut written = Vec::new();
     for model in models(results) {
-        let head = headline_records(results, &model);
-        let res = head.first().map(|r| r.resolution()).unwrap_or_default();
-        let accuracy: [(&str, &str, MetricFn); 2] = [
-            ("psnr", "PSNR (dB)", |r| r.scores.psnr),
-            ("ssim", "SSIM", |r| r.scores.ssim),
-        ];
         let tag = |paths: Vec<PathBuf>| paths.into_iter().map(|p| (Some(model.clone()), p));
-        for (key, desc, metric) in accuracy {
-            let chart = ParetoChart {
-                caption: format!("{model} {res}: {desc} vs GPU time, {device}"),
-                y_desc: desc.to_string(),
-                points: speed_accuracy(&head, metric),
-                references: reference_times(&head),
+        for (i, head) in model_slices(results, &model).into_iter().enumerate() {
+            let Some(first) = head.first() else {
+                continue;
+            };
+            // The headline slice keeps the model's name; the others name their slice.
+            let stem = if i == 0 {
+                slug(&model)
+            } else {
+                format!("{}_{}pts_{}", slug(&model), first.points, first.resolution())
+            };
+            let res = format!("{} ({} points)", first.resolution(), first.points);
+            let accuracy: [(&str, &str, MetricFn); 2] = [
+                ("psnr", "PSNR (dB)", |r| r.scores.psnr),
+                ("ssim", "SSIM", |r| r.scores.ssim),
+            ];
+            for (key, desc, metric) in accuracy {
+                let chart = ParetoChart {
+                    caption: format!("{model} {res}: {desc} vs GPU time, {device}"),
+                    y_desc: desc.to_string(),
+                    points: speed_accuracy(&head, metric),
+                    references: reference_times(&head),
+                    colors: colors.clone(),
+                };
+                written.extend(tag(write_both(
+                    &chart,
+                    dir,
+                    &format!("{stem}_speed_{key}"),
+                )?));
+            }
+            let groups = by_label(&head);
+            let mut passes: Vec<String> = Vec::new();
+            for p in head.iter().flat_map(|r| &r.passes) {
+                if !passes.contains(&p.name) {
+                    passes.push(p.name.clone());
+                }
+            }
+            let ms = groups
+                .iter()
+                .map(|(_, group)| {
+                    passes
+                        .iter()
+                        .map(|name| {
+                            let v: Vec<f64> = group
+                                .iter()
+                                .filter_map(|r| r.passes.iter().find(|p| &p.name == name))
+                                .map(|p| p.median_ms)
+                                .collect();
+                            mean(&v).unwrap_or(0.0).max(0.0)
+                        })
+                        .collect()
+                })
+                .collect();
+            let chart = StackedPassChart {
+                caption: format!("{model} {res}: GPU time per pass, {device}"),
+                labels: groups.into_iter().map(|(l, _)| l).collect(),
+                passes,
+                ms,
                 colors: colors.clone(),
             };
             written.extend(tag(write_both(
                 &chart,
                 dir,
-                &format!("{}_speed_{key}", slug(&model)),
+                &format!("{stem}_passes"),
             )?));
         }
-        let groups = by_label(&head);
-        let mut passes: Vec<String> = Vec::new();
-        for p in head.iter().flat_map(|r| &r.passes) {
-            if !passes.contains(&p.name) {
-                passes.push(p.name.clone());
-            }
-        }
-        let ms = groups
-            .iter()
-            .map(|(_, group)| {
-                passes
-                    .iter()
-                    .map(|name| {
-                        let v: Vec<f64> = group
-                            .iter()
-                            .filter_map(|r| r.passes.iter().find(|p| &p.name == name))
-                            .map(|p| p.median_ms)
-                            .collect();
-                        mean(&v).unwrap_or(0.0).max(0.0)
-                    })
-                    .collect()
-            })
-            .collect();
-        let chart = StackedPassChart {
-            caption: format!("{model} {res}: GPU time per pass, {device}"),
-            labels: groups.into_iter().map(|(l, _)| l).collect(),
-            passes,
-            ms,
-            colors: colors.clone(),
-        };
-        written.extend(tag(write_both(
-            &chart,
-            dir,
-            &format!("{}_passes", slug(&model)),
-        )?));
 
         let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
         if let Some(points) = slice_with_most(&of_model, |r| r.points, |r| r.pixels()) {
@@ -804,10 +815,11 @@ pub fn write_charts_by_model(
         }
     }
 
-    let all: Vec<&Record> = baseline(results).collect();
-    if let Some(res) = slice_with_most(&all, |r| (r.width, r.height), |r| r.points) {
-        let slice: Vec<&Record> = all
-            .into_iter()
+    let mut resolutions: Vec<(u32, u32)> = baseline(results).map(|r| (r.width, r.height)).collect();
+    resolutions.sort_unstable_by_key(|&(w, h)| (u64::from(w) * u64::from(h), w));
+    resolutions.dedup();
+    for res in resolutions {
+        let slice: Vec<&Record> = baseline(results)
             .filter(|r| (r.width, r.height) == res)
             .collect();
         let chart = LineChart::time(
@@ -818,7 +830,7 @@ pub fn write_charts_by_model(
             &colors,
         );
         written.extend(
-            write_both(&chart, dir, "time_vs_points")?
+            write_both(&chart, dir, &format!("time_vs_points_{}x{}", res.0, res.1))?
                 .into_iter()
                 .map(|p| (None, p)),
         );

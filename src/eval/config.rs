@@ -730,8 +730,9 @@ impl BenchConfig {
     /// 1. `Baseline`: for each model, resolution, pose, light count, method and parameter
     ///    combination (see [`MethodSpec::combinations`]), nested in that order (the last
     ///    varies fastest), the model as loaded.
-    /// 2. `Points`: for each model, each of its `points` counts, each method and combination,
-    ///    at the first resolution, pose and light count.
+    /// 2. `Points`: for each model, each of its `points` counts, each resolution, each method
+    ///    and combination, at the first pose and light count (time against points is wanted
+    ///    per resolution; the resampled cloud is shared by a count's consecutive jobs).
     /// 3. `Stress`: for each model, each stress sweep in file order, each value in file
     ///    order, each method and combination, at the first resolution, pose and light count
     ///    with the model as loaded.
@@ -785,11 +786,13 @@ impl BenchConfig {
         }
         for model in &self.models {
             for &n in &model.points {
-                let group = job(JobGroup::Points, model, first_res, first_pose, first_lights);
-                jobs.extend(group.into_iter().map(|j| Job {
-                    points: Some(n),
-                    ..j
-                }));
+                for &res in &self.resolutions {
+                    let group = job(JobGroup::Points, model, res, first_pose, first_lights);
+                    jobs.extend(group.into_iter().map(|j| Job {
+                        points: Some(n),
+                        ..j
+                    }));
+                }
             }
         }
         for model in &self.models {
@@ -892,7 +895,7 @@ values = [1.0, 0.1]
         let jobs = c.jobs();
         let combos = 3 * 2 + 1;
         let baseline = 2 * 2 * 3 * 2 * combos;
-        let points = 2 * combos;
+        let points = 2 * 2 * combos;
         let stress = 2 * (3 + 2) * combos;
         assert_eq!(jobs.len(), baseline + points + stress);
         let count = |g| jobs.iter().filter(|j| j.group == g).count();
@@ -962,9 +965,9 @@ values = [1.0, 0.1]
     fn quick_config_and_example_files_are_valid() {
         let q = BenchConfig::quick().unwrap();
         let jobs = q.jobs();
-        // Baseline: 2 resolutions x 4 method configurations; 2 point counts x 4; 3 stress
-        // kinds x 2 values x 4.
-        assert_eq!(jobs.len(), 2 * 4 + 2 * 4 + 3 * 2 * 4);
+        // Baseline: 2 resolutions x 4 method configurations; 2 point counts x 2 resolutions
+        // x 4; 3 stress kinds x 2 values x 4.
+        assert_eq!(jobs.len(), 2 * 4 + 2 * 2 * 4 + 3 * 2 * 4);
         assert!(jobs
             .iter()
             .all(|j| j.frames.measured == 3 && j.width <= 128));
@@ -982,6 +985,7 @@ values = [1.0, 0.1]
             "splat.toml",
             "splat-lights.toml",
             "splat-stress.toml",
+            "splat-grazing.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

@@ -8,7 +8,7 @@ use std::path::{Component, Path, PathBuf};
 use anyhow::{Context, Result};
 
 use super::charts::{
-    headline_records, models, reference_times, speed_accuracy, write_charts_by_model,
+    model_slices, models, reference_times, speed_accuracy, write_charts_by_model,
 };
 use super::metrics::{BREAK_HOLE_RATIO, PSNR_CAP_DB};
 use super::results::{pareto_front, stability, MetricFn, Record, Results};
@@ -256,7 +256,12 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
 }
 
 fn pareto_section(md: &mut String, results: &Results, model: &str) {
-    let head = headline_records(results, model);
+    for head in model_slices(results, model) {
+        pareto_tables(md, &head);
+    }
+}
+
+fn pareto_tables(md: &mut String, head: &[&Record]) {
     let Some(first) = head.first() else {
         return;
     };
@@ -265,7 +270,7 @@ fn pareto_section(md: &mut String, results: &Results, model: &str) {
         ("SSIM", |r| r.scores.ssim, |v| fmt_opt(v, 4, 1.0)),
     ];
     for (name, metric, fmt) in accuracy {
-        let pts = speed_accuracy(&head, metric);
+        let pts = speed_accuracy(head, metric);
         if pts.is_empty() {
             continue;
         }
@@ -282,7 +287,7 @@ fn pareto_section(md: &mut String, results: &Results, model: &str) {
             let _ = writeln!(md, "| {} | {ms:.3} | {} |", cell(label), fmt(Some(*acc)));
         }
         let _ = writeln!(md);
-        for (label, ms) in reference_times(&head) {
+        for (label, ms) in reference_times(head) {
             let _ = writeln!(md, "Reference (not ranked): `{label}`, {ms:.3} ms.\n");
         }
     }
