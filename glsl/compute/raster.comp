@@ -18,6 +18,9 @@ layout(local_size_x = RASTER_GROUP) in;
 layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
 // Read the quantized position words (true) or the f32 position stream (false).
 layout(constant_id = 1) const bool QUANTIZED = true;
+// Back-face culling by normal (the pyramid's projection, 000 4.2.1): reads the normal stream
+// (4 more bytes per point) and skips points whose normal faces away from the eye.
+layout(constant_id = 2) const bool CULL = false;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };
@@ -104,6 +107,12 @@ void main() {
         ivec2 px = ivec2(ceil(corner - 0.5));
         if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, size))) {
             continue;
+        }
+        if (CULL && (frame.u.flags & FLAG_HAS_NORMALS) != 0u) {
+            vec3 n = mat3(frame.u.view) * stream_normal(i);
+            if (dot(n, (frame.u.view * vec4(p, 1.0)).xyz) > 0.0) {
+                continue;
+            }
         }
         uint pixel = uint(px.y) * uint(size.x) + uint(px.x);
         if (MODE == MODE_VISIBILITY) {

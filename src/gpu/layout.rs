@@ -112,6 +112,16 @@ pub struct EwaParams {
     pub interval: f32,
 }
 
+/// Push constants of the pyramid passes (`PyramidParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PyramidParams {
+    pub level: u32,
+    pub level_count: u32,
+    pub radius_scale: f32,
+    pub falloff: f32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -231,6 +241,12 @@ pub fn mirrors() -> Vec<Mirror> {
             cutoff,
             prefilter,
             interval
+        }),
+        mirror!(PyramidParams {
+            level,
+            level_count,
+            radius_scale,
+            falloff
         }),
     ]
 }

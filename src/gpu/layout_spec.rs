@@ -127,6 +127,23 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // splats' list at BINDING_EWA_LARGE) instead of one thread.
     ("EWA_MAX_RADIUS", 16),
     ("BINDING_EWA_LARGE", 14),
+    // Pyramid point renderer (000 ch. 4, src/methods/pyramid): the attribute groups of one
+    // level are three storage images (A: normal.xyz, projected radius in level-0 pixels;
+    // B: linear depth, depth-interval half range, displacement vector.xy in level-0 pixels;
+    // C: linear albedo.rgb, primitive id). A pass reads the groups of up to two levels and
+    // writes one: each takes three consecutive bindings.
+    ("BINDING_PYRAMID_PARENT", 22),
+    ("BINDING_PYRAMID_LEVEL", 25),
+    ("BINDING_PYRAMID_OUT", 28),
+    ("PYRAMID_GROUP", 8),
+    // Specialization constant ids of the pyramid shaders and the primitive ids of group C.
+    ("PYRAMID_SPEC_COLOR", 0),
+    ("PYRAMID_SPEC_CULL", 1),
+    ("PYRAMID_SPEC_IN_PLACE", 2),
+    ("PRIMITIVE_POINT", 0),
+    ("PRIMITIVE_RIBBON", 1),
+    ("PRIMITIVE_TUBE", 2),
+    ("PRIMITIVE_TRIANGLE", 3),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -263,6 +280,21 @@ pub const STRUCTS: &[StructSpec] = &[
             // Half-width of a fragment's depth interval in units of the splat's standard
             // deviation (the adaptive interval of 3.2.3).
             f("float", "interval"),
+        ],
+    },
+    // Push constants of the pyramid passes (000 ch. 4, src/methods/pyramid).
+    StructSpec {
+        name: "PyramidParams",
+        fields: &[
+            // The level a pass writes (analysis: from level - 1; synthesis: from level + 1).
+            f("uint", "level"),
+            // Levels in the pyramid.
+            f("uint", "level_count"),
+            // Scale of the per-point radius (`radius` parameter).
+            f("float", "radius_scale"),
+            // Gaussian weight of the synthesis: exp(-falloff * d^2), d the distance to the
+            // ellipse centre in units of the ellipse (1 on its rim).
+            f("float", "falloff"),
         ],
     },
 ];

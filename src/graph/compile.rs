@@ -19,6 +19,9 @@ use crate::gpu::{Buffer, Context, Image, ImageDesc, Profiler};
 
 pub(super) enum ImageSlot {
     Owned(Image),
+    /// A graph-allocated image no kept pass uses (e.g. the second image of a pyramid whose
+    /// upper levels a configuration skips): not allocated.
+    Unused(ImageDesc),
     Imported(Arc<Image>),
     External {
         desc: ImageDesc,
@@ -215,12 +218,24 @@ impl GraphBuilder {
                 }
             }
         }
+        let mut used = vec![false; self.images.len()];
+        for pass in &self.passes {
+            for (sub, _) in &pass.uses {
+                if let Subresource::Image { id, .. } = sub {
+                    used[id.0 as usize] = true;
+                }
+            }
+        }
         let images = self
             .images
             .into_iter()
             .zip(image_usage)
-            .map(|(r, usage)| {
+            .zip(used)
+            .map(|((r, usage), used)| {
                 let slot = match r.source {
+                    ImageSource::Transient(d) | ImageSource::History(d) if !used => {
+                        ImageSlot::Unused(d)
+                    }
                     ImageSource::Transient(d) | ImageSource::History(d) => {
                         ImageSlot::Owned(Image::new(ctx, &r.name, ImageDesc { usage, ..d })?)
                     }
@@ -327,6 +342,7 @@ impl CompiledGraph {
             ImageSlot::Owned(i) => i.raw,
             ImageSlot::Imported(i) => i.raw,
             ImageSlot::External { raw, .. } => *raw,
+            ImageSlot::Unused(_) => vk::Image::null(),
         }
     }
 
@@ -334,7 +350,7 @@ impl CompiledGraph {
         match self.image_slot(id) {
             ImageSlot::Owned(i) => i.desc,
             ImageSlot::Imported(i) => i.desc,
-            ImageSlot::External { desc, .. } => *desc,
+            ImageSlot::External { desc, .. } | ImageSlot::Unused(desc) => *desc,
         }
     }
 
@@ -346,6 +362,7 @@ impl CompiledGraph {
             ImageSlot::External { view, .. } => Some(*view),
             ImageSlot::Owned(i) => pick_view(i.view, &i.mip_views, levels, base, count),
             ImageSlot::Imported(i) => pick_view(i.view, &i.mip_views, levels, base, count),
+            ImageSlot::Unused(_) => None,
         }
         .or_else(|| self.range_views.get(&(id, base, count)).copied())
         .unwrap_or_else(|| {

@@ -6,6 +6,7 @@ pub mod compute;
 mod ewa;
 mod mesh;
 mod points;
+pub mod pyramid;
 mod splat;
 
 use std::collections::BTreeMap;
@@ -128,6 +129,7 @@ pub static METHODS: &[MethodInfo] = &[
     splat::AFFINE_PHONG_INFO,
     splat::PERSPECTIVE_PHONG_INFO,
     ewa::INFO,
+    pyramid::INFO,
 ];
 
 /// Looks a method up by name.

@@ -71,7 +71,7 @@ pub(crate) fn storage(binding: u32) -> Binding {
     )
 }
 
-fn storage_image(binding: u32) -> Binding {
+pub(crate) fn storage_image(binding: u32) -> Binding {
     Binding::new(
         binding,
         vk::DescriptorType::STORAGE_IMAGE,
@@ -89,8 +89,14 @@ pub struct Projection {
     pub accum: BufferId,
 }
 
-/// Declares clear, visibility (and accumulation) passes of `b`'s point streams.
-pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Result<Projection> {
+/// Declares clear, visibility (and accumulation) passes of `b`'s point streams; `cull` skips
+/// points whose normal faces away from the eye (when the scene has normals).
+pub fn project(
+    b: &mut BuildContext<'_>,
+    prefix: &str,
+    high_quality: bool,
+    cull: bool,
+) -> Result<Projection> {
     let pixels = u64::from(b.width) * u64::from(b.height);
     let quantized = u32::from(b.config.get("quantized") >= 0.5);
     let tolerance = if high_quality {
@@ -121,7 +127,7 @@ pub fn project(b: &mut BuildContext<'_>, prefix: &str, high_quality: bool) -> Re
             b.ctx,
             "compute/raster.comp",
             &bindings,
-            &[(0, mode), (1, quantized)],
+            &[(0, mode), (1, quantized), (2, u32::from(cull))],
         )
         .map(Arc::new)
     };
@@ -193,7 +199,7 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
     } else {
         "compute"
     };
-    let projection = project(b, prefix, high_quality)?;
+    let projection = project(b, prefix, high_quality, false)?;
     let resolve = resolve_pipeline(b, "compute/resolve.comp", &[(0, u32::from(high_quality))])?;
     add_resolve(
         b,

@@ -1,0 +1,33 @@
+#version 460
+// Level 0 of the pyramid through the hardware point pipeline (000 4.2.1, the thesis' own
+// path): one 1-pixel point per point, nearest depth wins by the depth test, back-facing
+// points culled by their normal (`CULL`), the texel written through three render targets.
+#include "streams.glsl"
+#include "pyramid.glsl"
+
+layout(constant_id = PYRAMID_SPEC_CULL) const bool CULL = true;
+
+layout(location = 0) flat out vec4 v_a;
+layout(location = 1) flat out vec4 v_b;
+layout(location = 2) flat out vec4 v_c;
+
+void main() {
+    uint i = uint(gl_VertexIndex);
+    vec3 p = (frame.u.view * vec4(stream_position(i), 1.0)).xyz;
+    vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
+    gl_Position = frame.u.proj * vec4(p, 1.0);
+    gl_PointSize = 1.0;
+    if (dot(n, p) > 0.0) {
+        // Back-facing: moved outside the clip volume (discarded) when culling, else turned
+        // to face the camera.
+        if (CULL && (frame.u.flags & FLAG_HAS_NORMALS) != 0u) {
+            gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+        }
+        n = -n;
+    }
+    float r = stream_radius(i) * pyr.radius_scale;
+    float depth = -p.z;
+    v_a = vec4(n, r * 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]) / depth);
+    v_b = vec4(depth, r, 0.0, 0.0);
+    v_c = vec4(COLOR ? stream_albedo(i) : vec3(0.0), float(PRIMITIVE_POINT));
+}

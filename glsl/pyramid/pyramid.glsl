@@ -1,0 +1,61 @@
+// The pyramid point renderer (000 ch. 4): a level's texels and their ellipses.
+//
+// A texel lives in three storage images (000 Fig. 4.14): A = (normal.xyz, projected radius),
+// B = (linear depth, depth-interval half range, displacement vector.xy), C = (linear albedo,
+// primitive id). Radii and displacements are in level-0 pixels at every level, so a texel's
+// ellipse is one object whatever level holds it; its centre is the texel's pixel centre
+// (scaled to level 0) plus the displacement (000 Fig. 4.7). A depth of 0 marks an empty texel.
+#ifndef SURFEL_PYRAMID_GLSL
+#define SURFEL_PYRAMID_GLSL
+#include "common.glsl"
+
+// Whether the albedo group C is interpolated (`color` parameter); otherwise shading uses the
+// frame's base color and the C bindings are never touched.
+layout(constant_id = PYRAMID_SPEC_COLOR) const bool COLOR = true;
+
+layout(push_constant) uniform Push { PyramidParams pyr; };
+
+struct Texel {
+    vec3 n;           // view-space unit normal, facing the camera
+    float radius;     // projected radius in level-0 pixels
+    float depth;      // linear view depth; 0: empty
+    float half_range; // half range of the depth interval, in view units (the splat's radius)
+    vec2 disp;        // ellipse centre minus the texel's pixel centre, in level-0 pixels
+    vec4 color;       // linear albedo, primitive id
+};
+
+Texel empty_texel() {
+    return Texel(vec3(0.0), 0.0, 0.0, 0.0, vec2(0.0), vec4(0.0));
+}
+
+// Centre of pixel `q` of `level`, in level-0 pixels.
+vec2 pixel_centre(ivec2 q, uint level) {
+    return (vec2(q) + 0.5) * float(1u << level);
+}
+
+// Whether the depth intervals of two texels overlap (the occlusion test of 4.2.2).
+bool overlaps(Texel a, Texel b) {
+    return abs(a.depth - b.depth) <= a.half_range + b.half_range;
+}
+
+// Squared elliptical distance of `x` (level-0 pixels) from the ellipse of texel `t` centred at
+// `c` (000 Fig. 4.6): the major axis, of half-length `radius`, is perpendicular to the projected
+// normal; the minor axis, along it, has half-length radius * |n_z|. 1 on the rim.
+float ellipse_distance2(Texel t, vec2 c, vec2 x) {
+    vec2 d = x - c;
+    float a = max(t.radius, 1e-6);
+    float b = max(a * abs(t.n.z), 1e-3 * a);
+    // The projected normal in pixel space: view x and y scale by proj[0][0] w / 2 and
+    // proj[1][1] h / 2 (the sign of proj[1][1] carries the image's y direction).
+    vec2 m = vec2(t.n.x * frame.u.proj[0][0] * frame.u.viewport.x,
+                  t.n.y * frame.u.proj[1][1] * frame.u.viewport.y);
+    float len = length(m);
+    if (len < 1e-6) {
+        return dot(d, d) / (a * a);
+    }
+    m /= len;
+    float u = dot(d, m);
+    float v = d.x * m.y - d.y * m.x;
+    return (u * u) / (b * b) + (v * v) / (a * a);
+}
+#endif

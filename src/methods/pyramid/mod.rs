@@ -1,0 +1,551 @@
+//! The pyramid point renderer (Marroquim 2008, ch. 4; `glsl/pyramid/`): points projected to
+//! one pixel each, holes filled by an analysis/synthesis image pyramid of elliptical splats,
+//! lit once per pixel.
+//!
+//! * Level 0 (000 4.2.1): the compute projection (`compute::project` with back-face culling:
+//!   nearest point per pixel by 64-bit `atomicMin`), then `pyramid.level0` fetches the
+//!   winners' attributes into the texel groups of Fig. 4.14: A = (normal, projected radius),
+//!   B = (depth, depth-interval half range, displacement vector), C = (albedo, primitive id).
+//!   `projection=1` draws them with the hardware point pipeline into three render targets
+//!   instead (`pyramid.project-hw`), the thesis' own path, for measuring the two side by side.
+//! * Analysis (4.2.2): one compute pass per level, bottom-up (`pyramid.analysis.L`).
+//! * Synthesis (4.2.2): one compute pass per level, top-down (`pyramid.synthesis.L`).
+//! * `pyramid.shade`: deferred Phong on the reconstructed normals with every light (4.2.3).
+//!
+//! Layouts (4.2.4, `layout` parameter): the thesis' ping-pong pair (0): each group lives in two
+//! images with full mip chains, analysis writes level l into image l mod 2 reading level l - 1
+//! from the other, a copy pass (`pyramid.copy`) gives the image that synthesis starts from the
+//! top level it lacks, and synthesis of level l reads levels l + 1 and l from image l mod 2
+//! and writes level l into the other, so no pass reads the image level it writes. Or a single
+//! image per group (1), which Vulkan allows because barriers and views are per mip: analysis
+//! reads level l - 1 and writes level l of the same image, synthesis updates level l in place
+//! (each texel reads and writes only itself there); no copy.
+//!
+//! Radii and displacement vectors are kept in level-0 pixels at every level (the thesis keeps
+//! them per level; the ellipse tests are the same). Levels halve with the Vulkan mip rule
+//! (rounding down); where a level has an odd size its last parent row/column averages three
+//! children. Deviation: the thesis gives no Gaussian width for the synthesis weights; here
+//! w = exp(-falloff d²) with d the elliptical distance (1 on the rim) and `falloff` = 2 by
+//! default, the splatting family's kernel.
+
+pub mod reference;
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use ash::vk;
+
+use super::compute::{project, storage, storage_image};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+use crate::gpu::layout::{
+    PyramidParams, BINDING_FRAME, BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
+    BINDING_PYRAMID_PARENT, BINDING_SEGMENTS, BINDING_VISIBILITY, PYRAMID_GROUP,
+    PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL,
+};
+use crate::gpu::{Binding, Blend, Context, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, Stages};
+
+/// Group A: normal.xyz, projected radius (level-0 pixels).
+pub const FORMAT_A: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// Group B: linear depth, depth-interval half range, displacement vector (level-0 pixels).
+pub const FORMAT_B: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+/// Group C: linear albedo, primitive id.
+pub const FORMAT_C: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+
+pub const INFO: MethodInfo = MethodInfo {
+    name: "pyramid",
+    summary: "pyramid point renderer: one pixel per point, holes filled by an analysis/synthesis \
+              pyramid of ellipses, deferred Phong (000 ch. 4)",
+    params: &[
+        ParamSpec {
+            name: "radius",
+            default: 1.0,
+            min: 0.05,
+            max: 20.0,
+            doc: "scale of the per-point radii",
+        },
+        ParamSpec {
+            name: "projection",
+            default: 0.0,
+            min: 0.0,
+            max: 1.0,
+            doc: "level 0 by 0: the compute projection (atomicMin), 1: the hardware point \
+                  pipeline",
+        },
+        ParamSpec {
+            name: "layout",
+            default: 0.0,
+            min: 0.0,
+            max: 1.0,
+            doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per \
+                  group with per-mip barriers",
+        },
+        ParamSpec {
+            name: "color",
+            default: 1.0,
+            min: 0.0,
+            max: 1.0,
+            doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
+        },
+        ParamSpec {
+            name: "cull",
+            default: 1.0,
+            min: 0.0,
+            max: 1.0,
+            doc: "back-face culling by normal in the projection",
+        },
+        ParamSpec {
+            name: "falloff",
+            default: 2.0,
+            min: 0.0,
+            max: 16.0,
+            doc: "synthesis weight exp(-falloff d²), d the elliptical distance to a centre",
+        },
+        ParamSpec {
+            name: "show",
+            default: -1.0,
+            min: -1.0,
+            max: 15.0,
+            doc: "-1: the reconstruction; N: level N of the analysis magnified, without \
+                  synthesis (0: the raw projection)",
+        },
+    ],
+    needs_faces: false,
+    features: &[Feature::Int64Atomics],
+    culls_batches: true,
+    build,
+};
+
+/// Levels of a pyramid over a `width` x `height` base down to 1 x 1.
+pub fn level_count(width: u32, height: u32) -> u32 {
+    32 - width.max(height).max(1).leading_zeros()
+}
+
+/// One set of the three attribute groups, each an image with a mip chain.
+#[derive(Clone, Copy, Debug)]
+pub struct Group {
+    pub a: ImageId,
+    pub b: ImageId,
+    /// The albedo group (`None` without colors: the shaders' C bindings then alias A, which
+    /// they never touch under `COLOR = false`).
+    pub c: Option<ImageId>,
+}
+
+impl Group {
+    pub fn images(&self) -> impl Iterator<Item = ImageId> {
+        [Some(self.a), Some(self.b), self.c].into_iter().flatten()
+    }
+
+    /// The three descriptors of mip `mip` at bindings `base`, `base + 1`, `base + 2`.
+    fn descriptors(&self, base: u32, mip: u32) -> [Descriptor; 3] {
+        [
+            Descriptor::StorageImage(base, self.a, mip),
+            Descriptor::StorageImage(base + 1, self.b, mip),
+            Descriptor::StorageImage(base + 2, self.c.unwrap_or(self.a), mip),
+        ]
+    }
+}
+
+fn group_bindings(base: u32) -> [Binding; 3] {
+    [
+        storage_image(base),
+        storage_image(base + 1),
+        storage_image(base + 2),
+    ]
+}
+
+/// The specialization constants of the pyramid shaders.
+pub fn specialization(color: bool, cull: bool) -> [(u32, u32); 2] {
+    [
+        (PYRAMID_SPEC_COLOR, u32::from(color)),
+        (PYRAMID_SPEC_CULL, u32::from(cull)),
+    ]
+}
+
+/// A pyramid's images and the passes that reconstruct its level 0; usable on any graph (the
+/// tests feed it synthetic level-0 texels).
+pub struct Pyramid {
+    /// The two image sets of the ping-pong layout (the same set twice for one image).
+    pair: [Group; 2],
+    pub levels: u32,
+    pub width: u32,
+    pub height: u32,
+    pub single: bool,
+    pub color: bool,
+}
+
+impl Pyramid {
+    /// Declares the images of a `width` x `height` pyramid named `name`.
+    pub fn new(
+        graph: &mut GraphBuilder,
+        name: &str,
+        (width, height): (u32, u32),
+        color: bool,
+        single: bool,
+    ) -> Self {
+        let levels = level_count(width, height);
+        // Usage flags follow from the declared accesses.
+        let desc = |format| ImageDesc {
+            format,
+            width,
+            height,
+            mip_levels: levels,
+            usage: vk::ImageUsageFlags::empty(),
+        };
+        let mut group = |set: &str| Group {
+            a: graph.image(&format!("{name}.{set}.a"), desc(FORMAT_A)),
+            b: graph.image(&format!("{name}.{set}.b"), desc(FORMAT_B)),
+            c: color.then(|| graph.image(&format!("{name}.{set}.c"), desc(FORMAT_C))),
+        };
+        let first = group("t0");
+        let pair = [first, if single { first } else { group("t1") }];
+        Self {
+            pair,
+            levels,
+            width,
+            height,
+            single,
+            color,
+        }
+    }
+
+    /// The group analysis writes level `level` into (level 0: the projection's target).
+    pub fn holder(&self, level: u32) -> Group {
+        self.pair[(level % 2) as usize]
+    }
+
+    fn groups(&self, level: u32) -> (u32, u32) {
+        (
+            (self.width >> level).max(1).div_ceil(PYRAMID_GROUP),
+            (self.height >> level).max(1).div_ceil(PYRAMID_GROUP),
+        )
+    }
+
+    /// Declares the analysis passes of levels 1..=`top`, bottom-up.
+    pub fn add_analysis(
+        &self,
+        ctx: &Arc<Context>,
+        graph: &mut GraphBuilder,
+        frame: BufferId,
+        params: PyramidParams,
+        top: u32,
+    ) -> Result<()> {
+        let compute = Stages::Compute;
+        let mut bindings = vec![storage(BINDING_FRAME)];
+        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
+        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let analysis = Arc::new(Pipeline::compute_specialized(
+            ctx,
+            "pyramid/analysis.comp",
+            &bindings,
+            &specialization(self.color, false),
+        )?);
+        for level in 1..=top.min(self.levels - 1) {
+            let (src, dst) = (self.holder(level - 1), self.holder(level));
+            let mut pass = graph
+                .pass(&format!("pyramid.analysis.{level}"))
+                .buffer(frame, Access::UniformRead(compute));
+            for image in src.images() {
+                pass = pass.image_mips(image, level - 1, 1, Access::StorageRead(compute));
+            }
+            for image in dst.images() {
+                pass = pass.image_mips(image, level, 1, Access::StorageWrite(compute));
+            }
+            let (input, out) = (
+                src.descriptors(BINDING_PYRAMID_LEVEL, level - 1),
+                dst.descriptors(BINDING_PYRAMID_OUT, level),
+            );
+            let (gx, gy) = self.groups(level);
+            let pipeline = analysis.clone();
+            let push = PyramidParams { level, ..params };
+            pass.record(move |ctx| {
+                let d = [
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    input[0],
+                    input[1],
+                    input[2],
+                    out[0],
+                    out[1],
+                    out[2],
+                ];
+                ctx.bind(&pipeline, &d);
+                ctx.push(&pipeline, bytemuck::bytes_of(&push));
+                ctx.dispatch(gx, gy, 1);
+            });
+        }
+        Ok(())
+    }
+
+    /// Declares the copy (ping-pong layout) and synthesis passes after a full analysis;
+    /// returns the group holding the reconstructed level 0.
+    pub fn add_synthesis(
+        &self,
+        ctx: &Arc<Context>,
+        graph: &mut GraphBuilder,
+        frame: BufferId,
+        params: PyramidParams,
+    ) -> Result<Group> {
+        let compute = Stages::Compute;
+        if self.levels < 2 {
+            return Ok(self.holder(0));
+        }
+        let mut bindings = vec![storage(BINDING_FRAME)];
+        bindings.extend(group_bindings(BINDING_PYRAMID_PARENT));
+        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
+        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let synthesis = Arc::new(Pipeline::compute_specialized(
+            ctx,
+            "pyramid/synthesis.comp",
+            &bindings,
+            &specialization(self.color, false),
+        )?);
+        // Synthesis of level l reads image l mod 2; the first one (l = levels - 2) needs the
+        // top level, which analysis wrote into the other image: the copy pass (Fig. 4.13).
+        let top = self.levels - 1;
+        if !self.single {
+            let (src, dst) = (self.holder(top), self.holder(top + 1));
+            let mut pass = graph.pass("pyramid.copy");
+            for (s, d) in src.images().zip(dst.images()) {
+                pass = pass
+                    .image_mips(s, top, 1, Access::TransferSrc)
+                    .image_mips(d, top, 1, Access::TransferDst);
+            }
+            pass.record(move |ctx| {
+                for (s, d) in src.images().zip(dst.images()) {
+                    ctx.copy_mip(s, d, top);
+                }
+            });
+        }
+        let mut result = self.holder(0);
+        for level in (0..top).rev() {
+            let read = self.holder(level);
+            let write = self.holder(level + 1 - u32::from(self.single));
+            let mut pass = graph
+                .pass(&format!("pyramid.synthesis.{level}"))
+                .buffer(frame, Access::UniformRead(compute));
+            for image in read.images() {
+                pass = pass.image_mips(image, level + 1, 1, Access::StorageRead(compute));
+                if !self.single {
+                    pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
+                }
+            }
+            for image in write.images() {
+                let access = if self.single {
+                    Access::StorageReadWrite(compute)
+                } else {
+                    Access::StorageWrite(compute)
+                };
+                pass = pass.image_mips(image, level, 1, access);
+            }
+            let parent = read.descriptors(BINDING_PYRAMID_PARENT, level + 1);
+            let input = read.descriptors(BINDING_PYRAMID_LEVEL, level);
+            let out = write.descriptors(BINDING_PYRAMID_OUT, level);
+            let (gx, gy) = self.groups(level);
+            let pipeline = synthesis.clone();
+            let push = PyramidParams { level, ..params };
+            pass.record(move |ctx| {
+                let d = [
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    parent[0],
+                    parent[1],
+                    parent[2],
+                    input[0],
+                    input[1],
+                    input[2],
+                    out[0],
+                    out[1],
+                    out[2],
+                ];
+                ctx.bind(&pipeline, &d);
+                ctx.push(&pipeline, bytemuck::bytes_of(&push));
+                ctx.dispatch(gx, gy, 1);
+            });
+            result = write;
+        }
+        Ok(result)
+    }
+}
+
+fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    let color = b.config.get("color") >= 0.5;
+    let hardware = b.config.get("projection") >= 0.5;
+    let single = b.config.get("layout") >= 0.5;
+    let cull = b.config.get("cull") >= 0.5;
+    let show = b.config.get("show").round();
+    let pyramid = Pyramid::new(b.graph, "pyramid", (b.width, b.height), color, single);
+    let params = PyramidParams {
+        level: 0,
+        level_count: pyramid.levels,
+        radius_scale: b.config.get("radius"),
+        falloff: b.config.get("falloff"),
+    };
+    let spec = specialization(color, cull);
+    let compute = Stages::Compute;
+    let frame = b.frame;
+    let first = pyramid.holder(0);
+    let (gx, gy) = pyramid.groups(0);
+
+    // Level 0.
+    if hardware {
+        project_hardware(b, first, &spec, params)?;
+    } else {
+        let projection = project(b, "pyramid", false, cull)?;
+        let mut bindings = vec![
+            storage(BINDING_FRAME),
+            storage(BINDING_SEGMENTS),
+            storage(BINDING_VISIBILITY),
+        ];
+        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let pipeline = Arc::new(Pipeline::compute_specialized(
+            b.ctx,
+            "pyramid/level0.comp",
+            &bindings,
+            &spec,
+        )?);
+        let (segments, visibility) = (b.segments, projection.visibility);
+        let mut pass = b
+            .graph
+            .pass("pyramid.level0")
+            .buffer(frame, Access::UniformRead(compute))
+            .buffer(segments, Access::StorageRead(compute))
+            .buffer(visibility, Access::StorageRead(compute));
+        for image in first.images() {
+            pass = pass.image_mips(image, 0, 1, Access::StorageWrite(compute));
+        }
+        let out = first.descriptors(BINDING_PYRAMID_OUT, 0);
+        pass.record(move |ctx| {
+            let d = [
+                Descriptor::Buffer(BINDING_FRAME, frame),
+                Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+                out[0],
+                out[1],
+                out[2],
+            ];
+            ctx.bind(&pipeline, &d);
+            ctx.push(&pipeline, bytemuck::bytes_of(&params));
+            ctx.dispatch(gx, gy, 1);
+        });
+    }
+
+    // Analysis and synthesis, or the level shown without synthesis.
+    let shown = (show >= 0.0).then(|| (show as u32).min(pyramid.levels - 1));
+    let top = shown.unwrap_or(pyramid.levels - 1);
+    pyramid.add_analysis(b.ctx, b.graph, frame, params, top)?;
+    let (source, level) = match shown {
+        Some(level) => (pyramid.holder(level), level),
+        None => (pyramid.add_synthesis(b.ctx, b.graph, frame, params)?, 0),
+    };
+
+    // Deferred shading into the standard targets.
+    let mut bindings = vec![storage(BINDING_FRAME)];
+    bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
+    bindings.extend(group_bindings(BINDING_OUTPUT0));
+    let shade = Arc::new(Pipeline::compute_specialized(
+        b.ctx,
+        "pyramid/shade.comp",
+        &bindings,
+        &spec,
+    )?);
+    let t = b.targets;
+    let mut pass = b
+        .graph
+        .pass("pyramid.shade")
+        .buffer(frame, Access::UniformRead(compute));
+    for image in source.images() {
+        pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
+    }
+    let input = source.descriptors(BINDING_PYRAMID_LEVEL, level);
+    let push = PyramidParams { level, ..params };
+    pass.image(t.color, Access::StorageWrite(compute))
+        .image(t.depth, Access::StorageWrite(compute))
+        .image(t.normal, Access::StorageWrite(compute))
+        .record(move |ctx| {
+            let d = [
+                Descriptor::Buffer(BINDING_FRAME, frame),
+                input[0],
+                input[1],
+                input[2],
+                Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
+                Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
+                Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
+            ];
+            ctx.bind(&shade, &d);
+            ctx.push(&shade, bytemuck::bytes_of(&push));
+            ctx.dispatch(gx, gy, 1);
+        });
+    Ok(())
+}
+
+/// Level 0 through the hardware point pipeline: three render targets and a depth buffer.
+fn project_hardware(
+    b: &mut BuildContext<'_>,
+    level0: Group,
+    spec: &[(u32, u32)],
+    params: PyramidParams,
+) -> Result<()> {
+    let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+    let pipeline = Arc::new(Pipeline::graphics(
+        b.ctx,
+        &GraphicsDesc {
+            shaders: &["pyramid/project.vert", "pyramid/project.frag"],
+            bindings: &[
+                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
+                Binding::new(
+                    BINDING_SEGMENTS,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vk::ShaderStageFlags::VERTEX,
+                ),
+            ],
+            color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
+            blends: &[Blend::Replace; 3],
+            depth_format: Some(ZBUFFER_FORMAT),
+            depth_test: true,
+            depth_write: true,
+            depth_compare: vk::CompareOp::GREATER,
+            topology: vk::PrimitiveTopology::POINT_LIST,
+            cull: vk::CullModeFlags::NONE,
+            specialization: spec,
+        },
+    )?);
+    let desc = |format, usage| ImageDesc {
+        format,
+        width: b.width,
+        height: b.height,
+        mip_levels: 1,
+        usage,
+    };
+    let zbuffer = b.graph.image(
+        "pyramid.zbuffer",
+        desc(ZBUFFER_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT),
+    );
+    // The fragment shader always writes the albedo target; without colors nothing reads it.
+    let albedo = match level0.c {
+        Some(c) => c,
+        None => b
+            .graph
+            .image("pyramid.hw-albedo", desc(FORMAT_C, vk::ImageUsageFlags::empty())),
+    };
+    let (frame, segments) = (b.frame, b.segments);
+    let count = b.scene.point_count;
+    b.graph
+        .pass("pyramid.project-hw")
+        .buffer(frame, Access::UniformRead(Stages::Graphics))
+        .buffer(segments, Access::StorageRead(Stages::Vertex))
+        .color_mip(level0.a, 0, Load::Clear([0.0; 4]))
+        .color_mip(level0.b, 0, Load::Clear([0.0; 4]))
+        .color_mip(albedo, 0, Load::Clear([0.0; 4]))
+        .depth(zbuffer, Load::Clear([0.0; 4]))
+        .record(move |ctx| {
+            ctx.bind(
+                &pipeline,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                ],
+            );
+            ctx.push(&pipeline, bytemuck::bytes_of(&params));
+            ctx.draw(count, 1);
+        });
+    Ok(())
+}
