@@ -13,9 +13,10 @@ use crate::methods::{MethodConfig, METHODS};
 use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
 use crate::render::{upload_colored, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose, Up};
+use crate::scene::compose::{self, SceneInput};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
-use crate::scene::{load_prepared, Light, LoadOptions};
+use crate::scene::{load_prepared, Cloud, Light, LoadOptions};
 
 /// surfel: a Vulkan point-cloud renderer.
 #[derive(Parser, Debug)]
@@ -296,6 +297,8 @@ pub struct ViewSettings {
     pub post: PostOptions,
     /// The field to color by, `None` for the default (`color::default_field`).
     pub color_by: Option<String>,
+    /// The scene file's extra inputs (hybrid scenes).
+    pub inputs: Vec<SceneInput>,
 }
 
 impl ViewSettings {
@@ -358,7 +361,25 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
                 .unwrap_or(Background::DEFAULT),
         },
         color_by: cam.color_by.clone().or(file.color_by),
+        inputs: file.inputs,
     })
+}
+
+/// Loads `file` and merges the scene's extra inputs into it (`scene::compose`).
+pub fn load_scene(file: &Path, settings: &ViewSettings, options: &LoadOptions) -> Result<Cloud> {
+    let mut cloud = load_prepared(file, options)?;
+    for input in &settings.inputs {
+        let name = input.path.display().to_string();
+        let mut other =
+            compose::with_role(load_prepared(&input.path, options)?, input.role, &name)?;
+        compose::transform(
+            &mut other,
+            input.scale.unwrap_or(1.0),
+            input.translate.map_or(glam::Vec3::ZERO, glam::Vec3::from),
+        );
+        compose::append(&mut cloud, other).with_context(|| name.clone())?;
+    }
+    Ok(cloud)
 }
 
 fn context(validation: bool) -> Result<Arc<Context>> {
@@ -417,7 +438,7 @@ fn render(a: RenderArgs) -> Result<()> {
         lap = now;
         s
     };
-    let cloud = load_prepared(&file, &a.input.options())?;
+    let cloud = load_scene(&file, &settings, &a.input.options())?;
     let coloring = settings.coloring(&file, &cloud)?;
     let load_s = since();
     let ctx = context(a.validation)?;
@@ -541,7 +562,7 @@ fn view(a: ViewArgs) -> Result<()> {
             bail!("{}: the screenshot directory does not exist", dir.display());
         }
     }
-    let cloud = load_prepared(&a.file, &a.input.options())?;
+    let cloud = load_scene(&a.file, &settings, &a.input.options())?;
     let coloring = settings.coloring(&a.file, &cloud)?;
     let color_by = settings
         .color_by

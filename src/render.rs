@@ -76,7 +76,7 @@ pub fn upload_with(
     let layout =
         StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
     let streams = upload::upload(ctx, cloud, &layout, options)?;
-    let (indices, index_count) = match &cloud.faces {
+    let (indices, face_vertices, index_count) = match &cloud.faces {
         Some(f) if !f.is_empty() => {
             let inverse = layout.inverse();
             let remapped: Vec<[u32; 3]> = f
@@ -84,6 +84,10 @@ pub fn upload_with(
                 .map(|t| t.map(|i| inverse.get(i as usize).copied().unwrap_or(0)))
                 .collect();
             let count = u32::try_from(remapped.len() * 3).context("more than 4G indices")?;
+            let mut mask = vec![0u32; cloud.len().div_ceil(32).max(1)];
+            for &i in remapped.iter().flatten() {
+                mask[(i / 32) as usize] |= 1 << (i % 32);
+            }
             (
                 Some(Arc::new(Buffer::with_data(
                     ctx,
@@ -91,16 +95,23 @@ pub fn upload_with(
                     bytemuck::cast_slice(&remapped),
                     vk::BufferUsageFlags::INDEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER,
                 )?)),
+                Some(Arc::new(Buffer::with_data(
+                    ctx,
+                    "face-vertices",
+                    bytemuck::cast_slice(&mask),
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                )?)),
                 count,
             )
         }
-        _ => (None, 0),
+        _ => (None, None, 0),
     };
     let point_count = streams.point_count;
     Ok((
         GpuScene {
             streams,
             indices,
+            face_vertices,
             point_count,
             index_count,
         },

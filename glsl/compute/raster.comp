@@ -21,10 +21,15 @@ layout(constant_id = 1) const bool QUANTIZED = true;
 // Back-face culling by normal (the pyramid's projection, 000 4.2.1): reads the normal stream
 // (4 more bytes per point) and skips points whose normal faces away from the eye.
 layout(constant_id = 2) const bool CULL = false;
+// Hybrid scenes: skip the points a face references (drawn as triangles), one bit per point.
+layout(constant_id = 3) const bool SKIP_FACE_VERTICES = false;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };
 layout(std430, set = 0, binding = BINDING_ACCUM) buffer Accum { uint accum[]; };
+layout(std430, set = 0, binding = BINDING_FACE_VERTICES) readonly buffer FaceVertices {
+    uint face_vertex[];
+};
 
 layout(push_constant) uniform Push { float tolerance; } pc;
 
@@ -106,6 +111,9 @@ void main() {
         vec2 corner = round((win - 0.5) * 256.0) / 256.0;
         ivec2 px = ivec2(ceil(corner - 0.5));
         if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, size))) {
+            continue;
+        }
+        if (SKIP_FACE_VERTICES && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) {
             continue;
         }
         if (CULL && (frame.u.flags & FLAG_HAS_NORMALS) != 0u) {

@@ -9,6 +9,10 @@
 
 layout(local_size_x = PYRAMID_GROUP, local_size_y = PYRAMID_GROUP) in;
 
+// Hybrid scenes (000 5.2): level 0 already holds the rasterized triangles (bound as the level
+// read, the same image level as the output); the point wins only where it is nearer.
+layout(constant_id = PYRAMID_SPEC_HYBRID) const bool HYBRID = false;
+
 layout(std430, set = 0, binding = BINDING_VISIBILITY) readonly buffer Visibility {
     uint64_t keys[];
 };
@@ -20,8 +24,9 @@ void main() {
         return;
     }
     uint64_t key = keys[uint(px.y) * uint(size.x) + uint(px.x)];
+    Texel triangle = HYBRID ? load_level(px) : empty_texel();
     if (key == ~0ul) {
-        store_out(px, empty_texel());
+        store_out(px, triangle);
         return;
     }
     uint i = uint(key & 0xffffffffu);
@@ -31,6 +36,10 @@ void main() {
     n = dot(n, p) > 0.0 ? -n : n;
     float r = stream_radius(i) * pyr.radius_scale;
     float depth = -p.z;
+    if (triangle.depth > 0.0 && triangle.depth <= depth) {
+        store_out(px, triangle);
+        return;
+    }
     Texel t;
     t.n = n;
     t.radius = r * 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]) / depth;

@@ -1,15 +1,22 @@
 #version 460
 // Level 0 of the pyramid through the hardware point pipeline (000 4.2.1, the thesis' own
 // path): one 1-pixel point per point, nearest depth wins by the depth test, back-facing
-// points culled by their normal (`CULL`), the texel written through three render targets.
+// points culled by their normal (`CULL`), the texel written through three render targets
+// (project.frag). In hybrid scenes the triangles were drawn first into the same targets.
 #include "streams.glsl"
 #include "pyramid.glsl"
 
 layout(constant_id = PYRAMID_SPEC_CULL) const bool CULL = true;
 
-layout(location = 0) flat out vec4 v_a;
-layout(location = 1) flat out vec4 v_b;
-layout(location = 2) flat out vec4 v_c;
+layout(constant_id = PYRAMID_SPEC_HYBRID) const bool HYBRID = false;
+
+layout(std430, set = 0, binding = BINDING_FACE_VERTICES) readonly buffer FaceVertices {
+    uint face_vertex[];
+};
+
+layout(location = 0) out vec4 v_a;
+layout(location = 1) out vec4 v_b;
+layout(location = 2) out vec4 v_c;
 
 void main() {
     uint i = uint(gl_VertexIndex);
@@ -17,6 +24,10 @@ void main() {
     vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
     gl_Position = frame.u.proj * vec4(p, 1.0);
     gl_PointSize = 1.0;
+    // Hybrid scenes: a face's vertex is drawn as part of its triangles, not as a point.
+    if (HYBRID && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) {
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    }
     if (dot(n, p) > 0.0) {
         // Back-facing: moved outside the clip volume (discarded) when culling, else turned
         // to face the camera.

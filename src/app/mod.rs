@@ -284,6 +284,7 @@ pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Re
         edl: None,
         background: None,
         color_by: None,
+        inputs: Vec::new(),
     }
     .save(path)
 }

@@ -139,7 +139,10 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // Specialization constant ids of the pyramid shaders and the primitive ids of group C.
     ("PYRAMID_SPEC_COLOR", 0),
     ("PYRAMID_SPEC_CULL", 1),
-    ("PYRAMID_SPEC_IN_PLACE", 2),
+    // Hybrid scenes (000 5.2): level 0 holds rasterized triangles, then the points that are no
+    // face's vertex (BINDING_FACE_VERTICES: one bit per point) where they are nearer.
+    ("PYRAMID_SPEC_HYBRID", 2),
+    ("BINDING_FACE_VERTICES", 15),
     ("PRIMITIVE_POINT", 0),
     ("PRIMITIVE_RIBBON", 1),
     ("PRIMITIVE_TUBE", 2),

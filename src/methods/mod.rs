@@ -130,6 +130,7 @@ pub static METHODS: &[MethodInfo] = &[
     splat::PERSPECTIVE_PHONG_INFO,
     ewa::INFO,
     pyramid::INFO,
+    pyramid::HYBRID_INFO,
 ];
 
 /// Looks a method up by name.
@@ -227,6 +228,9 @@ impl MethodConfig {
 pub struct GpuScene {
     pub streams: GpuStreams,
     pub indices: Option<Arc<Buffer>>,
+    /// One bit per point in stream order (32 to a word): set for the vertices a face
+    /// references (hybrid scenes draw those as triangles, the rest as points).
+    pub face_vertices: Option<Arc<Buffer>>,
     pub point_count: u32,
     pub index_count: u32,
 }

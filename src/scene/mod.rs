@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod cloud;
+pub mod compose;
 pub mod copc;
 pub mod e57;
 pub mod error;

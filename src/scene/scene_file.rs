@@ -11,6 +11,11 @@
 //! kind = "static"          # camera | static | orbit
 //! position = [1.0, 2.0, 3.0]
 //! color = [1.0, 0.9, 0.8]
+//! [[inputs]]               # more inputs beside the command line's file (`scene::compose`)
+//! path = "buddha.obj"      # relative to this file
+//! as = "triangles"         # triangles | points (default: triangles when it has faces)
+//! translate = [0.3, 0.0, 0.0]
+//! scale = 0.2
 //! ```
 
 use std::path::Path;
@@ -19,6 +24,7 @@ use anyhow::{bail, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
 use super::camera::{Pose, Up};
+use super::compose::SceneInput;
 use super::lights::Light;
 use crate::post::{Background, Edl};
 
@@ -37,6 +43,9 @@ pub struct SceneFile {
     pub background: Option<Background>,
     /// The field to color by (`--color-by`).
     pub color_by: Option<String>,
+    /// More inputs merged into the scene (hybrid scenes, 000 §5.2).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<SceneInput>,
 }
 
 impl SceneFile {
@@ -44,7 +53,12 @@ impl SceneFile {
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("{}: cannot read scene file", path.display()))?;
-        Self::parse(&text, path)
+        let mut file = Self::parse(&text, path)?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        for input in &mut file.inputs {
+            input.path = dir.join(&input.path);
+        }
+        Ok(file)
     }
 
     /// Parses `text`; `path` names the format and appears in errors.

@@ -17,8 +17,8 @@ use ash::vk;
 
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
-    BINDING_ACCUM, BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS,
-    BINDING_VISIBILITY, RESOLVE_GROUP,
+    BINDING_ACCUM, BINDING_BATCHES, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_OUTPUT0,
+    BINDING_SEGMENTS, BINDING_VISIBILITY, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Pipeline};
 use crate::graph::{Access, BufferId, BufferRange, Descriptor, Stages};
@@ -89,14 +89,28 @@ pub struct Projection {
     pub accum: BufferId,
 }
 
-/// Declares clear, visibility (and accumulation) passes of `b`'s point streams; `cull` skips
-/// points whose normal faces away from the eye (when the scene has normals).
+/// What `project` projects.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ProjectOptions {
+    /// Also the accumulation pass of `compute-hq`.
+    pub high_quality: bool,
+    /// Skip points whose normal faces away from the eye (when the scene has normals).
+    pub cull: bool,
+    /// Skip the points whose bit is set in this buffer (`GpuScene::face_vertices`).
+    pub skip: Option<BufferId>,
+}
+
+/// Declares clear, visibility (and accumulation) passes of `b`'s point streams.
 pub fn project(
     b: &mut BuildContext<'_>,
     prefix: &str,
-    high_quality: bool,
-    cull: bool,
+    options: ProjectOptions,
 ) -> Result<Projection> {
+    let ProjectOptions {
+        high_quality,
+        cull,
+        skip,
+    } = options;
     let pixels = u64::from(b.width) * u64::from(b.height);
     let quantized = u32::from(b.config.get("quantized") >= 0.5);
     let tolerance = if high_quality {
@@ -121,13 +135,19 @@ pub fn project(
         storage(BINDING_BATCHES),
         storage(BINDING_VISIBILITY),
         storage(BINDING_ACCUM),
+        storage(BINDING_FACE_VERTICES),
     ];
     let raster = |mode: u32| {
         Pipeline::compute_specialized(
             b.ctx,
             "compute/raster.comp",
             &bindings,
-            &[(0, mode), (1, quantized), (2, u32::from(cull))],
+            &[
+                (0, mode),
+                (1, quantized),
+                (2, u32::from(cull)),
+                (3, u32::from(skip.is_some())),
+            ],
         )
         .map(Arc::new)
     };
@@ -138,6 +158,9 @@ pub fn project(
         Descriptor::Buffer(BINDING_BATCHES, batches),
         Descriptor::Buffer(BINDING_VISIBILITY, visibility),
         Descriptor::Buffer(BINDING_ACCUM, accum),
+        // Without a mask the shader never reads it (dead code under its specialization, but
+        // statically present): alias it to the visibility buffer every pass declares.
+        Descriptor::Buffer(BINDING_FACE_VERTICES, skip.unwrap_or(visibility)),
     ];
     let compute = Stages::Compute;
     // Empty pixels hold the largest key; the accumulators start at zero.
@@ -164,31 +187,39 @@ pub fn project(
     // but statically present): alias them to the visibility buffer it declares.
     let mut visibility_only = descriptors;
     visibility_only[4] = Descriptor::Buffer(BINDING_ACCUM, visibility);
-    b.graph
+    let mut pass = b
+        .graph
         .pass(&format!("{prefix}.project"))
         .buffer(frame, Access::UniformRead(compute))
         .buffer(segments, Access::StorageRead(compute))
         .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageReadWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(&nearest, &visibility_only);
-            ctx.push(&nearest, &push);
-            ctx.dispatch(gx, gy, 1);
-        });
+        .buffer(visibility, Access::StorageReadWrite(compute));
+    if let Some(mask) = skip {
+        pass = pass.buffer(mask, Access::StorageRead(compute));
+    }
+    pass.record(move |ctx| {
+        ctx.bind(&nearest, &visibility_only);
+        ctx.push(&nearest, &push);
+        ctx.dispatch(gx, gy, 1);
+    });
     if high_quality {
         let blend = raster(1)?;
-        b.graph
+        let mut pass = b
+            .graph
             .pass(&format!("{prefix}.accumulate"))
             .buffer(frame, Access::UniformRead(compute))
             .buffer(segments, Access::StorageRead(compute))
             .buffer(batches, Access::StorageRead(compute))
             .buffer(visibility, Access::StorageRead(compute))
-            .buffer(accum, Access::StorageReadWrite(compute))
-            .record(move |ctx| {
-                ctx.bind(&blend, &descriptors);
-                ctx.push(&blend, &push);
-                ctx.dispatch(gx, gy, 1);
-            });
+            .buffer(accum, Access::StorageReadWrite(compute));
+        if let Some(mask) = skip {
+            pass = pass.buffer(mask, Access::StorageRead(compute));
+        }
+        pass.record(move |ctx| {
+            ctx.bind(&blend, &descriptors);
+            ctx.push(&blend, &push);
+            ctx.dispatch(gx, gy, 1);
+        });
     }
     Ok(Projection { visibility, accum })
 }
@@ -199,7 +230,14 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
     } else {
         "compute"
     };
-    let projection = project(b, prefix, high_quality, false)?;
+    let projection = project(
+        b,
+        prefix,
+        ProjectOptions {
+            high_quality,
+            ..Default::default()
+        },
+    )?;
     let resolve = resolve_pipeline(b, "compute/resolve.comp", &[(0, u32::from(high_quality))])?;
     add_resolve(
         b,

@@ -35,12 +35,12 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use super::compute::{project, storage, storage_image};
+use super::compute::{project, storage, storage_image, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
-    PyramidParams, BINDING_FRAME, BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
-    BINDING_PYRAMID_PARENT, BINDING_SEGMENTS, BINDING_VISIBILITY, PYRAMID_GROUP,
-    PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL,
+    PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL,
+    BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT, BINDING_SEGMENTS, BINDING_VISIBILITY,
+    PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID,
 };
 use crate::gpu::{Binding, Blend, Context, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, Stages};
@@ -59,68 +59,82 @@ pub const FORMAT_B: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 /// Group C: linear albedo, primitive id.
 pub const FORMAT_C: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 
+/// The parameters of `pyramid` and `pyramid-hybrid`.
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "radius",
+        default: RADIUS_SCALE,
+        min: 0.05,
+        max: 20.0,
+        doc: "scale of the per-point radii (default: the thesis' r_k for k = 10)",
+    },
+    ParamSpec {
+        name: "projection",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "level 0 by 0: the compute projection (atomicMin), 1: the hardware point \
+              pipeline",
+    },
+    ParamSpec {
+        name: "layout",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per \
+              group with per-mip barriers",
+    },
+    ParamSpec {
+        name: "color",
+        default: 1.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
+    },
+    ParamSpec {
+        name: "cull",
+        default: 1.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "back-face culling by normal in the projection",
+    },
+    ParamSpec {
+        name: "falloff",
+        default: 2.0,
+        min: 0.0,
+        max: 16.0,
+        doc: "synthesis weight exp(-falloff d²), d the elliptical distance to a centre",
+    },
+    ParamSpec {
+        name: "show",
+        default: -1.0,
+        min: -1.0,
+        max: 15.0,
+        doc: "-1: the reconstruction; N: level N of the analysis magnified, without \
+              synthesis (0: the raw projection)",
+    },
+];
+
 pub const INFO: MethodInfo = MethodInfo {
     name: "pyramid",
     summary: "pyramid point renderer: one pixel per point, holes filled by an analysis/synthesis \
               pyramid of ellipses, deferred Phong (000 ch. 4)",
-    params: &[
-        ParamSpec {
-            name: "radius",
-            default: RADIUS_SCALE,
-            min: 0.05,
-            max: 20.0,
-            doc: "scale of the per-point radii (default: the thesis' r_k for k = 10)",
-        },
-        ParamSpec {
-            name: "projection",
-            default: 0.0,
-            min: 0.0,
-            max: 1.0,
-            doc: "level 0 by 0: the compute projection (atomicMin), 1: the hardware point \
-                  pipeline",
-        },
-        ParamSpec {
-            name: "layout",
-            default: 0.0,
-            min: 0.0,
-            max: 1.0,
-            doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per \
-                  group with per-mip barriers",
-        },
-        ParamSpec {
-            name: "color",
-            default: 1.0,
-            min: 0.0,
-            max: 1.0,
-            doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
-        },
-        ParamSpec {
-            name: "cull",
-            default: 1.0,
-            min: 0.0,
-            max: 1.0,
-            doc: "back-face culling by normal in the projection",
-        },
-        ParamSpec {
-            name: "falloff",
-            default: 2.0,
-            min: 0.0,
-            max: 16.0,
-            doc: "synthesis weight exp(-falloff d²), d the elliptical distance to a centre",
-        },
-        ParamSpec {
-            name: "show",
-            default: -1.0,
-            min: -1.0,
-            max: 15.0,
-            doc: "-1: the reconstruction; N: level N of the analysis magnified, without \
-                  synthesis (0: the raw projection)",
-        },
-    ],
+    params: PARAMS,
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     build,
+};
+
+pub const HYBRID_INFO: MethodInfo = MethodInfo {
+    name: "pyramid-hybrid",
+    summary: "pyramid point renderer with triangles: faces rasterized into level 0 with radius \
+              0, the other points projected beside them (000 5.2)",
+    params: PARAMS,
+    needs_faces: false,
+    features: &[Feature::Int64Atomics],
+    culls_batches: true,
+    build: build_hybrid,
 };
 
 /// Levels of a pyramid over a `width` x `height` base down to 1 x 1.
@@ -162,10 +176,11 @@ fn group_bindings(base: u32) -> [Binding; 3] {
 }
 
 /// The specialization constants of the pyramid shaders.
-pub fn specialization(color: bool, cull: bool) -> [(u32, u32); 2] {
+pub fn specialization(color: bool, cull: bool, hybrid: bool) -> [(u32, u32); 3] {
     [
         (PYRAMID_SPEC_COLOR, u32::from(color)),
         (PYRAMID_SPEC_CULL, u32::from(cull)),
+        (PYRAMID_SPEC_HYBRID, u32::from(hybrid)),
     ]
 }
 
@@ -245,7 +260,7 @@ impl Pyramid {
             ctx,
             "pyramid/analysis.comp",
             &bindings,
-            &specialization(self.color, false),
+            &specialization(self.color, false, false),
         )?);
         for level in 1..=top.min(self.levels - 1) {
             let (src, dst) = (self.holder(level - 1), self.holder(level));
@@ -304,7 +319,7 @@ impl Pyramid {
             ctx,
             "pyramid/synthesis.comp",
             &bindings,
-            &specialization(self.color, false),
+            &specialization(self.color, false, false),
         )?);
         // Synthesis of level l reads image l mod 2; the first one (l = levels - 2) needs the
         // top level, which analysis wrote into the other image: the copy pass (Fig. 4.13).
@@ -377,6 +392,14 @@ impl Pyramid {
 }
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    build_with(b, false)
+}
+
+fn build_hybrid(b: &mut BuildContext<'_>) -> Result<()> {
+    build_with(b, true)
+}
+
+fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
     let color = b.config.get("color") >= 0.5;
     let hardware = b.config.get("projection") >= 0.5;
     let single = b.config.get("layout") >= 0.5;
@@ -389,22 +412,58 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         radius_scale: b.config.get("radius"),
         falloff: b.config.get("falloff"),
     };
-    let spec = specialization(color, cull);
+    // Hybrid scenes: the faces' vertices are drawn as triangles, the other points as points.
+    let triangles = match (hybrid, &b.scene.face_vertices, b.indices) {
+        (true, Some(mask), Some(indices)) => Some((
+            b.graph.import_buffer("face-vertices", mask.clone()),
+            indices,
+        )),
+        _ => None,
+    };
+    let mask = triangles.map(|t| t.0);
+    let spec = specialization(color, cull, triangles.is_some());
     let compute = Stages::Compute;
     let frame = b.frame;
     let first = pyramid.holder(0);
     let (gx, gy) = pyramid.groups(0);
 
-    // Level 0.
-    if hardware {
-        project_hardware(b, first, &spec, params)?;
+    // Level 0: triangles first (hybrid), then the points where they are nearer.
+    let targets = (hardware || triangles.is_some()).then(|| raster_targets(b, first));
+    if let (Some((_, indices)), Some(targets)) = (triangles, targets) {
+        rasterize(
+            b,
+            targets,
+            &spec,
+            params,
+            Primitives::Triangles(indices),
+            true,
+        )?;
+    }
+    if let (true, Some(targets)) = (hardware, targets) {
+        rasterize(
+            b,
+            targets,
+            &spec,
+            params,
+            Primitives::Points(mask),
+            triangles.is_none(),
+        )?;
     } else {
-        let projection = project(b, "pyramid", false, cull)?;
+        let projection = project(
+            b,
+            "pyramid",
+            ProjectOptions {
+                cull,
+                skip: mask,
+                ..Default::default()
+            },
+        )?;
         let mut bindings = vec![
             storage(BINDING_FRAME),
             storage(BINDING_SEGMENTS),
             storage(BINDING_VISIBILITY),
         ];
+        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
         bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
         let pipeline = Arc::new(Pipeline::compute_specialized(
             b.ctx,
@@ -419,15 +478,21 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             .buffer(frame, Access::UniformRead(compute))
             .buffer(segments, Access::StorageRead(compute))
             .buffer(visibility, Access::StorageRead(compute));
+        // Level 0 is read (with triangles they are there; without, the shader's statically
+        // present read is dead code) and written in place.
         for image in first.images() {
-            pass = pass.image_mips(image, 0, 1, Access::StorageWrite(compute));
+            pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
         }
+        let input = first.descriptors(BINDING_PYRAMID_LEVEL, 0);
         let out = first.descriptors(BINDING_PYRAMID_OUT, 0);
         pass.record(move |ctx| {
             let d = [
                 Descriptor::Buffer(BINDING_FRAME, frame),
                 Descriptor::Buffer(BINDING_SEGMENTS, segments),
                 Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+                input[0],
+                input[1],
+                input[2],
                 out[0],
                 out[1],
                 out[2],
@@ -487,37 +552,17 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     Ok(())
 }
 
-/// Level 0 through the hardware point pipeline: three render targets and a depth buffer.
-fn project_hardware(
-    b: &mut BuildContext<'_>,
-    level0: Group,
-    spec: &[(u32, u32)],
-    params: PyramidParams,
-) -> Result<()> {
-    let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-    let pipeline = Arc::new(Pipeline::graphics(
-        b.ctx,
-        &GraphicsDesc {
-            shaders: &["pyramid/project.vert", "pyramid/project.frag"],
-            bindings: &[
-                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
-                Binding::new(
-                    BINDING_SEGMENTS,
-                    vk::DescriptorType::STORAGE_BUFFER,
-                    vk::ShaderStageFlags::VERTEX,
-                ),
-            ],
-            color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
-            blends: &[Blend::Replace; 3],
-            depth_format: Some(ZBUFFER_FORMAT),
-            depth_test: true,
-            depth_write: true,
-            depth_compare: vk::CompareOp::GREATER,
-            topology: vk::PrimitiveTopology::POINT_LIST,
-            cull: vk::CullModeFlags::NONE,
-            specialization: spec,
-        },
-    )?);
+/// Level 0 as render targets: the three groups' first level (an albedo target nothing reads
+/// without colors: the fragment shader always writes it) and a depth buffer.
+#[derive(Clone, Copy)]
+struct RasterTargets {
+    a: ImageId,
+    b: ImageId,
+    c: ImageId,
+    zbuffer: ImageId,
+}
+
+fn raster_targets(b: &mut BuildContext<'_>, level0: Group) -> RasterTargets {
     let desc = |format, usage| ImageDesc {
         format,
         width: b.width,
@@ -532,34 +577,123 @@ fn project_hardware(
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         ),
     );
-    // The fragment shader always writes the albedo target; without colors nothing reads it.
-    let albedo = match level0.c {
+    let c = match level0.c {
         Some(c) => c,
         None => b.graph.image(
-            "pyramid.hw-albedo",
+            "pyramid.raster-albedo",
             desc(FORMAT_C, vk::ImageUsageFlags::empty()),
         ),
     };
+    RasterTargets {
+        a: level0.a,
+        b: level0.b,
+        c,
+        zbuffer,
+    }
+}
+
+/// What a raster pass draws into level 0.
+#[derive(Clone, Copy)]
+enum Primitives {
+    /// Every point through the hardware point pipeline (skipping those set in the mask).
+    Points(Option<BufferId>),
+    /// The mesh's triangles with this index buffer (radius 0: never expanded, 000 5.2).
+    Triangles(BufferId),
+}
+
+/// A graphics pass drawing `primitives` into level 0 (`pyramid.project-hw` or
+/// `pyramid.triangles`), clearing the targets first or loading what an earlier pass drew.
+fn rasterize(
+    b: &mut BuildContext<'_>,
+    t: RasterTargets,
+    spec: &[(u32, u32)],
+    params: PyramidParams,
+    primitives: Primitives,
+    clear: bool,
+) -> Result<()> {
+    let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+    let (vertex, topology, name) = match primitives {
+        Primitives::Points(_) => (
+            "pyramid/project.vert",
+            vk::PrimitiveTopology::POINT_LIST,
+            "pyramid.project-hw",
+        ),
+        Primitives::Triangles(_) => (
+            "pyramid/triangles.vert",
+            vk::PrimitiveTopology::TRIANGLE_LIST,
+            "pyramid.triangles",
+        ),
+    };
+    let vertex_only = vk::ShaderStageFlags::VERTEX;
+    let pipeline = Arc::new(Pipeline::graphics(
+        b.ctx,
+        &GraphicsDesc {
+            shaders: &[vertex, "pyramid/project.frag"],
+            bindings: &[
+                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
+                Binding::new(
+                    BINDING_SEGMENTS,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vertex_only,
+                ),
+                Binding::new(
+                    BINDING_FACE_VERTICES,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vertex_only,
+                ),
+            ],
+            color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
+            blends: &[Blend::Replace; 3],
+            depth_format: Some(ZBUFFER_FORMAT),
+            depth_test: true,
+            depth_write: true,
+            depth_compare: vk::CompareOp::GREATER,
+            topology,
+            cull: vk::CullModeFlags::NONE,
+            specialization: spec,
+        },
+    )?);
+    let load = if clear {
+        Load::Clear([0.0; 4])
+    } else {
+        Load::Load
+    };
     let (frame, segments) = (b.frame, b.segments);
-    let count = b.scene.point_count;
-    b.graph
-        .pass("pyramid.project-hw")
+    let (points, index_count) = (b.scene.point_count, b.scene.index_count);
+    let mut pass = b
+        .graph
+        .pass(name)
         .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(segments, Access::StorageRead(Stages::Vertex))
-        .color_mip(level0.a, 0, Load::Clear([0.0; 4]))
-        .color_mip(level0.b, 0, Load::Clear([0.0; 4]))
-        .color_mip(albedo, 0, Load::Clear([0.0; 4]))
-        .depth(zbuffer, Load::Clear([0.0; 4]))
+        .buffer(segments, Access::StorageRead(Stages::Vertex));
+    // The mask is read only by the hybrid variant of project.vert; otherwise its binding
+    // (statically present) aliases the segment table.
+    let mut mask = segments;
+    match primitives {
+        Primitives::Points(Some(m)) => {
+            pass = pass.buffer(m, Access::StorageRead(Stages::Vertex));
+            mask = m;
+        }
+        Primitives::Points(None) => {}
+        Primitives::Triangles(indices) => pass = pass.buffer(indices, Access::IndexRead),
+    }
+    pass.color_mip(t.a, 0, load)
+        .color_mip(t.b, 0, load)
+        .color_mip(t.c, 0, load)
+        .depth(t.zbuffer, load)
         .record(move |ctx| {
             ctx.bind(
                 &pipeline,
                 &[
                     Descriptor::Buffer(BINDING_FRAME, frame),
                     Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_FACE_VERTICES, mask),
                 ],
             );
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.draw(count, 1);
+            match primitives {
+                Primitives::Points(_) => ctx.draw(points, 1),
+                Primitives::Triangles(indices) => ctx.draw_indexed(indices, index_count),
+            }
         });
     Ok(())
 }
