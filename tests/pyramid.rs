@@ -531,18 +531,32 @@ fn hybrid_triangles_and_points_resolve_by_depth() {
             // Left: the triangle, red, at depth 4 exactly.
             for x in [20, 30, 40] {
                 let [r, g, _, _] = frame.color[pixel(x, y)];
-                assert!(r > 100 && g < 20, "{method} ({x}, {y}): {:?}", frame.color[pixel(x, y)]);
-                assert!((frame.depth[pixel(x, y)] - 4.0).abs() < 1e-4, "{method} ({x}, {y})");
+                assert!(
+                    r > 100 && g < 20,
+                    "{method} ({x}, {y}): {:?}",
+                    frame.color[pixel(x, y)]
+                );
+                assert!(
+                    (frame.depth[pixel(x, y)] - 4.0).abs() < 1e-4,
+                    "{method} ({x}, {y})"
+                );
             }
             // Right: the points, green, nearer than the triangle.
             for x in [56, 66, 76] {
                 let [r, g, _, _] = frame.color[pixel(x, y)];
-                assert!(g > 100 && r < 20, "{method} ({x}, {y}): {:?}", frame.color[pixel(x, y)]);
+                assert!(
+                    g > 100 && r < 20,
+                    "{method} ({x}, {y}): {:?}",
+                    frame.color[pixel(x, y)]
+                );
                 assert!(frame.depth[pixel(x, y)] < 3.99, "{method} ({x}, {y})");
             }
         }
     }
     let points_only = render_view(&cloud, "pyramid", size, Default::default(), camera);
     let [r, g, _, _] = points_only.color[pixel(30, 48)];
-    assert!(g > 100 && r < 20, "pyramid draws the face vertices as points too");
+    assert!(
+        g > 100 && r < 20,
+        "pyramid draws the face vertices as points too"
+    );
 }

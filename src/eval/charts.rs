@@ -570,7 +570,9 @@ pub fn models(results: &Results) -> Vec<String> {
 /// slice (largest resolution and, within it, largest point count) first, then the others by
 /// decreasing pixels and points.
 pub fn model_slices<'a>(results: &'a Results, model: &str) -> Vec<Vec<&'a Record>> {
-    let mut slices: BTreeMap<(u64, u64, (u32, u32)), Vec<&Record>> = BTreeMap::new();
+    // Keyed by (pixels, points, resolution), so the largest slice comes last.
+    type Key = (u64, u64, (u32, u32));
+    let mut slices: BTreeMap<Key, Vec<&Record>> = BTreeMap::new();
     for r in baseline(results).filter(|r| r.model == model) {
         slices
             .entry((r.pixels(), r.points, (r.width, r.height)))

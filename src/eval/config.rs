@@ -986,6 +986,8 @@ values = [1.0, 0.1]
             "splat-lights.toml",
             "splat-stress.toml",
             "splat-grazing.toml",
+            "pyramid.toml",
+            "pyramid-stress.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

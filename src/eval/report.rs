@@ -219,6 +219,7 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             "IoU",
             "boundary px",
             "depth err %",
+            "flicker",
         ]
         .map(String::from),
     );
@@ -247,6 +248,7 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             fmt_opt(s.iou, 4, 1.0),
             fmt_opt(s.boundary_px, 2, 1.0),
             fmt_opt(s.depth_rel_mean, 2, 100.0),
+            fmt_opt(s.flicker, 2, 1.0),
         ]);
         let _ = writeln!(md, "| {} |", row.join(" | "));
     }

@@ -165,4 +165,34 @@ mod tests {
         let e = SceneFile::parse("up = \"w\"\n", Path::new("up.toml")).unwrap_err();
         assert!(format!("{e:#}").contains("`w`"), "{e:#}");
     }
+
+    #[test]
+    fn inputs_resolve_against_the_scene_file_and_are_checked() {
+        use crate::scene::compose::Role;
+        let dir = std::env::temp_dir().join(format!("surfel-scene-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("hybrid.toml");
+        std::fs::write(
+            &path,
+            "[[inputs]]\npath = \"meshes/buddha.obj\"\nas = \"points\"\nscale = 0.5\n\
+             [[inputs]]\npath = \"/abs/cloud.ply\"\ntranslate = [1.0, 2.0, 3.0]\n",
+        )
+        .unwrap();
+        let file = SceneFile::load(&path).unwrap();
+        assert_eq!(file.inputs.len(), 2);
+        assert_eq!(file.inputs[0].path, dir.join("meshes/buddha.obj"));
+        assert_eq!(
+            (file.inputs[0].role, file.inputs[0].scale),
+            (Role::Points, Some(0.5))
+        );
+        assert_eq!(file.inputs[1].path, Path::new("/abs/cloud.ply"));
+        assert_eq!(file.inputs[1].role, Role::Auto);
+        assert_eq!(file.inputs[1].translate, Some([1.0, 2.0, 3.0]));
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e =
+            SceneFile::parse("[[inputs]]\npath = \"a.ply\"\nas = \"lines\"\n", &path).unwrap_err();
+        assert!(format!("{e:#}").contains("lines"), "{e:#}");
+        let e = SceneFile::parse("[[inputs]]\nfile = \"a.ply\"\n", &path).unwrap_err();
+        assert!(format!("{e:#}").contains("file"), "{e:#}");
+    }
 }
