@@ -76,42 +76,59 @@ pub fn upload_with(
     let layout =
         StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
     let streams = upload::upload(ctx, cloud, &layout, options)?;
-    let (indices, face_vertices, index_count) = match &cloud.faces {
-        Some(f) if !f.is_empty() => {
-            let inverse = layout.inverse();
-            let remapped: Vec<[u32; 3]> = f
-                .iter()
-                .map(|t| t.map(|i| inverse.get(i as usize).copied().unwrap_or(0)))
-                .collect();
-            let count = u32::try_from(remapped.len() * 3).context("more than 4G indices")?;
-            let mut mask = vec![0u32; cloud.len().div_ceil(32).max(1)];
-            for &i in remapped.iter().flatten() {
-                mask[(i / 32) as usize] |= 1 << (i % 32);
-            }
-            (
-                Some(Arc::new(Buffer::with_data(
-                    ctx,
-                    "indices",
-                    bytemuck::cast_slice(&remapped),
-                    vk::BufferUsageFlags::INDEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER,
-                )?)),
-                Some(Arc::new(Buffer::with_data(
-                    ctx,
-                    "face-vertices",
-                    bytemuck::cast_slice(&mask),
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                )?)),
-                count,
-            )
+    let inverse = layout.inverse();
+    let remap = |i: u32| inverse.get(i as usize).copied().unwrap_or(0);
+    // Vertices of faces and lines are drawn as those primitives by hybrid methods.
+    let mut mask = vec![0u32; cloud.len().div_ceil(32).max(1)];
+    let mut primitive_buffer = |name: &str, indices: Vec<u32>, usage| -> Result<_> {
+        for &i in &indices {
+            mask[(i / 32) as usize] |= 1 << (i % 32);
         }
-        _ => (None, None, 0),
+        let count = u32::try_from(indices.len()).context("more than 4G indices")?;
+        let buffer = Buffer::with_data(ctx, name, bytemuck::cast_slice(&indices), usage)?;
+        Ok((Arc::new(buffer), count))
     };
+    let index_usage = vk::BufferUsageFlags::INDEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER;
+    let faces = match &cloud.faces {
+        Some(f) if !f.is_empty() => {
+            let indices = f.iter().flatten().map(|&i| remap(i)).collect();
+            Some(primitive_buffer("indices", indices, index_usage)?)
+        }
+        _ => None,
+    };
+    let mut segments = |name: &str, pairs: &[[u32; 2]]| -> Result<_> {
+        if pairs.is_empty() {
+            return Ok(None);
+        }
+        let indices = pairs.iter().flatten().map(|&i| remap(i)).collect();
+        primitive_buffer(name, indices, vk::BufferUsageFlags::INDEX_BUFFER).map(Some)
+    };
+    let (ribbons, tubes) = match &cloud.lines {
+        Some(l) => (
+            segments("ribbons", &l.ribbons)?,
+            segments("tubes", &l.tubes)?,
+        ),
+        None => (None, None),
+    };
+    let face_vertices = if faces.is_some() || ribbons.is_some() || tubes.is_some() {
+        Some(Arc::new(Buffer::with_data(
+            ctx,
+            "face-vertices",
+            bytemuck::cast_slice(&mask),
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?))
+    } else {
+        None
+    };
+    let (indices, index_count) = faces.map_or((None, 0), |(b, n)| (Some(b), n));
     let point_count = streams.point_count;
     Ok((
         GpuScene {
             streams,
             indices,
             face_vertices,
+            ribbons,
+            tubes,
             point_count,
             index_count,
         },

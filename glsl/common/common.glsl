@@ -28,6 +28,18 @@ vec3 linear_to_srgb(vec3 c) {
     return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
 }
 
+// Blinn-Phong term of light `i` at `view_pos` for the unit normal `n`, seen along `v`.
+vec3 light_term(uint i, vec3 albedo, vec3 n, vec3 v, vec3 view_pos) {
+    float specular = frame.u.specular;
+    float diffuse_weight = 1.0 - frame.u.params.z - specular;
+    vec3 l = normalize(frame.lights[i].position.xyz - view_pos);
+    vec3 h = normalize(l + v);
+    vec3 c = frame.lights[i].color_kind.rgb;
+    float diffuse = max(dot(n, l), 0.0);
+    float highlight = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.params.w) : 0.0;
+    return c * albedo * (diffuse_weight * diffuse + specular * highlight);
+}
+
 // Two-sided Blinn-Phong in view space with every light of the frame. The weights keep the
 // albedo: ambient + diffuse + specular = 1 at normal incidence under a unit light, and the
 // specular is tinted by the albedo, so black stays black and a surface facing a headlight shows
@@ -40,17 +52,28 @@ vec3 shade(vec3 albedo, vec3 n, vec3 view_pos) {
     if (dot(n, v) < 0.0) {
         n = -n;
     }
-    float ambient = frame.u.params.z;
-    float specular = frame.u.specular;
-    float diffuse_weight = 1.0 - ambient - specular;
-    vec3 lit = albedo * ambient;
+    vec3 lit = albedo * frame.u.params.z;
+    for (uint i = 0u; i < frame.u.light_count; ++i) {
+        lit += light_term(i, albedo, n, v, view_pos);
+    }
+    return lit;
+}
+
+// A thin tube with unit tangent `t` (000 5.1.2, line lighting): for each light the normal is
+// the light vector projected on the plane perpendicular to the tangent.
+vec3 shade_tube(vec3 albedo, vec3 t, vec3 view_pos) {
+    if ((frame.u.flags & FLAG_UNLIT) != 0u) {
+        return albedo;
+    }
+    vec3 v = normalize(-view_pos);
+    vec3 lit = albedo * frame.u.params.z;
     for (uint i = 0u; i < frame.u.light_count; ++i) {
         vec3 l = normalize(frame.lights[i].position.xyz - view_pos);
-        vec3 h = normalize(l + v);
-        vec3 c = frame.lights[i].color_kind.rgb;
-        float diffuse = max(dot(n, l), 0.0);
-        float highlight = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.params.w) : 0.0;
-        lit += c * albedo * (diffuse_weight * diffuse + specular * highlight);
+        vec3 across = l - t * dot(t, l);
+        float len = length(across);
+        // A light along the tangent grazes the tube: light it as seen from the viewer.
+        vec3 n = len > 1e-4 ? across / len : v;
+        lit += light_term(i, albedo, n, v, view_pos);
     }
     return lit;
 }

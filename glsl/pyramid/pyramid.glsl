@@ -40,10 +40,14 @@ bool overlaps(Texel a, Texel b) {
 
 // Squared elliptical distance of `x` (level-0 pixels) from the ellipse of texel `t` centred at
 // `c` (000 Fig. 4.6): the major axis, of half-length `radius`, is perpendicular to the projected
-// normal; the minor axis, along it, has half-length radius * |n_z|. 1 on the rim.
+// normal; the minor axis, along it, has half-length radius * |n_z|. 1 on the rim. A tube's
+// texel (its A holds the tangent) is a view-facing disc (000 5.1.2).
 float ellipse_distance2(Texel t, vec2 c, vec2 x) {
     vec2 d = x - c;
     float a = max(t.radius, 1e-6);
+    if (COLOR && uint(t.color.a) == PRIMITIVE_TUBE) {
+        return dot(d, d) / (a * a);
+    }
     float b = max(a * abs(t.n.z), 1e-3 * a);
     // The projected normal in pixel space: view x and y scale by proj[0][0] w / 2 and
     // proj[1][1] h / 2 (the sign of proj[1][1] carries the image's y direction).

@@ -30,7 +30,11 @@ void main() {
                          ndc.y * t.depth / frame.u.proj[1][1], -t.depth);
     vec3 albedo = COLOR ? t.color.rgb : frame.u.base_color.rgb;
     vec3 n = normalize(t.n);
-    imageStore(out_color, px, vec4(linear_to_srgb(shade(albedo, n, view_pos)), 1.0));
+    bool tube = COLOR && uint(t.color.a) == PRIMITIVE_TUBE;
+    vec3 lit = tube ? shade_tube(albedo, n, view_pos) : shade(albedo, n, view_pos);
+    // A tube's normal target shows its camera-facing disc.
+    n = tube ? vec3(0.0, 0.0, 1.0) : n;
+    imageStore(out_color, px, vec4(linear_to_srgb(lit), 1.0));
     imageStore(out_depth, px, vec4(t.depth));
     imageStore(out_normal, px, vec4(n, 1.0));
 }

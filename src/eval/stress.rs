@@ -63,7 +63,7 @@ fn check_aligned(cloud: &Cloud) -> Result<(), StressError> {
 }
 
 /// The points at `keep` (ascending indices) with every attribute, radii multiplied by
-/// `radius_scale(i)`; faces dropped. Every field is listed so that a new per-point field of
+/// `radius_scale(i)`; faces and lines dropped. Every field is listed so that a new per-point field of
 /// `Cloud` is a compile error here rather than silently misaligned.
 fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) -> Cloud {
     let mut out = Cloud {
@@ -82,6 +82,7 @@ fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) ->
             .map(|v| keep.iter().map(|&i| v[i] * radius_scale(i)).collect()),
         scalars: cloud.scalars.clone(),
         faces: None,
+        lines: None,
         sensor: cloud.sensor,
         up: cloud.up,
         origin: cloud.origin,

@@ -142,6 +142,8 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // Hybrid scenes (000 5.2): level 0 holds rasterized triangles, then the points that are no
     // face's vertex (BINDING_FACE_VERTICES: one bit per point) where they are nearer.
     ("PYRAMID_SPEC_HYBRID", 2),
+    // lines.vert draws tubes (true) or ribbons (false).
+    ("PYRAMID_SPEC_TUBE", 3),
     ("BINDING_FACE_VERTICES", 15),
     ("PRIMITIVE_POINT", 0),
     ("PRIMITIVE_RIBBON", 1),

@@ -228,9 +228,12 @@ impl MethodConfig {
 pub struct GpuScene {
     pub streams: GpuStreams,
     pub indices: Option<Arc<Buffer>>,
-    /// One bit per point in stream order (32 to a word): set for the vertices a face
-    /// references (hybrid scenes draw those as triangles, the rest as points).
+    /// One bit per point in stream order (32 to a word): set for the vertices a face or a
+    /// line references (hybrid scenes draw those as triangles or lines, the rest as points).
     pub face_vertices: Option<Arc<Buffer>>,
+    /// Ribbon and tube segments (index pairs in stream order) and their index counts.
+    pub ribbons: Option<(Arc<Buffer>, u32)>,
+    pub tubes: Option<(Arc<Buffer>, u32)>,
     pub point_count: u32,
     pub index_count: u32,
 }

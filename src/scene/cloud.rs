@@ -91,6 +91,15 @@ impl Bounds {
     }
 }
 
+/// Line primitives over a cloud's points (000 §5.1): segments as pairs of point indices.
+/// A ribbon's points carry its normal and half width as normal and radius; a tube's carry
+/// its tangent and radius.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Lines {
+    pub ribbons: Vec<[u32; 2]>,
+    pub tubes: Vec<[u32; 2]>,
+}
+
 /// A point cloud in a local frame: `positions` are relative to `origin` (f64, in file units),
 /// so large LiDAR coordinates keep their precision after the conversion to f32.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -105,6 +114,8 @@ pub struct Cloud {
     pub scalars: Vec<Scalar>,
     /// Triangles indexing `positions` (mesh inputs); the evaluation's ground truth.
     pub faces: Option<Vec<[u32; 3]>>,
+    /// Ribbons and tubes indexing `positions` (line models, `surfel convert-lines`).
+    pub lines: Option<Lines>,
     /// Offset that was subtracted from the file's coordinates.
     pub origin: DVec3,
     pub stats: LoadStats,

@@ -25,7 +25,7 @@ pub mod xyz;
 use std::path::Path;
 
 pub use camera::{Camera, Pose, Up};
-pub use cloud::{Cloud, Levels, LoadStats, Scalar};
+pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar};
 pub use error::{LoadError, Location};
 pub use input::{load_prepared, LoadOptions};
 pub use lights::{Light, LightKind};

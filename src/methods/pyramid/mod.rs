@@ -40,9 +40,9 @@ use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
     PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL,
     BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT, BINDING_SEGMENTS, BINDING_VISIBILITY,
-    PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID,
+    PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID, PYRAMID_SPEC_TUBE,
 };
-use crate::gpu::{Binding, Blend, Context, GraphicsDesc, ImageDesc, Pipeline};
+use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, Stages};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
@@ -400,7 +400,8 @@ fn build_hybrid(b: &mut BuildContext<'_>) -> Result<()> {
 }
 
 fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
-    let color = b.config.get("color") >= 0.5;
+    // A tube's texel needs its primitive id, kept in the albedo group.
+    let color = b.config.get("color") >= 0.5 || (hybrid && b.scene.tubes.is_some());
     let hardware = b.config.get("projection") >= 0.5;
     let single = b.config.get("layout") >= 0.5;
     let cull = b.config.get("cull") >= 0.5;
@@ -412,32 +413,40 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
         radius_scale: b.config.get("radius"),
         falloff: b.config.get("falloff"),
     };
-    // Hybrid scenes: the faces' vertices are drawn as triangles, the other points as points.
-    let triangles = match (hybrid, &b.scene.face_vertices, b.indices) {
-        (true, Some(mask), Some(indices)) => Some((
-            b.graph.import_buffer("face-vertices", mask.clone()),
-            indices,
-        )),
-        _ => None,
+    // Hybrid scenes: faces and lines are drawn as such, the other points as points.
+    let scene = b.scene;
+    let import = |g: &mut GraphBuilder, name: &str, buffer: &Option<(Arc<Buffer>, u32)>| {
+        buffer
+            .as_ref()
+            .map(|(buffer, count)| (g.import_buffer(name, buffer.clone()), *count))
     };
-    let mask = triangles.map(|t| t.0);
-    let spec = specialization(color, cull, triangles.is_some());
+    let (mask, triangles, ribbons, tubes) = match (hybrid, &scene.face_vertices) {
+        (true, Some(mask)) => (
+            Some(b.graph.import_buffer("face-vertices", mask.clone())),
+            b.indices.map(|i| (i, scene.index_count)),
+            import(b.graph, "ribbons", &scene.ribbons),
+            import(b.graph, "tubes", &scene.tubes),
+        ),
+        _ => (None, None, None, None),
+    };
+    let drawn = [
+        triangles.map(|(i, n)| Primitives::Triangles(i, n)),
+        ribbons.map(|(i, n)| Primitives::Ribbons(i, n)),
+        tubes.map(|(i, n)| Primitives::Tubes(i, n)),
+    ];
+    let spec = specialization(color, cull, mask.is_some());
     let compute = Stages::Compute;
     let frame = b.frame;
     let first = pyramid.holder(0);
     let (gx, gy) = pyramid.groups(0);
 
-    // Level 0: triangles first (hybrid), then the points where they are nearer.
-    let targets = (hardware || triangles.is_some()).then(|| raster_targets(b, first));
-    if let (Some((_, indices)), Some(targets)) = (triangles, targets) {
-        rasterize(
-            b,
-            targets,
-            &spec,
-            params,
-            Primitives::Triangles(indices),
-            true,
-        )?;
+    // Level 0: triangles and lines first (hybrid), then the points where they are nearer.
+    let rasterized = drawn.iter().any(Option::is_some);
+    let targets = (hardware || rasterized).then(|| raster_targets(b, first));
+    if let Some(targets) = targets {
+        for (k, primitives) in drawn.into_iter().flatten().enumerate() {
+            rasterize(b, targets, &spec, params, primitives, k == 0)?;
+        }
     }
     if let (true, Some(targets)) = (hardware, targets) {
         rasterize(
@@ -478,8 +487,8 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
             .buffer(frame, Access::UniformRead(compute))
             .buffer(segments, Access::StorageRead(compute))
             .buffer(visibility, Access::StorageRead(compute));
-        // Level 0 is read (with triangles they are there; without, the shader's statically
-        // present read is dead code) and written in place.
+        // Level 0 is read (with triangles or lines they are there; without, the shader's
+        // statically present read is dead code) and written in place.
         for image in first.images() {
             pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
         }
@@ -597,8 +606,12 @@ fn raster_targets(b: &mut BuildContext<'_>, level0: Group) -> RasterTargets {
 enum Primitives {
     /// Every point through the hardware point pipeline (skipping those set in the mask).
     Points(Option<BufferId>),
-    /// The mesh's triangles with this index buffer (radius 0: never expanded, 000 5.2).
-    Triangles(BufferId),
+    /// The mesh's triangles: index buffer and count (radius 0: never expanded, 000 5.2).
+    Triangles(BufferId, u32),
+    /// Ribbon segments: index buffer and count (000 5.1.1).
+    Ribbons(BufferId, u32),
+    /// Tube segments: index buffer and count (000 5.1.2).
+    Tubes(BufferId, u32),
 }
 
 /// A graphics pass drawing `primitives` into level 0 (`pyramid.project-hw` or
@@ -618,12 +631,27 @@ fn rasterize(
             vk::PrimitiveTopology::POINT_LIST,
             "pyramid.project-hw",
         ),
-        Primitives::Triangles(_) => (
+        Primitives::Triangles(..) => (
             "pyramid/triangles.vert",
             vk::PrimitiveTopology::TRIANGLE_LIST,
             "pyramid.triangles",
         ),
+        Primitives::Ribbons(..) => (
+            "pyramid/lines.vert",
+            vk::PrimitiveTopology::LINE_LIST,
+            "pyramid.ribbons",
+        ),
+        Primitives::Tubes(..) => (
+            "pyramid/lines.vert",
+            vk::PrimitiveTopology::LINE_LIST,
+            "pyramid.tubes",
+        ),
     };
+    let mut spec = spec.to_vec();
+    spec.push((
+        PYRAMID_SPEC_TUBE,
+        u32::from(matches!(primitives, Primitives::Tubes(..))),
+    ));
     let vertex_only = vk::ShaderStageFlags::VERTEX;
     let pipeline = Arc::new(Pipeline::graphics(
         b.ctx,
@@ -650,7 +678,7 @@ fn rasterize(
             depth_compare: vk::CompareOp::GREATER,
             topology,
             cull: vk::CullModeFlags::NONE,
-            specialization: spec,
+            specialization: &spec,
         },
     )?);
     let load = if clear {
@@ -659,7 +687,7 @@ fn rasterize(
         Load::Load
     };
     let (frame, segments) = (b.frame, b.segments);
-    let (points, index_count) = (b.scene.point_count, b.scene.index_count);
+    let points = b.scene.point_count;
     let mut pass = b
         .graph
         .pass(name)
@@ -674,7 +702,9 @@ fn rasterize(
             mask = m;
         }
         Primitives::Points(None) => {}
-        Primitives::Triangles(indices) => pass = pass.buffer(indices, Access::IndexRead),
+        Primitives::Triangles(indices, _)
+        | Primitives::Ribbons(indices, _)
+        | Primitives::Tubes(indices, _) => pass = pass.buffer(indices, Access::IndexRead),
     }
     pass.color_mip(t.a, 0, load)
         .color_mip(t.b, 0, load)
@@ -692,7 +722,9 @@ fn rasterize(
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
             match primitives {
                 Primitives::Points(_) => ctx.draw(points, 1),
-                Primitives::Triangles(indices) => ctx.draw_indexed(indices, index_count),
+                Primitives::Triangles(indices, count)
+                | Primitives::Ribbons(indices, count)
+                | Primitives::Tubes(indices, count) => ctx.draw_indexed(indices, count),
             }
         });
     Ok(())

@@ -6,6 +6,8 @@
 use glam::{IVec2, Vec2, Vec3, Vec4};
 use half::f16;
 
+use crate::gpu::layout::PRIMITIVE_TUBE;
+
 /// One texel (see `glsl/pyramid/pyramid.glsl`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Texel {
@@ -87,11 +89,16 @@ pub fn pixel_centre(q: IVec2, level: u32) -> Vec2 {
     (q.as_vec2() + 0.5) * (1u32 << level) as f32
 }
 
-/// Squared elliptical distance of `x` from texel `t`'s ellipse centred at `c`; `scale` is
+/// Squared elliptical distance of `x` from texel `t`'s ellipse centred at `c` (a circle for a
+/// tube's texel); `scale` is
 /// (proj[0][0] width, proj[1][1] height), which maps view directions to pixel directions.
 pub fn ellipse_distance2(t: &Texel, c: Vec2, x: Vec2, scale: Vec2) -> f32 {
     let d = x - c;
     let a = t.radius.max(1e-6);
+    // A tube's texel is a view-facing disc.
+    if t.color.w as u32 == PRIMITIVE_TUBE {
+        return d.dot(d) / (a * a);
+    }
     let b = (a * t.n.z.abs()).max(1e-3 * a);
     let m = Vec2::new(t.n.x * scale.x, t.n.y * scale.y);
     let len = m.length();
