@@ -560,3 +560,82 @@ fn hybrid_triangles_and_points_resolve_by_depth() {
         "pyramid draws the face vertices as points too"
     );
 }
+
+#[test]
+fn ribbons_and_tubes_rasterize_into_the_pyramid() {
+    // Seen from z = 4 down -z: a ribbon along x at y = 0.5 (normal -z: no back-face culling,
+    // lit two-sided) and a tube along x at y = -0.5 (tangent +x), both of radius 0.1 over
+    // x in [-1, 1], as polylines of 9 vertices. The reconstruction covers a band of the
+    // projected width around each centre line, in their colors under the headlight.
+    let ribbon_y = 0.5;
+    let tube_y = -0.5;
+    let r = 0.1;
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut colors = Vec::new();
+    let mut ribbons = Vec::new();
+    let mut tubes = Vec::new();
+    for (y, dir, color, list) in [
+        (ribbon_y, -Vec3::Z, [200u8, 100, 50, 255], &mut ribbons),
+        (tube_y, Vec3::X, [50, 100, 200, 255], &mut tubes),
+    ] {
+        let first = positions.len() as u32;
+        for k in 0..9 {
+            positions.push(Vec3::new(-1.0 + 0.25 * k as f32, y, 0.0));
+            normals.push(dir);
+            colors.push(color);
+        }
+        list.extend((0..8).map(|k| [first + k, first + k + 1]));
+    }
+    let count = positions.len();
+    let cloud = Cloud {
+        positions,
+        normals: Some(normals),
+        radii: Some(vec![r; count]),
+        colors: Some(colors),
+        lines: Some(surfel::scene::Lines { ribbons, tubes }),
+        ..Default::default()
+    };
+    let size = 128u32;
+    let camera = |_: Vec3, _: f32| Camera::look_at(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 1.0);
+    let rows = |f: &surfel::eval::Frame, x: u32| -> Vec<u32> {
+        (0..size)
+            .filter(|&y| f.covered((y * size + x) as usize))
+            .collect()
+    };
+    for method in [
+        "pyramid-hybrid",
+        "pyramid-hybrid:projection=1",
+        "pyramid-hybrid:layout=1",
+    ] {
+        let frame = render_view(&cloud, method, size, Default::default(), camera);
+        // Two bands, each 2 r wide: 0.2 units at depth 4 with a 45° field of view is about
+        // 0.2 / (2 * 4 * tan 22.5°) * 128 = 7.7 pixels.
+        let column = rows(&frame, size / 2);
+        let mut runs: Vec<(u32, u32)> = Vec::new();
+        for &y in &column {
+            match runs.last_mut() {
+                Some((_, end)) if *end + 1 == y => *end = y,
+                _ => runs.push((y, y)),
+            }
+        }
+        assert_eq!(runs.len(), 2, "{method}: two bands, got {runs:?}");
+        for (start, end) in &runs {
+            let width = end - start + 1;
+            assert!((6..=10).contains(&width), "{method}: band {start}..{end}");
+        }
+        let at = |y: u32| frame.color[(y * size + size / 2) as usize];
+        let centre = |(s, e): (u32, u32)| (s + e) / 2;
+        // Image rows grow downwards: the ribbon (y = 0.5) is the upper band.
+        let [r0, g0, b0, _] = at(centre(runs[0]));
+        let [r1, g1, b1, _] = at(centre(runs[1]));
+        assert!(r0 > b0 && g0 > b0, "{method}: ribbon {:?}", [r0, g0, b0]);
+        assert!(b1 > r1 && b1 > g1, "{method}: tube {:?}", [r1, g1, b1]);
+        // Both face the headlight: their own colors (the tube through its projected light
+        // vector, the ribbon two-sided).
+        assert!(
+            (r0 as i32 - 200).abs() <= 8 && (b1 as i32 - 200).abs() <= 8,
+            "{method}"
+        );
+    }
+}

@@ -232,12 +232,17 @@ pub fn run(
     let mut truths: HashMap<String, Vec<Frame>> = HashMap::new();
     let jobs = config.jobs();
     for (i, job) in jobs.iter().enumerate() {
-        if let Entry::Vacant(slot) = models.entry(job.model.path.clone()) {
-            let cloud = load_prepared(&job.model.path, &LoadOptions::default())
-                .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
-            slot.insert(load_gpu(ctx, cloud)?);
+        let truth_path = job.model.truth.as_ref().unwrap_or(&job.model.path).clone();
+        for path in [&job.model.path, &truth_path] {
+            if let Entry::Vacant(slot) = models.entry(path.clone()) {
+                let cloud = load_prepared(path, &LoadOptions::default())
+                    .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
+                slot.insert(load_gpu(ctx, cloud)?);
+            }
         }
         let original = &models[&job.model.path];
+        // The ground truth's mesh and framing (the model itself unless `truth` names another).
+        let reference = &models[&truth_path];
         // The scene the method renders: the model, a resampled copy, or a stressed copy.
         let variant_key = match (job.points, job.stress) {
             (Some(n), _) => Some(format!("points={n}")),
@@ -307,8 +312,8 @@ pub fn run(
             continue;
         }
         let spacing = point_spacing(&scene.cloud, scene.info.radius / 100.0);
-        let camera = job_camera(job, &original.info, spacing);
-        let lights = lights::sweep(job.lights, original.info.radius);
+        let camera = job_camera(job, &reference.info, spacing);
+        let lights = lights::sweep(job.lights, reference.info.radius);
         let baseline = job.points.is_none() && job.stress.is_none();
         let view_at = |step: usize| {
             let mut c = camera;
@@ -316,7 +321,7 @@ pub fn run(
                 let offset = c.eye - c.target;
                 // The slow orbit turns about the data's up axis, like the viewer's drag.
                 let rot = glam::Quat::from_axis_angle(
-                    original.info.up.vector(),
+                    reference.info.up.vector(),
                     (FLICKER_STEP_DEG * step as f32).to_radians(),
                 );
                 c.eye = c.target + rot * offset;
@@ -357,11 +362,11 @@ pub fn run(
         // Ground truth: the original mesh with the same camera, size and lights, rendered once
         // per distinct view set (methods and parameters share it).
         let mut scores = metrics::Scores::default();
-        if original.gpu.indices.is_some() {
+        if reference.gpu.indices.is_some() {
             let camera_stress = job.stress.filter(|(k, _)| !cloud_side(*k));
             let key = format!(
                 "{}|{}x{}|{}|{}|{camera_stress:?}|{steps}",
-                job.model.path.display(),
+                truth_path.display(),
                 job.width,
                 job.height,
                 job.pose.name,
@@ -376,7 +381,7 @@ pub fn run(
                     ..job.clone()
                 };
                 let gt = MethodConfig::parse(REFERENCE_METHOD)?;
-                slot.insert(run_method(ctx, original, &gt, &gt_job, &views)?.frames);
+                slot.insert(run_method(ctx, reference, &gt, &gt_job, &views)?.frames);
             }
             let truth = &truths[&key];
             scores = metrics::score(&timed.frames[0], &truth[0])?;

@@ -12,6 +12,7 @@
 //! path = "data/bunny.obj"                 # relative to the sweep file's directory
 //! name = "bunny"                          # optional, defaults to the file stem
 //! points = [10000, 100000]                # optional: also resample the mesh to N points
+//! truth = "plant.obj"                      # optional: score against this model's mesh
 //!
 //! [[methods]]
 //! name = "points"
@@ -255,6 +256,9 @@ pub struct ModelSpec {
     pub path: PathBuf,
     /// Point counts to resample the mesh to for the time-vs-points sweep (may be empty).
     pub points: Vec<u64>,
+    /// Another model whose mesh is the ground truth and whose bounding sphere frames the
+    /// camera (a converted form of it, e.g. a plant as lines against the plant's triangles).
+    pub truth: Option<PathBuf>,
 }
 
 /// A camera pose, relative to the model's bounding sphere unless `LookAt`.
@@ -408,6 +412,7 @@ struct RawModel {
     name: Option<String>,
     #[serde(default)]
     points: Vec<u64>,
+    truth: Option<PathBuf>,
 }
 
 #[derive(Deserialize)]
@@ -598,6 +603,7 @@ impl BenchConfig {
                 name,
                 path: origin.base_dir().join(m.path),
                 points: m.points,
+                truth: m.truth.map(|t| origin.base_dir().join(t)),
             });
         }
         if raw.methods.is_empty() {
@@ -700,13 +706,17 @@ impl BenchConfig {
     /// rendering; the error names the sweep, the model's key and the resolved path.
     pub fn check_models(&self) -> Result<(), ConfigError> {
         for (i, m) in self.models.iter().enumerate() {
-            if let Err(source) = std::fs::File::open(&m.path) {
-                return Err(ConfigError::Model {
-                    origin: self.origin.clone(),
-                    key: format!("models[{i}].path"),
-                    path: m.path.clone(),
-                    source,
-                });
+            let files =
+                std::iter::once(("path", &m.path)).chain(m.truth.iter().map(|t| ("truth", t)));
+            for (key, path) in files {
+                if let Err(source) = std::fs::File::open(path) {
+                    return Err(ConfigError::Model {
+                        origin: self.origin.clone(),
+                        key: format!("models[{i}].{key}"),
+                        path: path.clone(),
+                        source,
+                    });
+                }
             }
         }
         Ok(())

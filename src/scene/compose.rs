@@ -1,6 +1,6 @@
 //! Hybrid scenes (000 §5.2): several inputs merged into one cloud, each kept as triangles or
-//! as points. A vertex that a face references is part of the triangles (`pyramid-hybrid`
-//! rasterizes it into level 0); every other point is a point. Scene files list the inputs
+//! as points. A vertex that a face or a line references is part of the triangles or lines
+//! (`pyramid-hybrid` rasterizes them into level 0); every other point is a point. Scene files list the inputs
 //! beside the command line's file:
 //!
 //! ```toml
@@ -50,7 +50,10 @@ pub struct SceneInput {
 pub fn with_role(mut cloud: Cloud, role: Role, name: &str) -> Result<Cloud> {
     match role {
         Role::Auto => {}
-        Role::Points => cloud.faces = None,
+        Role::Points => {
+            cloud.faces = None;
+            cloud.lines = None;
+        }
         Role::Triangles => {
             if cloud.faces.as_ref().is_none_or(|f| f.is_empty()) {
                 bail!("{name}: 'as = \"triangles\"' needs a mesh, and this input has no faces");
@@ -138,6 +141,18 @@ pub fn append(base: &mut Cloud, mut other: Cloud) -> Result<()> {
                     .into_iter()
                     .map(|t| t.map(|i| i + first_index)),
             );
+            Some(a)
+        }
+    };
+    base.lines = match (base.lines.take(), other.lines.take()) {
+        (None, None) => None,
+        (a, b) => {
+            let mut a = a.unwrap_or_default();
+            let b = b.unwrap_or_default();
+            let shift =
+                |pairs: Vec<[u32; 2]>| pairs.into_iter().map(move |p| p.map(|i| i + first_index));
+            a.ribbons.extend(shift(b.ribbons));
+            a.tubes.extend(shift(b.tubes));
             Some(a)
         }
     };
