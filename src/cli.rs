@@ -721,10 +721,7 @@ fn convert_lines(a: ConvertLinesArgs) -> Result<()> {
         100.0 * s.output_vertices() as f64 / s.input_vertices.max(1) as f64
     );
     if mesh.uncolored > 0 {
-        println!(
-            "no material       {} faces (grey)",
-            mesh.uncolored
-        );
+        println!("no material       {} faces (grey)", mesh.uncolored);
     }
     if let Some(out) = &a.out {
         lines::save(out, &model).with_context(|| format!("{}: cannot write", out.display()))?;

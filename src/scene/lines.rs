@@ -80,8 +80,10 @@ use super::cloud::{Cloud, LoadStats};
 use super::error::{show, LoadError};
 use super::obj::PolygonMesh;
 
-/// A chain of rings is a ribbon when its median thickness / width is below this.
-pub const FLAT_RATIO: f32 = 0.35;
+/// A chain of rings is a ribbon when its median thickness / width is below this. Round rings
+/// measure about 0.6 to 1 (the branches of `CommonTree_Dead_1.obj`: medians 0.67 to 1), the
+/// folded fronds of `PalmTree_1.obj` 0.28 to 0.48 and the strap leaves of `Plant_3.obj` 0.16.
+pub const FLAT_RATIO: f32 = 0.55;
 
 /// A tube whose largest radius exceeds this times its length stays triangles.
 pub const THICK_RATIO: f32 = 0.2;
@@ -880,13 +882,15 @@ fn chain_polyline(
         .collect();
     let mut flatness: Vec<f32> = shapes
         .iter()
-        .map(|&(width, thickness, _)| {
-            if width > 0.0 {
-                thickness / width
-            } else {
-                1.0
-            }
-        })
+        .map(
+            |&(width, thickness, _)| {
+                if width > 0.0 {
+                    thickness / width
+                } else {
+                    1.0
+                }
+            },
+        )
         .collect();
     flatness.sort_by(f32::total_cmp);
     let ribbon = flatness[flatness.len() / 2] < FLAT_RATIO;
@@ -923,7 +927,11 @@ fn chain_polyline(
     }
     vertices.extend_from_slice(&middle);
     if let Some(t) = last {
-        vertices.push(end_vertex(t, &middle[middle.len() - 1], tangent[points.len() - 1]));
+        vertices.push(end_vertex(
+            t,
+            &middle[middle.len() - 1],
+            tangent[points.len() - 1],
+        ));
     }
     let widest = vertices.iter().map(|v| v.radius).fold(0.0, f32::max);
     let keep = if ribbon {
@@ -1030,7 +1038,11 @@ pub fn load(path: &Path) -> Result<LineModel, LoadError> {
 /// Parses the text of a line model file; `file` names it in error messages.
 pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
     let text = std::str::from_utf8(data).map_err(|e| {
-        LoadError::at_byte(file, e.valid_up_to(), "expected ASCII text, found invalid UTF-8")
+        LoadError::at_byte(
+            file,
+            e.valid_up_to(),
+            "expected ASCII text, found invalid UTF-8",
+        )
     })?;
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_end()));
     let mut counts = [0usize; 3];
@@ -1045,10 +1057,13 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
         };
         header_bytes += line.len() + 1;
         let ok = match expected.strip_suffix("{}") {
-            Some(prefix) => line.strip_prefix(prefix).and_then(|c| c.parse().ok()).map(|c| {
-                counts[which] = c;
-                which += 1;
-            }),
+            Some(prefix) => line
+                .strip_prefix(prefix)
+                .and_then(|c| c.parse().ok())
+                .map(|c| {
+                    counts[which] = c;
+                    which += 1;
+                }),
             None => (line == expected).then_some(()),
         };
         if ok.is_none() {
@@ -1088,14 +1103,26 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
             return Err(LoadError::at_line(
                 file,
                 n,
-                format!("expected {expected} ({len} numbers), found \"{}\"", show(line)),
+                format!(
+                    "expected {expected} ({len} numbers), found \"{}\"",
+                    show(line)
+                ),
             ));
         }
         Ok((n, words))
     };
-    fn number<T: std::str::FromStr>(file: &str, n: usize, word: &str, what: &str) -> Result<T, LoadError> {
+    fn number<T: std::str::FromStr>(
+        file: &str,
+        n: usize,
+        word: &str,
+        what: &str,
+    ) -> Result<T, LoadError> {
         word.parse().map_err(|_| {
-            LoadError::at_line(file, n, format!("expected {what}, found \"{}\"", show(word)))
+            LoadError::at_line(
+                file,
+                n,
+                format!("expected {what}, found \"{}\"", show(word)),
+            )
         })
     }
     let mut vertices = Vec::with_capacity(vertex_count);
@@ -1105,18 +1132,26 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
         for (k, value) in f.iter_mut().enumerate() {
             *value = number(file, n, w[k], "a number")?;
             if !value.is_finite() {
-                return Err(LoadError::at_line(file, n, format!("expected a finite number, found \"{}\"", show(w[k]))));
+                return Err(LoadError::at_line(
+                    file,
+                    n,
+                    format!("expected a finite number, found \"{}\"", show(w[k])),
+                ));
             }
         }
         let mut c = [0u8; 4];
         for (k, value) in c.iter_mut().enumerate() {
             *value = number(file, n, w[7 + k], "a colour component 0..255")?;
         }
-        vertices.push((n, LineVertex {
-            position: Vec3::new(f[0], f[1], f[2]),
-            dir: Vec3::new(f[3], f[4], f[5]),
-            radius: f[6],
-        }, c));
+        vertices.push((
+            n,
+            LineVertex {
+                position: Vec3::new(f[0], f[1], f[2]),
+                dir: Vec3::new(f[3], f[4], f[5]),
+                radius: f[6],
+            },
+            c,
+        ));
     }
     let mut polylines = Vec::with_capacity(polyline_count);
     let mut first = 0usize;
@@ -1125,19 +1160,32 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
         let kind = match number::<u8>(file, n, w[0], "a kind (0 ribbon, 1 tube)")? {
             0 => LineKind::Ribbon,
             1 => LineKind::Tube,
-            k => return Err(LoadError::at_line(file, n, format!("expected a kind (0 ribbon, 1 tube), found {k}"))),
+            k => {
+                return Err(LoadError::at_line(
+                    file,
+                    n,
+                    format!("expected a kind (0 ribbon, 1 tube), found {k}"),
+                ))
+            }
         };
         let count: usize = number(file, n, w[1], "a vertex count")?;
         if count < 2 || count > vertex_count - first {
             return Err(LoadError::at_line(
                 file,
                 n,
-                format!("expected a vertex count from 2 to the {} vertices left, found {count}", vertex_count - first),
+                format!(
+                    "expected a vertex count from 2 to the {} vertices left, found {count}",
+                    vertex_count - first
+                ),
             ));
         }
         let color = vertices[first].2;
         if let Some((m, _, _)) = vertices[first..first + count].iter().find(|v| v.2 != color) {
-            return Err(LoadError::at_line(file, *m, "expected the colour of the polyline's first vertex"));
+            return Err(LoadError::at_line(
+                file,
+                *m,
+                "expected the colour of the polyline's first vertex",
+            ));
         }
         polylines.push(Polyline {
             kind,
@@ -1150,7 +1198,11 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
     for _ in 0..face_count {
         let (n, w) = row("a triangle: 3 a b c", 4)?;
         if w[0] != "3" {
-            return Err(LoadError::at_line(file, n, format!("expected a triangle (3 indices), found {}", show(w[0]))));
+            return Err(LoadError::at_line(
+                file,
+                n,
+                format!("expected a triangle (3 indices), found {}", show(w[0])),
+            ));
         }
         let mut f = [0u32; 3];
         for (k, value) in f.iter_mut().enumerate() {
@@ -1159,7 +1211,10 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
                 return Err(LoadError::at_line(
                     file,
                     n,
-                    format!("expected a triangle vertex index from {first} to {}, found {i}", vertex_count.saturating_sub(1)),
+                    format!(
+                        "expected a triangle vertex index from {first} to {}, found {i}",
+                        vertex_count.saturating_sub(1)
+                    ),
                 ));
             }
             *value = (i - first) as u32;
@@ -1167,7 +1222,11 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
         faces.push(f);
     }
     if let Some((n, line)) = lines.find(|(_, l)| !l.trim().is_empty()) {
-        return Err(LoadError::at_line(file, n, format!("expected the end of the file, found \"{}\"", show(line))));
+        return Err(LoadError::at_line(
+            file,
+            n,
+            format!("expected the end of the file, found \"{}\"", show(line)),
+        ));
     }
     let kept = &vertices[first..];
     let triangles = Cloud {
@@ -1187,4 +1246,344 @@ pub fn parse(file: &str, data: &[u8]) -> Result<LineModel, LoadError> {
         triangles,
         stats,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const COLOR: [u8; 4] = [10, 200, 30, 255];
+
+    fn mesh(positions: Vec<Vec3>, polygons: Vec<Vec<u32>>) -> PolygonMesh {
+        PolygonMesh {
+            colors: vec![COLOR; polygons.len()],
+            positions,
+            polygons,
+            uncolored: 0,
+        }
+    }
+
+    /// An open strip along +x in the z = 0 plane: a triangle tip at x = 0, cross edges at
+    /// x = 1..=widths.len() with the given widths, a triangle tip at the end.
+    fn strip_leaf(widths: &[f32]) -> PolygonMesh {
+        let m = widths.len() as u32;
+        let mut p = vec![Vec3::ZERO];
+        for (i, w) in widths.iter().enumerate() {
+            let x = i as f32 + 1.0;
+            p.push(Vec3::new(x, -w / 2.0, 0.0));
+            p.push(Vec3::new(x, w / 2.0, 0.0));
+        }
+        p.push(Vec3::new(m as f32 + 1.0, 0.0, 0.0));
+        let (a, b) = (|i: u32| 2 * i - 1, |i: u32| 2 * i);
+        let mut f = vec![vec![0, a(1), b(1)]];
+        for i in 1..m {
+            f.push(vec![a(i), a(i + 1), b(i + 1), b(i)]);
+        }
+        f.push(vec![a(m), 2 * m + 1, b(m)]);
+        mesh(p, f)
+    }
+
+    #[derive(Clone, Copy)]
+    enum End {
+        Open,
+        Flat,
+        Tip(f32),
+    }
+
+    /// A tube along +y with `rings` elliptic rings of `around` vertices (half axes `rx`, `rz`)
+    /// from y = 0 to `length`, joined by quads, its ends closed as asked.
+    fn tube(rx: f32, rz: f32, length: f32, around: u32, rings: u32, ends: [End; 2]) -> PolygonMesh {
+        let mut p = Vec::new();
+        for j in 0..rings {
+            let y = length * j as f32 / (rings - 1) as f32;
+            for i in 0..around {
+                let a = std::f32::consts::TAU * i as f32 / around as f32;
+                p.push(Vec3::new(rx * a.cos(), y, rz * a.sin()));
+            }
+        }
+        let at = |j: u32, i: u32| j * around + i % around;
+        let mut f = Vec::new();
+        for j in 0..rings - 1 {
+            for i in 0..around {
+                f.push(vec![at(j, i), at(j, i + 1), at(j + 1, i + 1), at(j + 1, i)]);
+            }
+        }
+        for (end, ring, y) in [(ends[0], 0, 0.0), (ends[1], rings - 1, length)] {
+            match end {
+                End::Open => {}
+                End::Flat => f.push((0..around).map(|i| at(ring, i)).collect()),
+                End::Tip(h) => {
+                    let apex = p.len() as u32;
+                    p.push(Vec3::new(0.0, if y == 0.0 { -h } else { y + h }, 0.0));
+                    for i in 0..around {
+                        f.push(vec![at(ring, i), at(ring, i + 1), apex]);
+                    }
+                }
+            }
+        }
+        mesh(p, f)
+    }
+
+    fn faces_accounted(input: &PolygonMesh, model: &LineModel) {
+        let s = &model.stats;
+        assert_eq!(s.faces_converted + s.faces_kept, input.polygons.len());
+        assert_eq!(s.components, 1);
+        assert_eq!(
+            model.triangles.faces.as_ref().map_or(0, Vec::len),
+            s.triangles
+        );
+    }
+
+    #[test]
+    fn an_open_strip_leaf_is_one_ribbon_with_tips_and_half_widths() {
+        let input = strip_leaf(&[0.4, 0.6, 0.2]);
+        let model = convert(&input);
+        faces_accounted(&input, &model);
+        assert_eq!(model.stats.faces_kept, 0);
+        assert_eq!(model.polylines.len(), 1);
+        let ribbon = &model.polylines[0];
+        assert_eq!(ribbon.kind, LineKind::Ribbon);
+        assert_eq!(ribbon.color, COLOR);
+        let expected = [(0.0, 0.0), (1.0, 0.2), (2.0, 0.3), (3.0, 0.1), (4.0, 0.0)];
+        assert_eq!(ribbon.vertices.len(), expected.len());
+        for (v, (x, r)) in ribbon.vertices.iter().zip(expected) {
+            assert!(v.position.distance(Vec3::new(x, 0.0, 0.0)) < 1e-6, "{v:?}");
+            assert!((v.radius - r).abs() < 1e-6, "{v:?}");
+            assert!((v.dir.z.abs() - 1.0).abs() < 1e-6, "{v:?}");
+        }
+        assert_eq!(model.stats.ribbons.segments, 4);
+        assert_eq!(model.stats.output_vertices(), 5);
+        assert_eq!(model.stats.input_vertices, 8);
+    }
+
+    #[test]
+    fn a_wide_short_strip_is_kept() {
+        let input = strip_leaf(&[5.0]);
+        let model = convert(&input);
+        faces_accounted(&input, &model);
+        assert!(model.polylines.is_empty());
+        assert_eq!(model.stats.triangles, 2);
+    }
+
+    #[test]
+    fn a_ring_cylinder_is_one_tube_on_its_axis() {
+        let r = 0.25;
+        let input = tube(r, r, 4.0, 8, 6, [End::Open, End::Open]);
+        let model = convert(&input);
+        faces_accounted(&input, &model);
+        assert_eq!(model.stats.faces_kept, 0);
+        assert_eq!(model.polylines.len(), 1);
+        let t = &model.polylines[0];
+        assert_eq!(t.kind, LineKind::Tube);
+        assert_eq!(t.vertices.len(), 6);
+        let mut ys: Vec<f32> = t.vertices.iter().map(|v| v.position.y).collect();
+        ys.sort_by(f32::total_cmp);
+        for (j, (v, y)) in t.vertices.iter().zip(ys).enumerate() {
+            assert!((y - 0.8 * j as f32).abs() < 1e-5, "{y}");
+            assert!(v.position.x.abs() < 1e-6 && v.position.z.abs() < 1e-6);
+            assert!((v.radius - r).abs() < 1e-6, "{v:?}");
+            assert!((v.dir.y.abs() - 1.0).abs() < 1e-6, "{v:?}");
+        }
+        assert_eq!(model.stats.tubes.segments, 5);
+    }
+
+    #[test]
+    fn caps_are_absorbed_and_a_pointed_cap_adds_its_tip() {
+        let input = tube(0.1, 0.1, 2.0, 6, 5, [End::Flat, End::Tip(0.3)]);
+        let model = convert(&input);
+        faces_accounted(&input, &model);
+        assert_eq!(model.stats.faces_kept, 0, "{:?}", model.stats);
+        let t = &model.polylines[0];
+        assert_eq!(t.kind, LineKind::Tube);
+        assert_eq!(t.vertices.len(), 6);
+        let tip = t
+            .vertices
+            .iter()
+            .find(|v| (v.position.y - 2.3).abs() < 1e-5)
+            .expect("tip vertex");
+        assert_eq!(tip.radius, 0.0);
+    }
+
+    #[test]
+    fn a_flat_closed_leaf_is_a_ribbon_with_pointed_ends() {
+        let input = tube(0.3, 0.02, 3.0, 4, 5, [End::Tip(0.5), End::Tip(0.5)]);
+        let model = convert(&input);
+        faces_accounted(&input, &model);
+        assert_eq!(model.stats.faces_kept, 0);
+        let leaf = &model.polylines[0];
+        assert_eq!(leaf.kind, LineKind::Ribbon);
+        assert_eq!(leaf.vertices.len(), 7);
+        let radii: Vec<f32> = leaf.vertices.iter().map(|v| v.radius).collect();
+        assert_eq!((radii[0], radii[6]), (0.0, 0.0));
+        for v in &leaf.vertices {
+            // Normal across the width: along z, and all on one side.
+            assert!(v.dir.z > 0.99 || v.dir.z < -0.99, "{v:?}");
+            assert!(v.dir.dot(leaf.vertices[0].dir) > 0.0);
+        }
+        for r in &radii[1..6] {
+            assert!((r - 0.3).abs() < 1e-5, "{radii:?}");
+        }
+    }
+
+    #[test]
+    fn thick_cylinders_and_blobs_stay_triangles() {
+        let thick = tube(1.0, 1.0, 1.0, 8, 3, [End::Flat, End::Flat]);
+        let octahedron = mesh(
+            vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z],
+            vec![
+                vec![0, 2, 4],
+                vec![2, 1, 4],
+                vec![1, 3, 4],
+                vec![3, 0, 4],
+                vec![2, 0, 5],
+                vec![1, 2, 5],
+                vec![3, 1, 5],
+                vec![0, 3, 5],
+            ],
+        );
+        let cube = mesh(
+            (0..8)
+                .map(|i| Vec3::new((i & 1) as f32, (i >> 1 & 1) as f32, (i >> 2) as f32))
+                .collect(),
+            vec![
+                vec![0, 2, 3, 1],
+                vec![4, 5, 7, 6],
+                vec![0, 1, 5, 4],
+                vec![2, 6, 7, 3],
+                vec![0, 4, 6, 2],
+                vec![1, 3, 7, 5],
+            ],
+        );
+        for (input, triangles) in [(thick, 32 + 2 * 6), (octahedron, 8), (cube, 12)] {
+            let model = convert(&input);
+            faces_accounted(&input, &model);
+            assert!(model.polylines.is_empty());
+            assert_eq!(model.stats.faces_kept, input.polygons.len());
+            assert_eq!(model.stats.triangles, triangles);
+            assert_eq!(model.stats.triangle_vertices, input.positions.len());
+            let normals = model.triangles.normals.as_ref().expect("normals");
+            assert!(normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+        }
+    }
+
+    #[test]
+    fn repeated_positions_are_welded_and_the_conversion_is_deterministic() {
+        let mut input = strip_leaf(&[0.4, 0.6]);
+        // The second triangle's corners repeated as new vertices at the same positions.
+        let n = input.positions.len() as u32;
+        let last = input.polygons.len() - 1;
+        let corners = input.polygons[last].clone();
+        for &c in &corners {
+            input.positions.push(input.positions[c as usize]);
+        }
+        input.polygons[last] = vec![n, n + 1, n + 2];
+        let model = convert(&input);
+        assert_eq!(model.polylines.len(), 1);
+        assert_eq!(model, convert(&input));
+    }
+
+    fn sample_model() -> LineModel {
+        let mut input = strip_leaf(&[0.4, 0.6]);
+        let offset = input.positions.len() as u32;
+        for (i, polygon) in [
+            tube(0.1, 0.1, 2.0, 6, 5, [End::Flat, End::Tip(0.3)]),
+            tube(1.0, 1.0, 1.0, 8, 3, [End::Flat, End::Flat]),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let base = input.positions.len() as u32;
+            let shift = Vec3::new(5.0 * (i as f32 + 1.0), 0.0, 0.0);
+            input
+                .positions
+                .extend(polygon.positions.iter().map(|&p| p + shift));
+            for poly in polygon.polygons {
+                input.polygons.push(poly.iter().map(|v| v + base).collect());
+                input.colors.push([i as u8, 1, 2, 255]);
+            }
+        }
+        assert!(offset > 0);
+        convert(&input)
+    }
+
+    #[test]
+    fn a_line_model_survives_its_file() {
+        let model = sample_model();
+        assert_eq!(model.stats.components, 3);
+        assert_eq!(
+            (model.stats.ribbons.polylines, model.stats.tubes.polylines),
+            (1, 1)
+        );
+        assert!(model.stats.triangles > 0);
+        let text = to_text(&model);
+        let back = parse("m.ply", text.as_bytes()).expect("parse");
+        assert_eq!(back.polylines, model.polylines);
+        assert_eq!(back.triangles.positions, model.triangles.positions);
+        assert_eq!(back.triangles.normals, model.triangles.normals);
+        assert_eq!(back.triangles.colors, model.triangles.colors);
+        assert_eq!(back.triangles.faces, model.triangles.faces);
+        let sizes = |s: &LineStats| (s.ribbons, s.tubes, s.triangles, s.triangle_vertices);
+        assert_eq!(sizes(&back.stats), sizes(&model.stats));
+        assert_eq!(to_text(&back), text);
+    }
+
+    #[test]
+    fn malformed_files_name_the_line_and_what_was_expected() {
+        let model = sample_model();
+        let text = to_text(&model);
+        let header_end = text.find("end_header\n").expect("header") + "end_header\n".len();
+        let header_lines = text[..header_end].lines().count();
+        let cases: Vec<(String, String)> = vec![
+            (
+                text.replacen("ply\n", "plx\n", 1),
+                "m.ply: line 1: expected \"ply\"".into(),
+            ),
+            (
+                text.replacen("element polyline 2", "element polyline many", 1),
+                "m.ply: line 16: expected \"element polyline COUNT\"".into(),
+            ),
+            (
+                text.replacen(
+                    &format!("element face {}\n", model.stats.triangles),
+                    "element face 9999999999\n",
+                    1,
+                ),
+                "the header declares".into(),
+            ),
+            (
+                text[..header_end + 10].to_string(),
+                "the header declares".into(),
+            ),
+            (
+                {
+                    let mut lines: Vec<&str> = text.lines().collect();
+                    lines[header_lines] = "0 0 0 0 0 1 x 1 2 3 255";
+                    lines.join("\n")
+                },
+                format!(
+                    "m.ply: line {}: expected a number, found \"x\"",
+                    header_lines + 1
+                ),
+            ),
+            (
+                {
+                    let mut lines: Vec<&str> = text.lines().collect();
+                    let last = lines.len() - 1;
+                    lines[last] = "3 0 1 2";
+                    lines.join("\n")
+                },
+                "expected a triangle vertex index from".into(),
+            ),
+            (
+                format!("{text}garbage\n"),
+                "expected the end of the file, found \"garbage\"".into(),
+            ),
+        ];
+        for (bad, expected) in cases {
+            let err = parse("m.ply", bad.as_bytes())
+                .expect_err(&expected)
+                .to_string();
+            assert!(err.contains(&expected), "{err} lacks {expected}");
+        }
+    }
 }

@@ -321,7 +321,10 @@ fn polygons_of(
                 if !mesh.positions[p].is_finite() {
                     return Err(LoadError::whole(
                         file,
-                        format!("face {face_index} uses vertex {} whose position is not finite", p + 1),
+                        format!(
+                            "face {face_index} uses vertex {} whose position is not finite",
+                            p + 1
+                        ),
                     ));
                 }
                 corners.push(p as u32);
@@ -392,7 +395,8 @@ mod tests {
 
     #[test]
     fn polygons_keep_their_corners_and_material_colors() {
-        let text = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl leaf\nf 1 2 3 4\nusemtl none\nf 1 2 3\n";
+        let text =
+            b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl leaf\nf 1 2 3 4\nusemtl none\nf 1 2 3\n";
         let kd = |name: &str| (name == "leaf").then_some([1.0, 0.0, 0.2]);
         let m = parse_polygons("m.obj", text, &kd).unwrap();
         assert_eq!(m.polygons, vec![vec![0, 1, 2, 3], vec![0, 1, 2]]);
@@ -402,6 +406,9 @@ mod tests {
         let err = parse_polygons("m.obj", b"v 0 0 0\nf 1 2 3\n", &kd)
             .unwrap_err()
             .to_string();
-        assert!(err.starts_with("m.obj: line 2: face index 2 is out of range"), "{err}");
+        assert!(
+            err.starts_with("m.obj: line 2: face index 2 is out of range"),
+            "{err}"
+        );
     }
 }
