@@ -34,32 +34,17 @@ fn a_sparse_plane_reconstructs_without_holes() {
     let size = 128;
     for n in [16, 40] {
         let cloud = plane(n, 0.0, [200, 100, 50, 255]);
-        for method in [
-            "perspective-flat",
-            "pyramid:layout=0",
-            "pyramid:layout=1",
-            "pyramid:projection=1",
-        ] {
+        for method in ["perspective-flat", "pyramid:layout=0", "pyramid:layout=1", "pyramid:projection=1"] {
             let frame = render_view(&cloud, method, size, Default::default(), top_view);
             let raw = render_view(
                 &cloud,
-                &if method.starts_with("pyramid") {
-                    format!("{method},show=0")
-                } else {
-                    method.to_string()
-                },
+                &if method.starts_with("pyramid") { format!("{method},show=0") } else { method.to_string() },
                 size,
                 Default::default(),
                 top_view,
             );
-            let covered =
-                |f: &surfel::eval::Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
-            eprintln!(
-                "{n} {method}: {} of {} raw {}",
-                covered(&frame),
-                frame.pixels(),
-                covered(&raw)
-            );
+            let covered = |f: &surfel::eval::Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
+            eprintln!("{n} {method}: {} of {} raw {}", covered(&frame), frame.pixels(), covered(&raw));
         }
     }
 }

@@ -713,12 +713,7 @@ pub fn write_charts_by_model(
             let stem = if i == 0 {
                 slug(&model)
             } else {
-                format!(
-                    "{}_{}pts_{}",
-                    slug(&model),
-                    first.points,
-                    first.resolution()
-                )
+                format!("{}_{}pts_{}", slug(&model), first.points, first.resolution())
             };
             let res = format!("{} ({} points)", first.resolution(), first.points);
             let accuracy: [(&str, &str, MetricFn); 2] = [
@@ -769,7 +764,11 @@ pub fn write_charts_by_model(
                 ms,
                 colors: colors.clone(),
             };
-            written.extend(tag(write_both(&chart, dir, &format!("{stem}_passes"))?));
+            written.extend(tag(write_both(
+                &chart,
+                dir,
+                &format!("{stem}_passes"),
+            )?));
         }
 
         let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();

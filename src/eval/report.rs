@@ -7,7 +7,9 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::charts::{model_slices, models, reference_times, speed_accuracy, write_charts_by_model};
+use super::charts::{
+    model_slices, models, reference_times, speed_accuracy, write_charts_by_model,
+};
 use super::metrics::{BREAK_HOLE_RATIO, PSNR_CAP_DB};
 use super::results::{pareto_front, stability, MetricFn, Record, Results};
 

@@ -939,7 +939,7 @@ fn chain_polyline(
     } else {
         widest <= THICK_RATIO * length
     };
-    keep.then(|| Polyline {
+    keep.then_some(Polyline {
         kind: if ribbon {
             LineKind::Ribbon
         } else {

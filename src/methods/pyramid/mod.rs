@@ -306,12 +306,9 @@ impl Pyramid {
             let (src, dst) = (self.holder(top), self.holder(top + 1));
             let mut pass = graph.pass("pyramid.copy");
             for (s, d) in src.images().zip(dst.images()) {
-                pass = pass.image_mips(s, top, 1, Access::TransferSrc).image_mips(
-                    d,
-                    top,
-                    1,
-                    Access::TransferDst,
-                );
+                pass = pass
+                    .image_mips(s, top, 1, Access::TransferSrc)
+                    .image_mips(d, top, 1, Access::TransferDst);
             }
             pass.record(move |ctx| {
                 for (s, d) in src.images().zip(dst.images()) {
@@ -520,18 +517,14 @@ fn project_hardware(
     };
     let zbuffer = b.graph.image(
         "pyramid.zbuffer",
-        desc(
-            ZBUFFER_FORMAT,
-            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-        ),
+        desc(ZBUFFER_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT),
     );
     // The fragment shader always writes the albedo target; without colors nothing reads it.
     let albedo = match level0.c {
         Some(c) => c,
-        None => b.graph.image(
-            "pyramid.hw-albedo",
-            desc(FORMAT_C, vk::ImageUsageFlags::empty()),
-        ),
+        None => b
+            .graph
+            .image("pyramid.hw-albedo", desc(FORMAT_C, vk::ImageUsageFlags::empty())),
     };
     let (frame, segments) = (b.frame, b.segments);
     let count = b.scene.point_count;

@@ -136,11 +136,10 @@ fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel {
         .map(|c| (c, child.at(c)))
         .filter(|(_, t)| !t.is_empty())
         .collect();
-    let Some(front) =
-        children
-            .iter()
-            .map(|(_, t)| *t)
-            .reduce(|f, t| if t.depth < f.depth { t } else { f })
+    let Some(front) = children
+        .iter()
+        .map(|(_, t)| *t)
+        .reduce(|f, t| if t.depth < f.depth { t } else { f })
     else {
         return Texel::default();
     };
@@ -335,14 +334,8 @@ mod tests {
         };
         let scale = Vec2::new(3.0, -3.0);
         let c = Vec2::ZERO;
-        assert!(close(
-            ellipse_distance2(&t, c, Vec2::new(2.0, 0.0), scale),
-            1.0
-        ));
-        assert!(close(
-            ellipse_distance2(&t, c, Vec2::new(0.0, 4.0), scale),
-            1.0
-        ));
+        assert!(close(ellipse_distance2(&t, c, Vec2::new(2.0, 0.0), scale), 1.0));
+        assert!(close(ellipse_distance2(&t, c, Vec2::new(0.0, 4.0), scale), 1.0));
         assert!(ellipse_distance2(&t, c, Vec2::new(2.5, 0.0), scale) > 1.0);
         assert!(ellipse_distance2(&t, c, Vec2::new(0.0, 3.9), scale) < 1.0);
     }
@@ -353,10 +346,7 @@ mod tests {
         l.set(IVec2::new(4, 2), texel(1.0, 1.0, Vec3::ONE));
         let levels = analysis(l);
         assert_eq!(
-            levels
-                .iter()
-                .map(|l| (l.width, l.height))
-                .collect::<Vec<_>>(),
+            levels.iter().map(|l| (l.width, l.height)).collect::<Vec<_>>(),
             vec![(5, 3), (2, 1), (1, 1)]
         );
         let p = levels[1].at(IVec2::new(1, 0));
