@@ -115,7 +115,9 @@ fn plant_leaves_become_ribbons() {
     assert_eq!(s.components, 14);
     assert!(s.ribbons.polylines >= 14, "{s:?}");
     assert_eq!(s.tubes.polylines, 0, "{s:?}");
-    assert!(s.faces_converted * 10 >= s.faces_kept * 9 * 2, "{s:?}");
+    // Two components are pairs of leaves joined at the base: their joints become short
+    // ribbons or caps, so nothing is left as triangles.
+    assert_eq!(s.faces_kept, 0, "{s:?}");
 }
 
 #[test]

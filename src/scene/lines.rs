@@ -49,7 +49,9 @@
 //! with too large a radius, or the strip is not recognised); tubes must be made of quads; a
 //! branching tube breaks at each junction, whose faces stay triangles; the ring test compares
 //! rail lengths, so a tube shorter than its circumference whose quads also close lengthwise
-//! (like a cube) is not a ring. The conversion is deterministic: same mesh, same output.
+//! (like a cube) is not a ring; a loop of quads that crosses itself is traced again from each
+//! of its quads (time grows with its length squared). The conversion is deterministic: same
+//! mesh, same output.
 //!
 //! # File format ([`save`], [`load`])
 //!
@@ -479,7 +481,7 @@ fn strip(mesh: &Mesh, component: &[u32]) -> Option<Polyline> {
     if order.len() != component.len() {
         return None;
     }
-    // Consecutive cross edges of a quad are opposite; of a triangle they share a corner.
+    // An end: the mean of the end face's corners off its cross edge.
     let end = |f: u32, e: (u32, u32)| -> (Vec3, f32) {
         let off: Vec<u32> = mesh.faces[f as usize]
             .iter()
@@ -538,28 +540,40 @@ struct Band {
     rail_length: f32,
 }
 
+/// What tracing a loop of quads found.
+enum Trace {
+    /// A ring-shaped closed loop.
+    Band(Band),
+    /// No band: the states traced (quad, entry edge) reach the same dead end (a boundary, a
+    /// non-quad, an edge with other than two faces) or make a closed loop that is not a band,
+    /// so none of them lies on a band.
+    Dead(Vec<(u32, usize)>),
+    /// The loop meets a quad twice: no band through the start (the states after it may still
+    /// close on their own).
+    Crossing,
+}
+
 /// Traces the loop of quads from `q` entered through its edge `k`, leaving through `k + 2`.
-/// `None` when the loop does not close into a simple loop (a boundary, a non-quad, an edge
-/// with other than two faces, a quad met twice).
-fn trace_band(mesh: &Mesh, q: u32, k: usize) -> Option<Band> {
+fn trace_band(mesh: &Mesh, q: u32, k: usize) -> Trace {
     let mut quads = vec![(q, k)];
+    let mut seen = std::collections::HashSet::from([q]);
     let (mut f, mut entry) = (q, k);
     loop {
         let exit = mesh.face_edge(f, entry + 2);
-        let next = mesh.across(exit, f)?;
-        if !mesh.is_quad(next) {
-            return None;
-        }
-        let k_next = (0..4).find(|&j| mesh.face_edge(next, j) == exit)?;
-        if next == q {
-            return if k_next == k {
-                band_from_loop(mesh, quads)
-            } else {
-                None
+        let Some(next) = mesh.across(exit, f).filter(|&g| mesh.is_quad(g)) else {
+            return Trace::Dead(quads);
+        };
+        let Some(k_next) = (0..4).find(|&j| mesh.face_edge(next, j) == exit) else {
+            return Trace::Dead(quads);
+        };
+        if (next, k_next) == (q, k) {
+            return match band_from_loop(mesh, quads.clone()) {
+                Some(band) => Trace::Band(band),
+                None => Trace::Dead(quads),
             };
         }
-        if quads.iter().any(|&(g, _)| g == next) {
-            return None;
+        if !seen.insert(next) {
+            return Trace::Crossing;
         }
         quads.push((next, k_next));
         (f, entry) = (next, k_next);
@@ -632,13 +646,18 @@ fn chains(mesh: &Mesh, component: &[u32]) -> Vec<(Polyline, Vec<u32>)> {
                 continue;
             }
             match trace_band(mesh, q, axis) {
-                Some(band) => {
+                Trace::Band(band) => {
                     for &(f, k) in &band.quads {
                         loop_of.insert((f, k % 2), Some(bands.len()));
                     }
                     bands.push(band);
                 }
-                None => {
+                Trace::Dead(states) => {
+                    for (f, k) in states {
+                        loop_of.insert((f, k % 2), None);
+                    }
+                }
+                Trace::Crossing => {
                     loop_of.insert((q, axis), None);
                 }
             }
