@@ -40,7 +40,8 @@
 //!    made to agree along the polyline). Otherwise it is a **tube**: radius the largest
 //!    distance from the centre to the ring's vertices, direction the tangent; a tube whose
 //!    largest radius exceeds [`THICK_RATIO`] times its length is thick (a trunk) and stays
-//!    triangles, as the thesis keeps its apple tree's trunk.
+//!    triangles, as the thesis keeps its apple tree's trunk; a ribbon shorter than it is wide
+//!    stays triangles too. A polyline takes the colour of its first face.
 //! 3. Anything else stays **triangles** (fan-triangulated), as do the faces of a component
 //!    that no chain or cap took (branch junctions, the ends of non-manifold parts). No face is
 //!    dropped: [`LineStats`] accounts for every input face.
@@ -70,7 +71,8 @@
 //! Polylines take the first vertices in order (polyline `i` starts where `i - 1` ends), each
 //! at least 2, all of one colour; `d` is the ribbon normal or the tube tangent. The vertices
 //! after the polylines are the kept triangles' (`d` their normal, radius 0), and faces index
-//! only those.
+//! only those. The reader accepts exactly this header (counts aside), checks the counts
+//! against the file's size before allocating, and names the line and what it expected.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
