@@ -1,4 +1,4 @@
-//! The command line: `surfel render | view | info | sample | bench | report`.
+//! The command line: `surfel render | view | info | sample | convert-lines | bench | report`.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -36,6 +36,8 @@ pub enum Command {
     Info(InfoArgs),
     /// Sample a mesh into a point cloud (area-weighted, face normals, radii from density).
     Sample(SampleArgs),
+    /// Convert a mesh's thin parts (leaves, branches) into ribbons and tubes (thesis 000 §5.1).
+    ConvertLines(ConvertLinesArgs),
     /// Run a benchmark sweep: GPU timings and accuracy against the ground truth, with charts.
     Bench(BenchArgs),
     /// Write report.md (tables and charts) from a sweep's results.json.
@@ -246,6 +248,15 @@ pub struct SampleArgs {
     pub seed: u64,
 }
 
+#[derive(Args, Debug)]
+pub struct ConvertLinesArgs {
+    /// Polygon mesh (obj; materials from its mtllib give the colours).
+    pub mesh: PathBuf,
+    /// Write the line model (ASCII PLY: vertices, polylines, kept triangles) to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -253,6 +264,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::View(a) => view(a),
         Command::Info(a) => info(a),
         Command::Sample(a) => sample(a),
+        Command::ConvertLines(a) => convert_lines(a),
         Command::Bench(a) => bench(a),
         Command::Report(a) => report(a),
     }
@@ -688,6 +700,54 @@ fn sample(a: SampleArgs) -> Result<()> {
     crate::scene::ply::save(&a.out, &cloud)
         .with_context(|| format!("{}: cannot write", a.out.display()))?;
     eprintln!("{} points -> {}", cloud.len(), a.out.display());
+    Ok(())
+}
+
+fn convert_lines(a: ConvertLinesArgs) -> Result<()> {
+    use crate::scene::lines;
+    if crate::scene::format_extension(&a.mesh) != "obj" {
+        bail!(
+            "{}: expected an .obj mesh (polygons and materials)",
+            a.mesh.display()
+        );
+    }
+    let mesh = crate::scene::obj::load_polygons(&a.mesh)?;
+    if mesh.polygons.is_empty() {
+        bail!("{}: the mesh has no faces", a.mesh.display());
+    }
+    let model = lines::convert(&mesh);
+    let s = &model.stats;
+    println!("file              {}", a.mesh.display());
+    println!("components        {}", s.components);
+    println!(
+        "faces             {} in: {} converted, {} kept",
+        mesh.polygons.len(),
+        s.faces_converted,
+        s.faces_kept
+    );
+    for (name, k) in [("ribbons", s.ribbons), ("tubes", s.tubes)] {
+        println!(
+            "{name:<17} {} polylines, {} segments, {} vertices",
+            k.polylines, k.segments, k.vertices
+        );
+    }
+    println!(
+        "triangles kept    {} triangles, {} vertices",
+        s.triangles, s.triangle_vertices
+    );
+    println!(
+        "vertices          {} in, {} out ({:.1} %)",
+        s.input_vertices,
+        s.output_vertices(),
+        100.0 * s.output_vertices() as f64 / s.input_vertices.max(1) as f64
+    );
+    if mesh.uncolored > 0 {
+        println!("no material       {} faces (grey)", mesh.uncolored);
+    }
+    if let Some(out) = &a.out {
+        lines::save(out, &model).with_context(|| format!("{}: cannot write", out.display()))?;
+        println!("written           {}", out.display());
+    }
     Ok(())
 }
 

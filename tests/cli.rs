@@ -741,3 +741,55 @@ fn extra_bytes_fields_are_listed_by_info_and_can_color_a_render() {
     assert!(colors.contains(&[0, 0, 255, 255]), "{colors:?}");
     assert!(colors.contains(&[255, 0, 0, 255]), "{colors:?}");
 }
+
+#[test]
+fn convert_lines_prints_counts_and_writes_a_line_model() {
+    let out = tmp("palm.lines.ply");
+    let palm = data("plants/PalmTree_1.obj");
+    let o = surfel(&[
+        "convert-lines",
+        palm.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    for line in [
+        "components        16",
+        "faces             914 in:",
+        "ribbons ",
+        "tubes ",
+        "triangles kept ",
+        "vertices          918 in,",
+    ] {
+        assert!(text.contains(line), "{line:?} in {text}");
+    }
+    let model = surfel::scene::lines::load(&out).expect("reload");
+    assert!(!model.polylines.is_empty());
+    // Other PLY readers see the vertices and the kept triangles.
+    let cloud = surfel::scene::load(&out).expect("load as PLY");
+    assert!(cloud.len() >= model.polylines.len() * 2);
+}
+
+#[test]
+fn convert_lines_rejects_missing_and_garbage_files() {
+    let missing = tmp("no_such_plant.obj");
+    let o = surfel(&["convert-lines", missing.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("no_such_plant.obj"), "{}", stderr(&o));
+    let garbage = tmp("garbage.obj");
+    std::fs::write(&garbage, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 elephant\n").expect("write");
+    let o = surfel(&["convert-lines", garbage.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("garbage.obj: line 4"), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    let ply = data("stanford/bun_zipper.ply");
+    let o = surfel(&["convert-lines", ply.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("expected an .obj mesh"),
+        "{}",
+        stderr(&o)
+    );
+}

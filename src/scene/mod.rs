@@ -10,6 +10,7 @@ pub mod error;
 pub mod input;
 pub mod las;
 pub mod lights;
+pub mod lines;
 pub mod obj;
 pub mod pack;
 pub mod pcd;

@@ -5,6 +5,9 @@
 //! normals it is used with. Positions that faces use without a normal get the area-weighted
 //! average of their faces' normals; positions no face uses get +Z. Material libraries
 //! (`mtllib`) are not opened, so a missing `.mtl` is not an error. Unknown commands are ignored.
+//!
+//! [`load_polygons`] keeps the polygons as they are (not triangulated), each with the diffuse
+//! colour (`Kd`) of its material, for the line conversion (`scene::lines`).
 
 use std::path::Path;
 
@@ -232,6 +235,137 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     parse(&path.display().to_string(), &data)
 }
 
+/// An OBJ mesh with its polygons as the file has them (not triangulated).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PolygonMesh {
+    pub positions: Vec<Vec3>,
+    /// Indices into `positions`, in the file's corner order.
+    pub polygons: Vec<Vec<u32>>,
+    /// One RGBA8 (sRGB) colour per polygon: its material's `Kd`, or [`NO_MATERIAL_COLOR`] when
+    /// the polygon has no material or its `.mtl` has none by that name (or no `Kd`).
+    pub colors: Vec<[u8; 4]>,
+    /// Polygons that got [`NO_MATERIAL_COLOR`].
+    pub uncolored: usize,
+}
+
+/// The colour of a polygon without a known material: light grey.
+pub const NO_MATERIAL_COLOR: [u8; 4] = [200, 200, 200, 255];
+
+/// A linear colour component (`Kd` as Blender writes it) as an sRGB byte.
+fn srgb_byte(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// Parses OBJ text held in memory into polygons; `material` gives the linear `Kd` of a material
+/// name (`usemtl`), if known. `file` names the text in error messages. A polygon with fewer
+/// than 3 corners, an index out of range or a corner at a non-finite position is an error.
+pub fn parse_polygons(
+    file: &str,
+    data: &[u8],
+    material: &dyn Fn(&str) -> Option<[f32; 3]>,
+) -> Result<PolygonMesh, LoadError> {
+    let parsed = obj::ObjData::load_buf_with_config(data, obj::LoadConfig { strict: false })
+        .map_err(|e| map_error(file, e))?;
+    polygons_of(file, data, &parsed, material)
+}
+
+fn polygons_of(
+    file: &str,
+    data: &[u8],
+    parsed: &obj::ObjData,
+    material: &dyn Fn(&str) -> Option<[f32; 3]>,
+) -> Result<PolygonMesh, LoadError> {
+    let n = parsed.position.len();
+    if n > u32::MAX as usize {
+        return Err(LoadError::whole(
+            file,
+            format!("{n} vertices exceed the 2^32 limit"),
+        ));
+    }
+    let positions: Vec<Vec3> = parsed.position.iter().map(|p| Vec3::from(*p)).collect();
+    let mut mesh = PolygonMesh {
+        positions,
+        ..PolygonMesh::default()
+    };
+    for group in parsed.objects.iter().flat_map(|o| &o.groups) {
+        let kd = group.material.as_ref().and_then(|m| match m {
+            obj::ObjMaterial::Ref(name) => material(name),
+            obj::ObjMaterial::Mtl(m) => m.kd.or_else(|| material(&m.name)),
+        });
+        let color = kd.map_or(NO_MATERIAL_COLOR, |[r, g, b]| {
+            [srgb_byte(r), srgb_byte(g), srgb_byte(b), 255]
+        });
+        for poly in &group.polys {
+            let face_index = mesh.polygons.len();
+            if poly.0.len() < 3 {
+                return Err(LoadError::whole(
+                    file,
+                    format!(
+                        "face {face_index}: expected at least 3 corners, found {}",
+                        poly.0.len()
+                    ),
+                ));
+            }
+            let mut corners = Vec::with_capacity(poly.0.len());
+            for tuple in &poly.0 {
+                let p = tuple.0;
+                if p >= n {
+                    return Err(out_of_range(file, data, FaceIndex::Vertex, n, face_index));
+                }
+                if !mesh.positions[p].is_finite() {
+                    return Err(LoadError::whole(
+                        file,
+                        format!(
+                            "face {face_index} uses vertex {} whose position is not finite",
+                            p + 1
+                        ),
+                    ));
+                }
+                corners.push(p as u32);
+            }
+            mesh.polygons.push(corners);
+            mesh.colors.push(color);
+            if kd.is_none() {
+                mesh.uncolored += 1;
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// Loads an OBJ file as polygons with material colours. The `mtllib` files are read from the
+/// OBJ's folder; a missing or unreadable `.mtl` is not an error (its polygons count as
+/// `uncolored`).
+pub fn load_polygons(path: &Path) -> Result<PolygonMesh, LoadError> {
+    let data = super::read_file(path)?;
+    let file = path.display().to_string();
+    let parsed = obj::ObjData::load_buf_with_config(&data[..], obj::LoadConfig { strict: false })
+        .map_err(|e| map_error(&file, e))?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut kd = std::collections::HashMap::new();
+    for lib in &parsed.material_libs {
+        let mut lib = obj::Mtl::new(lib.filename.clone());
+        let Ok(text) = std::fs::read(dir.join(&lib.filename)) else {
+            continue;
+        };
+        if lib.reload(&text[..]).is_err() {
+            continue;
+        }
+        for m in &lib.materials {
+            if let Some(c) = m.kd {
+                kd.entry(m.name.clone()).or_insert(c);
+            }
+        }
+    }
+    polygons_of(&file, &data, &parsed, &|name| kd.get(name).copied())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -255,6 +389,25 @@ mod tests {
             .to_string();
         assert!(
             err.starts_with("bad.obj: line 2: expected numbers"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn polygons_keep_their_corners_and_material_colors() {
+        let text =
+            b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl leaf\nf 1 2 3 4\nusemtl none\nf 1 2 3\n";
+        let kd = |name: &str| (name == "leaf").then_some([1.0, 0.0, 0.2]);
+        let m = parse_polygons("m.obj", text, &kd).unwrap();
+        assert_eq!(m.polygons, vec![vec![0, 1, 2, 3], vec![0, 1, 2]]);
+        assert_eq!(m.colors[0], [255, 0, 124, 255]);
+        assert_eq!(m.colors[1], NO_MATERIAL_COLOR);
+        assert_eq!(m.uncolored, 1);
+        let err = parse_polygons("m.obj", b"v 0 0 0\nf 1 2 3\n", &kd)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("m.obj: line 2: face index 2 is out of range"),
             "{err}"
         );
     }
