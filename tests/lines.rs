@@ -126,3 +126,59 @@ fn the_conversion_is_deterministic() {
     let (_, b) = convert("CommonTree_Dead_1.obj");
     assert_eq!(a, b);
 }
+
+#[test]
+fn committed_line_models_match_a_fresh_conversion() {
+    // benches/data holds the plants' line models for the plants sweep; they must be what
+    // `surfel convert-lines` writes today.
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/data");
+    for name in ["PalmTree_1", "CommonTree_Dead_1", "Plant_3"] {
+        let (_, model) = convert(&format!("{name}.obj"));
+        let committed = std::fs::read_to_string(data.join(format!("{name}.lines.ply")))
+            .expect("committed line model");
+        assert!(
+            lines::to_text(&model) == committed,
+            "benches/data/{name}.lines.ply is stale: regenerate it with `surfel convert-lines \
+             ../shared/data/plants/{name}.obj --out benches/data/{name}.lines.ply`"
+        );
+    }
+}
+
+#[test]
+fn a_line_model_loads_as_a_cloud_of_segments_and_kept_triangles() {
+    for name in ["PalmTree_1", "CommonTree_Dead_1"] {
+        let (_, model) = convert(&format!("{name}.obj"));
+        let path =
+            std::env::temp_dir().join(format!("surfel-{}-{name}.lines.ply", std::process::id()));
+        lines::save(&path, &model).expect("save");
+        assert!(lines::is_line_model(&path));
+        let cloud = surfel::scene::load(&path).expect("load");
+        std::fs::remove_file(&path).unwrap();
+        let s = &model.stats;
+        let polyline_vertices = s.ribbons.vertices + s.tubes.vertices;
+        assert_eq!(
+            cloud.len(),
+            polyline_vertices + s.triangle_vertices,
+            "{name}"
+        );
+        assert_eq!(cloud.radii.as_ref().map(Vec::len), Some(cloud.len()));
+        let l = cloud.lines.as_ref().expect("lines");
+        assert_eq!(
+            (l.ribbons.len(), l.tubes.len()),
+            (s.ribbons.segments, s.tubes.segments)
+        );
+        // Segments join consecutive vertices of one polyline; faces index the kept part only.
+        assert!(l.ribbons.iter().chain(&l.tubes).all(|[a, b]| b - a == 1));
+        let faces = cloud.faces.as_deref().unwrap_or_default();
+        assert_eq!(faces.len(), s.triangles, "{name}");
+        assert!(faces
+            .iter()
+            .flatten()
+            .all(|&i| (i as usize) >= polyline_vertices && (i as usize) < cloud.len()));
+        // The kept triangles are not expanded by the pyramid: radius 0.
+        assert!(cloud.radii.as_ref().unwrap()[polyline_vertices..]
+            .iter()
+            .all(|&r| r == 0.0));
+    }
+    assert!(!lines::is_line_model(&plant("PalmTree_1.obj")));
+}

@@ -409,6 +409,25 @@ impl Viewer {
         self.rebuild()
     }
 
+    /// For a method with a `show` parameter (the pyramid's), shows the next coarser (`step` 1)
+    /// or finer level: -1 is the reconstruction, 0 the raw projection, N level N of the analysis.
+    fn step_level(&mut self, step: i32) -> Result<()> {
+        let mut config = self.config();
+        let Some(spec) = config.method.params.iter().find(|p| p.name == "show") else {
+            return self.outcome(Ok(format!("{} shows no levels", config.method.name)));
+        };
+        let level = (config.get("show") + step as f32).clamp(spec.min, spec.max);
+        config.params.insert("show".into(), level);
+        self.opts.method = config;
+        self.rebuild()?;
+        let what = match level as i32 {
+            -1 => "the reconstruction".to_string(),
+            0 => "level 0 as projected".to_string(),
+            l => format!("level {l} of the analysis"),
+        };
+        self.outcome(Ok(format!("showing {what}")))
+    }
+
     /// Colors by the next field of `color::fields`: swaps the uploaded scalar stream (an event,
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
@@ -456,6 +475,8 @@ impl Viewer {
                 }
             }
             ViewerKey::Char('m') => self.switch_method(1)?,
+            ViewerKey::Char('[') => self.step_level(-1)?,
+            ViewerKey::Char(']') => self.step_level(1)?,
             ViewerKey::Char('n') => self.switch_method(-1)?,
             ViewerKey::Char('c') => self.use_color = !self.use_color,
             ViewerKey::Char('e') => self.toggle_edl()?,

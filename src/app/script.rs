@@ -30,12 +30,12 @@ pub enum ViewerKey {
 }
 
 impl ViewerKey {
-    /// Parses a script key name: one letter or digit (any case), `Tab`, `F11`, `Esc` or
-    /// `Escape` (names in any case).
+    /// Parses a script key name: one letter or digit (any case), `[` or `]`, `Tab`, `F11`,
+    /// `Esc` or `Escape` (names in any case).
     pub fn parse(name: &str) -> Option<Self> {
         let mut chars = name.chars();
         match (chars.next(), chars.next()) {
-            (Some(c), None) if c.is_ascii_alphanumeric() => {
+            (Some(c), None) if c.is_ascii_alphanumeric() || c == '[' || c == ']' => {
                 return Some(Self::Char(c.to_ascii_lowercase()))
             }
             _ => {}
@@ -112,7 +112,7 @@ impl Script {
 fn parse_step(command: &str, arg: &str) -> Result<Step, String> {
     match command {
         "key" => ViewerKey::parse(arg).map(Step::Key).ok_or_else(|| {
-            format!("expected `key NAME` with NAME a letter, Tab, F11 or Esc, got {arg:?}")
+            format!("expected `key NAME` with NAME a letter, a digit, [, ], Tab, F11 or Esc, got {arg:?}")
         }),
         "frames" => match arg.parse::<u64>() {
             Ok(n) if n >= 1 => Ok(Step::Frames(n)),
@@ -236,6 +236,7 @@ mod tests {
             ]
         );
         assert_eq!(ViewerKey::parse("M"), Some(ViewerKey::Char('m')));
+        assert_eq!(ViewerKey::parse("]"), Some(ViewerKey::Char(']')));
         assert_eq!(
             ViewerKey::from_winit(&Key::Character("K".into())),
             Some(ViewerKey::Char('k'))

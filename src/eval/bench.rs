@@ -231,6 +231,7 @@ pub fn run(
     let mut variants: HashMap<(PathBuf, String), Loaded> = HashMap::new();
     let mut truths: HashMap<String, Vec<Frame>> = HashMap::new();
     let jobs = config.jobs();
+    let use_color = config.color;
     for (i, job) in jobs.iter().enumerate() {
         let truth_path = job.model.truth.as_ref().unwrap_or(&job.model.path).clone();
         for path in [&job.model.path, &truth_path] {
@@ -329,7 +330,7 @@ pub fn run(
             View {
                 camera: c,
                 lights: lights.clone(),
-                use_color: true,
+                use_color,
                 time: 0.0,
             }
         };

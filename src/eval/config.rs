@@ -13,6 +13,7 @@
 //! name = "bunny"                          # optional, defaults to the file stem
 //! points = [10000, 100000]                # optional: also resample the mesh to N points
 //! truth = "plant.obj"                      # optional: score against this model's mesh
+//! (top level) color = false                # optional: shade everything in the base color
 //!
 //! [[methods]]
 //! name = "points"
@@ -354,6 +355,9 @@ pub struct BenchConfig {
     pub lights: Vec<u32>,
     pub frames: FrameCounts,
     pub stress: Vec<StressSweep>,
+    /// Whether points are shaded in their colors (`color = false`: every method and the
+    /// ground truth in the base color, to compare geometry across inputs whose colors differ).
+    pub color: bool,
 }
 
 /// Which part of the sweep a job belongs to.
@@ -403,6 +407,7 @@ struct RawConfig {
     frames: Option<FrameCounts>,
     #[serde(default)]
     stress: Vec<RawStress>,
+    color: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -699,6 +704,7 @@ impl BenchConfig {
             lights,
             frames,
             stress,
+            color: raw.color.unwrap_or(true),
         })
     }
 
@@ -998,6 +1004,7 @@ values = [1.0, 0.1]
             "splat-grazing.toml",
             "pyramid.toml",
             "pyramid-stress.toml",
+            "plants.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

@@ -80,7 +80,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::cloud::{Cloud, LoadStats};
+use super::cloud::{Cloud, Lines, LoadStats};
 use super::error::{show, LoadError};
 use super::obj::PolygonMesh;
 
@@ -193,6 +193,56 @@ pub struct LineModel {
     /// The kept part: positions, normals, colors and triangle faces.
     pub triangles: Cloud,
     pub stats: LineStats,
+}
+
+/// The header line that marks a line model among PLY files.
+pub const MAGIC_COMMENT: &str = "comment surfel line model";
+
+impl LineModel {
+    /// The model as a renderable cloud: the polylines' vertices first (normal = the ribbon
+    /// normal or tube tangent, radius = half width or tube radius, the polyline's color), their
+    /// segments as [`Lines`], then the kept triangles (radius 0: triangles are not expanded).
+    pub fn to_cloud(&self) -> Cloud {
+        let mut cloud = Cloud {
+            normals: Some(Vec::new()),
+            radii: Some(Vec::new()),
+            colors: Some(Vec::new()),
+            lines: Some(Lines::default()),
+            ..Cloud::default()
+        };
+        let (normals, radii, colors) = (
+            cloud.normals.as_mut().expect("set"),
+            cloud.radii.as_mut().expect("set"),
+            cloud.colors.as_mut().expect("set"),
+        );
+        let lines = cloud.lines.as_mut().expect("set");
+        for p in &self.polylines {
+            let first = cloud.positions.len() as u32;
+            for v in &p.vertices {
+                cloud.positions.push(v.position);
+                normals.push(v.dir);
+                radii.push(v.radius);
+                colors.push(p.color);
+            }
+            let segments = (0..p.vertices.len() as u32 - 1).map(|k| [first + k, first + k + 1]);
+            match p.kind {
+                LineKind::Ribbon => lines.ribbons.extend(segments),
+                LineKind::Tube => lines.tubes.extend(segments),
+            }
+        }
+        let t = &self.triangles;
+        let first = cloud.positions.len() as u32;
+        cloud.positions.extend(&t.positions);
+        normals.extend(t.normals.clone().unwrap_or_else(|| vec![Vec3::Z; t.len()]));
+        radii.extend(std::iter::repeat_n(0.0, t.len()));
+        colors.extend(t.colors.clone().unwrap_or_else(|| vec![[255; 4]; t.len()]));
+        cloud.faces = t
+            .faces
+            .as_ref()
+            .map(|f| f.iter().map(|tri| tri.map(|i| i + first)).collect());
+        cloud.stats.records = cloud.positions.len();
+        cloud
+    }
 }
 
 /// The welded mesh and its edge table.
@@ -1025,7 +1075,7 @@ pub fn to_text(model: &LineModel) -> String {
 const HEADER: [&str; 21] = [
     "ply",
     "format ascii 1.0",
-    "comment surfel line model",
+    MAGIC_COMMENT,
     "element vertex {}",
     "property float x",
     "property float y",
@@ -1049,6 +1099,19 @@ const HEADER: [&str; 21] = [
 /// The fewest bytes a data line of each element takes: 11 numbers, 2 numbers, 4 numbers, each
 /// at least one character and a separator.
 const MIN_LINE_BYTES: [usize; 3] = [22, 4, 8];
+
+/// Whether `path` starts like a line model (its third header line is [`MAGIC_COMMENT`]).
+pub fn is_line_model(path: &Path) -> bool {
+    let mut head = [0u8; 64];
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let n = std::io::Read::read(&mut file, &mut head).unwrap_or(0);
+    String::from_utf8_lossy(&head[..n])
+        .lines()
+        .nth(2)
+        .is_some_and(|l| l.trim_end() == MAGIC_COMMENT)
+}
 
 /// Reads a line model written by [`save`].
 pub fn load(path: &Path) -> Result<LineModel, LoadError> {

@@ -53,6 +53,7 @@ pub fn load_with_budget(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadE
         ));
     }
     let mut cloud = match extension.as_str() {
+        "ply" if lines::is_line_model(path) => lines::load(path).map(|m| m.to_cloud()),
         "ply" => ply::load(path),
         "obj" => obj::load(path),
         "pcd" => pcd::load(path),

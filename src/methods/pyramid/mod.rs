@@ -455,7 +455,7 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
             &spec,
             params,
             Primitives::Points(mask),
-            triangles.is_none(),
+            !rasterized,
         )?;
     } else {
         let projection = project(
