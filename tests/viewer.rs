@@ -292,6 +292,52 @@ fn digit_keys_set_the_number_of_lights() {
 }
 
 #[test]
+fn bracket_keys_step_through_the_pyramid_levels() {
+    // `]` from the reconstruction shows level 0 as projected (1 pixel per point: far fewer
+    // covered pixels), then level 1 magnified; `[` twice returns to the reconstruction.
+    let dir = tmp_dir("levels");
+    std::fs::write(
+        dir.join("t.txt"),
+        "key Tab\nscreenshot full.png\nkey ]\nscreenshot raw.png\nkey ]\nscreenshot one.png\n\
+         key [\nkey [\nscreenshot back.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &[
+            "--size", "640x480", "--method", "pyramid", "--script", "t.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    for line in [
+        "showing level 0 as projected",
+        "showing level 1 of the analysis",
+        "showing the reconstruction",
+    ] {
+        assert!(
+            stdout.lines().any(|l| l == line),
+            "{line:?} not in {stdout}"
+        );
+    }
+    let covered = |name: &str| {
+        png(&dir.join(name))
+            .pixels()
+            .filter(|p| p.0 != [0, 0, 0])
+            .count()
+    };
+    let (full, raw, one) = (covered("full.png"), covered("raw.png"), covered("one.png"));
+    assert!(raw * 4 < full * 3, "level 0 {raw} vs reconstruction {full}");
+    assert!(one > raw, "level 1 magnified {one} vs level 0 {raw}");
+    assert_eq!(
+        difference(&png(&dir.join("full.png")), &png(&dir.join("back.png"))).0,
+        0
+    );
+}
+
+#[test]
 fn without_size_the_window_takes_80_percent_of_the_monitor() {
     let dir = tmp_dir("monitor");
     std::fs::write(dir.join("s.txt"), "screenshot full.png\nquit\nframes 100\n").expect("script");
@@ -319,7 +365,9 @@ fn a_bad_script_line_names_the_file_and_line() {
     let stderr = text(&o.stderr);
     assert!(!o.status.success());
     assert!(
-        stderr.contains("bad.txt:3: expected `key NAME` with NAME a letter, Tab, F11 or Esc"),
+        stderr.contains(
+            "bad.txt:3: expected `key NAME` with NAME a letter, a digit, [, ], Tab, F11 or Esc"
+        ),
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");

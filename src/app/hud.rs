@@ -13,10 +13,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("right drag", "pan"),
     ("wheel", "zoom"),
     ("M / N", "next / previous method"),
-    (
-        "[ / ]",
-        "pyramid: finer / coarser level shown (-1: reconstruction, 0: raw)",
-    ),
+    ("[ / ]", "pyramid level shown"),
     ("C", "toggle point colors"),
     ("E", "toggle eye-dome lighting"),
     ("V", "color by the next field"),

@@ -139,6 +139,7 @@ fn render(
         pareto_section(&mut md, results, &model);
         embed(&mut md, Some(&model));
     }
+    cost_section(&mut md, results);
     stability_section(&mut md, results);
     if charts.iter().any(|(m, _)| m.is_none()) {
         let _ = writeln!(md, "## Cross-model charts\n");
@@ -293,6 +294,107 @@ fn pareto_tables(md: &mut String, head: &[&Record]) {
     }
 }
 
+/// The cost ratios 002 and 000 discuss, where the sweep has both sides (median over the
+/// baseline records of each side, per model, point count, resolution and light count):
+/// blended shadings against flat for each splat rasterization, EWA against perspective
+/// deferred splats, and each method at its largest light count against its smallest.
+pub fn cost_ratios(results: &Results) -> Vec<(String, String, f64)> {
+    type Key = (String, u64, (u32, u32));
+    let mut times: BTreeMap<(Key, String, u32), Vec<f64>> = BTreeMap::new();
+    for r in results.records.iter().filter(|r| r.stress.is_none()) {
+        let key = (r.model.clone(), r.points, (r.width, r.height));
+        times
+            .entry((key, r.method.clone(), r.lights))
+            .or_default()
+            .push(r.frame_ms_median);
+    }
+    let median = |v: &[f64]| {
+        let mut v = v.to_vec();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let slice =
+        |(m, p, (w, h)): &Key, lights: u32| format!("{m}, {p} points, {w}x{h}, {lights} light(s)");
+    let mut out = Vec::new();
+    let pairs = times
+        .keys()
+        .map(|(k, m, l)| (k.clone(), m.clone(), *l))
+        .collect::<Vec<_>>();
+    for (key, method, lights) in &pairs {
+        let at = |m: &str| {
+            times
+                .get(&(key.clone(), m.to_string(), *lights))
+                .map(|v| median(v))
+        };
+        let t = at(method).unwrap_or(f64::NAN);
+        for shading in ["gouraud", "phong", "deferred"] {
+            if let Some(raster) = method.strip_suffix(&format!("-{shading}")) {
+                if let Some(flat) = at(&format!("{raster}-flat")) {
+                    out.push((
+                        slice(key, *lights),
+                        format!("{method} / {raster}-flat"),
+                        t / flat,
+                    ));
+                }
+            }
+        }
+        if method == "ewa" {
+            if let Some(deferred) = at("perspective-deferred") {
+                out.push((
+                    slice(key, *lights),
+                    "ewa / perspective-deferred".into(),
+                    t / deferred,
+                ));
+            }
+        }
+    }
+    let methods: Vec<(Key, String)> = pairs
+        .iter()
+        .map(|(k, m, _)| (k.clone(), m.clone()))
+        .collect();
+    let mut seen = Vec::new();
+    for (key, method) in methods {
+        if seen.contains(&(key.clone(), method.clone())) {
+            continue;
+        }
+        seen.push((key.clone(), method.clone()));
+        let counts: Vec<u32> = pairs
+            .iter()
+            .filter(|(k, m, _)| *k == key && *m == method)
+            .map(|p| p.2)
+            .collect();
+        let (Some(&lo), Some(&hi)) = (counts.iter().min(), counts.iter().max()) else {
+            continue;
+        };
+        if lo < hi {
+            let t = |l: u32| median(&times[&(key.clone(), method.clone(), l)]);
+            let (m, p, (w, h)) = &key;
+            out.push((
+                format!("{m}, {p} points, {w}x{h}"),
+                format!("{method}: {hi} lights / {lo}"),
+                t(hi) / t(lo),
+            ));
+        }
+    }
+    out
+}
+
+fn cost_section(md: &mut String, results: &Results) {
+    let ratios = cost_ratios(results);
+    if ratios.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "## Cost ratios\n\nFrame time of the first configuration over the second (median \
+         frame times, same model, points, resolution and lights).\n\n| slice | ratio | value |\n|---|---|---|"
+    );
+    for (slice, what, value) in ratios {
+        let _ = writeln!(md, "| {} | {} | {value:.2} |", cell(&slice), cell(&what));
+    }
+    let _ = writeln!(md);
+}
+
 fn stability_section(md: &mut String, results: &Results) {
     let stab = stability(results);
     if stab.is_empty() {
@@ -367,5 +469,53 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains("No records."));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn cost_ratios_pair_shadings_ewa_and_light_counts() {
+        let record = |method: &str, lights: u32, ms: f64| Record {
+            model: "m".into(),
+            points: 10,
+            method: method.into(),
+            params: BTreeMap::new(),
+            width: 8,
+            height: 8,
+            pose: "p".into(),
+            lights,
+            stress: None,
+            stress_value: None,
+            device: String::new(),
+            driver: String::new(),
+            passes: Vec::new(),
+            frame_ms_median: ms,
+            frame_ms_spread: 0.0,
+            points_per_second: 0.0,
+            scores: Default::default(),
+        };
+        let results = Results {
+            records: vec![
+                record("affine-flat", 1, 10.0),
+                record("affine-gouraud", 1, 15.0),
+                record("affine-deferred", 1, 20.0),
+                record("affine-deferred", 16, 24.0),
+                record("perspective-deferred", 1, 40.0),
+                record("ewa", 1, 10.0),
+                record("points", 1, 3.0),
+            ],
+            ..Default::default()
+        };
+        let ratios = cost_ratios(&results);
+        let find = |what: &str| {
+            ratios
+                .iter()
+                .find(|r| r.1 == what)
+                .map(|r| r.2)
+                .unwrap_or_else(|| panic!("{what} missing from {ratios:?}"))
+        };
+        assert_eq!(find("affine-gouraud / affine-flat"), 1.5);
+        assert_eq!(find("affine-deferred / affine-flat"), 2.0);
+        assert_eq!(find("ewa / perspective-deferred"), 0.25);
+        assert_eq!(find("affine-deferred: 16 lights / 1"), 1.2);
+        assert_eq!(ratios.len(), 4, "{ratios:?}");
     }
 }

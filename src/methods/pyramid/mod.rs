@@ -43,7 +43,9 @@ use crate::gpu::layout::{
     PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID, PYRAMID_SPEC_TUBE,
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, Stages};
+use crate::graph::{
+    Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
+};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
 /// k-th nearest neighbour (4.2.1, k = 10); the clouds here carry the density spacing
@@ -167,6 +169,22 @@ impl Group {
     }
 }
 
+/// Records one dispatch of `pipeline` over `groups` with `descriptors` (bound once per frame,
+/// built at compile: recording allocates nothing) and the push constants `push`.
+fn dispatch(
+    pass: PassBuilder<'_>,
+    pipeline: Arc<Pipeline>,
+    descriptors: Vec<Descriptor>,
+    push: PyramidParams,
+    (gx, gy): (u32, u32),
+) {
+    pass.record(move |ctx| {
+        ctx.bind(&pipeline, &descriptors);
+        ctx.push(&pipeline, bytemuck::bytes_of(&push));
+        ctx.dispatch(gx, gy, 1);
+    });
+}
+
 fn group_bindings(base: u32) -> [Binding; 3] {
     [
         storage_image(base),
@@ -277,23 +295,10 @@ impl Pyramid {
                 src.descriptors(BINDING_PYRAMID_LEVEL, level - 1),
                 dst.descriptors(BINDING_PYRAMID_OUT, level),
             );
-            let (gx, gy) = self.groups(level);
-            let pipeline = analysis.clone();
+            let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
+            d.extend(input.into_iter().chain(out));
             let push = PyramidParams { level, ..params };
-            pass.record(move |ctx| {
-                let d = [
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    input[0],
-                    input[1],
-                    input[2],
-                    out[0],
-                    out[1],
-                    out[2],
-                ];
-                ctx.bind(&pipeline, &d);
-                ctx.push(&pipeline, bytemuck::bytes_of(&push));
-                ctx.dispatch(gx, gy, 1);
-            });
+            dispatch(pass, analysis.clone(), d, push, self.groups(level));
         }
         Ok(())
     }
@@ -365,26 +370,10 @@ impl Pyramid {
             let parent = read.descriptors(BINDING_PYRAMID_PARENT, level + 1);
             let input = read.descriptors(BINDING_PYRAMID_LEVEL, level);
             let out = write.descriptors(BINDING_PYRAMID_OUT, level);
-            let (gx, gy) = self.groups(level);
-            let pipeline = synthesis.clone();
+            let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
+            d.extend(parent.into_iter().chain(input).chain(out));
             let push = PyramidParams { level, ..params };
-            pass.record(move |ctx| {
-                let d = [
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    parent[0],
-                    parent[1],
-                    parent[2],
-                    input[0],
-                    input[1],
-                    input[2],
-                    out[0],
-                    out[1],
-                    out[2],
-                ];
-                ctx.bind(&pipeline, &d);
-                ctx.push(&pipeline, bytemuck::bytes_of(&push));
-                ctx.dispatch(gx, gy, 1);
-            });
+            dispatch(pass, synthesis.clone(), d, push, self.groups(level));
             result = write;
         }
         Ok(result)
@@ -492,24 +481,14 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
         for image in first.images() {
             pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
         }
-        let input = first.descriptors(BINDING_PYRAMID_LEVEL, 0);
-        let out = first.descriptors(BINDING_PYRAMID_OUT, 0);
-        pass.record(move |ctx| {
-            let d = [
-                Descriptor::Buffer(BINDING_FRAME, frame),
-                Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-                input[0],
-                input[1],
-                input[2],
-                out[0],
-                out[1],
-                out[2],
-            ];
-            ctx.bind(&pipeline, &d);
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
-        });
+        let mut d = vec![
+            Descriptor::Buffer(BINDING_FRAME, frame),
+            Descriptor::Buffer(BINDING_SEGMENTS, segments),
+            Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+        ];
+        d.extend(first.descriptors(BINDING_PYRAMID_LEVEL, 0));
+        d.extend(first.descriptors(BINDING_PYRAMID_OUT, 0));
+        dispatch(pass, pipeline, d, params, (gx, gy));
     }
 
     // Analysis and synthesis, or the level shown without synthesis.
@@ -540,24 +519,18 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
         pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
     }
     let input = source.descriptors(BINDING_PYRAMID_LEVEL, level);
-    let push = PyramidParams { level, ..params };
-    pass.image(t.color, Access::StorageWrite(compute))
+    let pass = pass
+        .image(t.color, Access::StorageWrite(compute))
         .image(t.depth, Access::StorageWrite(compute))
-        .image(t.normal, Access::StorageWrite(compute))
-        .record(move |ctx| {
-            let d = [
-                Descriptor::Buffer(BINDING_FRAME, frame),
-                input[0],
-                input[1],
-                input[2],
-                Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-                Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
-                Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
-            ];
-            ctx.bind(&shade, &d);
-            ctx.push(&shade, bytemuck::bytes_of(&push));
-            ctx.dispatch(gx, gy, 1);
-        });
+        .image(t.normal, Access::StorageWrite(compute));
+    let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
+    d.extend(input);
+    d.extend([
+        Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
+        Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
+        Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
+    ]);
+    dispatch(pass, shade, d, PyramidParams { level, ..params }, (gx, gy));
     Ok(())
 }
 
