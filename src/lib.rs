@@ -7,6 +7,7 @@ pub mod eval;
 pub mod frame;
 pub mod gpu;
 pub mod graph;
+pub mod hpr;
 pub mod methods;
 pub mod overlay;
 pub mod post;
