@@ -38,6 +38,8 @@ pub enum Command {
     Sample(SampleArgs),
     /// Convert a mesh's thin parts (leaves, branches) into ribbons and tubes (thesis 000 §5.1).
     ConvertLines(ConvertLinesArgs),
+    /// Hidden point removal: the points of FILE visible from a viewpoint (003).
+    Hpr(HprArgs),
     /// Run a benchmark sweep: GPU timings and accuracy against the ground truth, with charts.
     Bench(BenchArgs),
     /// Write report.md (tables and charts) from a sweep's results.json.
@@ -257,6 +259,29 @@ pub struct ConvertLinesArgs {
     pub out: Option<PathBuf>,
 }
 
+#[derive(Args, Debug)]
+pub struct HprArgs {
+    /// Point cloud or mesh (any input format).
+    pub file: PathBuf,
+    /// Viewpoint X,Y,Z in the file's local frame (as `surfel info` prints bounds).
+    #[arg(long)]
+    pub eye: String,
+    /// Exact HPR (convex hull of the spherically flipped points, 003 §2.1).
+    #[arg(long)]
+    pub exact: bool,
+    /// Flipping radius R as a factor of the cloud's diameter.
+    #[arg(long, default_value_t = 100.0, conflicts_with = "radius")]
+    pub radius_factor: f64,
+    /// Flipping radius R in scene units.
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Write the visible points (and the hull's triangles over them) as binary PLY.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -265,6 +290,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info(a),
         Command::Sample(a) => sample(a),
         Command::ConvertLines(a) => convert_lines(a),
+        Command::Hpr(a) => hpr(a),
         Command::Bench(a) => bench(a),
         Command::Report(a) => report(a),
     }
@@ -700,6 +726,46 @@ fn sample(a: SampleArgs) -> Result<()> {
     crate::scene::ply::save(&a.out, &cloud)
         .with_context(|| format!("{}: cannot write", a.out.display()))?;
     eprintln!("{} points -> {}", cloud.len(), a.out.display());
+    Ok(())
+}
+
+fn hpr(a: HprArgs) -> Result<()> {
+    if !a.exact {
+        bail!("only exact HPR is available so far (the GPU approximation of 003 ch. 4 is not built): pass --exact");
+    }
+    let eye = parse_vec3(&a.eye).map_err(anyhow::Error::msg)?;
+    let cloud = load_prepared(&a.file, &a.input.options())?;
+    let radius = match a.radius {
+        Some(r) => crate::hpr::Radius::Absolute(r),
+        None => crate::hpr::Radius::Factor(a.radius_factor),
+    };
+    let start = std::time::Instant::now();
+    let v = crate::hpr::exact(&cloud.positions, glam::Vec3::from(eye), radius)
+        .with_context(|| a.file.display().to_string())?;
+    let seconds = start.elapsed().as_secs_f64();
+    println!("points            {}", cloud.len());
+    println!(
+        "visible           {} ({:.1} %)",
+        v.visible.len(),
+        100.0 * v.visible.len() as f64 / cloud.len() as f64
+    );
+    println!("hull triangles    {}", v.triangles.len());
+    println!("radius R          {}", v.radius);
+    println!("at the viewpoint  {}", v.at_viewpoint);
+    if v.joggled {
+        println!("joggled           yes (flat input: Qhull QJ)");
+    }
+    println!("time              {seconds:.3} s");
+    if let Some(out) = &a.out {
+        let visible = crate::hpr::visible_cloud(&cloud, &v);
+        crate::scene::ply::save(out, &visible)
+            .with_context(|| format!("{}: cannot write", out.display()))?;
+        println!(
+            "written           {} ({} points)",
+            out.display(),
+            visible.len()
+        );
+    }
     Ok(())
 }
 

@@ -793,3 +793,46 @@ fn convert_lines_rejects_missing_and_garbage_files() {
         stderr(&o)
     );
 }
+
+#[test]
+fn hpr_writes_the_visible_points_and_their_hull_triangles() {
+    let bunny = data("stanford/bun_zipper.ply");
+    let out = tmp("visible.ply");
+    let o = surfel(&[
+        "hpr",
+        bunny.to_str().expect("utf8"),
+        "--eye",
+        "0.3,0.15,0.3",
+        "--exact",
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    let visible: usize = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("visible"))
+        .and_then(|l| l.split_whitespace().next()?.parse().ok())
+        .unwrap_or_else(|| panic!("no visible count in {stdout}"));
+    // From one side about a quarter of the bunny is visible.
+    assert!((5_000..15_000).contains(&visible), "{visible}");
+    let cloud = surfel::scene::load(&out).expect("written PLY");
+    assert_eq!(cloud.len(), visible);
+    assert!(cloud.faces.as_ref().is_some_and(|f| !f.is_empty()));
+    std::fs::remove_file(&out).unwrap();
+    // Only the exact method exists so far; a radius inside the cloud is an error.
+    let o = surfel(&["hpr", bunny.to_str().expect("utf8"), "--eye", "0,0,1"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("pass --exact"), "{}", stderr(&o));
+    let o = surfel(&[
+        "hpr",
+        bunny.to_str().expect("utf8"),
+        "--eye",
+        "0,0,1",
+        "--exact",
+        "--radius",
+        "0.01",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("must exceed"), "{}", stderr(&o));
+}

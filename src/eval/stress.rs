@@ -65,7 +65,7 @@ fn check_aligned(cloud: &Cloud) -> Result<(), StressError> {
 /// The points at `keep` (ascending indices) with every attribute, radii multiplied by
 /// `radius_scale(i)`; faces and lines dropped. Every field is listed so that a new per-point field of
 /// `Cloud` is a compile error here rather than silently misaligned.
-fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) -> Cloud {
+pub(crate) fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) -> Cloud {
     let mut out = Cloud {
         positions: keep.iter().map(|&i| cloud.positions[i]).collect(),
         normals: cloud

@@ -20,6 +20,8 @@ use anyhow::{bail, Result};
 use glam::{DVec3, Vec3};
 use qhull::Qh;
 
+use crate::scene::Cloud;
+
 /// How the flipping radius R is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Radius {
@@ -135,6 +137,25 @@ pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibil
         at_viewpoint,
         joggled,
     })
+}
+
+/// The visible points of `cloud` with all their attributes, and the hull's triangles over them
+/// as faces (a partial surface of what is seen).
+pub fn visible_cloud(cloud: &Cloud, v: &Visibility) -> Cloud {
+    let keep: Vec<usize> = v.visible.iter().map(|&i| i as usize).collect();
+    let mut new_index = vec![u32::MAX; cloud.len()];
+    for (k, &i) in keep.iter().enumerate() {
+        new_index[i] = k as u32;
+    }
+    let mut out = crate::eval::stress::select(cloud, &keep, |_| 1.0);
+    let faces: Vec<[u32; 3]> = v
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| new_index[i as usize]))
+        .filter(|t| t.iter().all(|&i| i != u32::MAX))
+        .collect();
+    out.faces = (!faces.is_empty()).then_some(faces);
+    out
 }
 
 /// The convex hull of `coords` (xyz triples) with Qhull option `option`: the input indices of

@@ -1202,7 +1202,7 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
 
 /// Writes `cloud` as binary little-endian PLY: positions (float, or double when the cloud has
 /// a non-zero origin, so large coordinates survive), and normals, colors (with alpha) and
-/// radii when present. Faces and scalars are not written.
+/// radii when present, and the faces. Scalars are not written.
 pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
     let mut out = io::BufWriter::new(out);
     let wide = cloud.origin != DVec3::ZERO;
@@ -1228,6 +1228,11 @@ pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
     }
     if radii.is_some() {
         out.write_all(b"property float radius\n")?;
+    }
+    let faces = cloud.faces.as_deref().unwrap_or_default();
+    if !faces.is_empty() {
+        writeln!(out, "element face {}", faces.len())?;
+        out.write_all(b"property list uchar int vertex_indices\n")?;
     }
     out.write_all(b"end_header\n")?;
     let stride = if wide { 24 } else { 12 }
@@ -1281,6 +1286,12 @@ pub fn write_binary<W: Write>(cloud: &Cloud, out: W) -> io::Result<()> {
             });
         out.write_all(&block)?;
     }
+    for face in faces {
+        out.write_all(&[3])?;
+        for i in face {
+            out.write_all(&(*i as i32).to_le_bytes())?;
+        }
+    }
     out.flush()
 }
 
@@ -1313,6 +1324,16 @@ mod tests {
         assert_eq!(back.normals, cloud.normals);
         assert_eq!(back.colors, cloud.colors);
         assert_eq!(back.radii, cloud.radii);
+        assert_eq!(back.faces, None);
+        let mesh = Cloud {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            faces: Some(vec![[0, 1, 2]]),
+            ..Cloud::default()
+        };
+        let mut bytes = Vec::new();
+        write_binary(&mesh, &mut bytes).unwrap();
+        let back = parse("mesh.ply", &bytes).unwrap();
+        assert_eq!((back.positions, back.faces), (mesh.positions, mesh.faces));
     }
 
     #[test]
