@@ -266,9 +266,16 @@ pub struct HprArgs {
     /// Viewpoint X,Y,Z in the file's local frame (as `surfel info` prints bounds).
     #[arg(long)]
     pub eye: String,
-    /// Exact HPR (convex hull of the spherically flipped points, 003 §2.1).
+    /// Exact HPR (convex hull of the spherically flipped points, 003 §2.1); otherwise the
+    /// sector approximation of 003 ch. 4 (its CPU reference).
     #[arg(long)]
     pub exact: bool,
+    /// Sectors k of the approximation (rounded to a square √k × √k grid).
+    #[arg(long, default_value_t = 262_144)]
+    pub sectors: u64,
+    /// Fixed propagation over an m × m window (odd); adaptive propagation without it.
+    #[arg(long)]
+    pub m: Option<u32>,
     /// Flipping radius R as a factor of the cloud's diameter.
     #[arg(long, default_value_t = 100.0, conflicts_with = "radius")]
     pub radius_factor: f64,
@@ -730,18 +737,48 @@ fn sample(a: SampleArgs) -> Result<()> {
 }
 
 fn hpr(a: HprArgs) -> Result<()> {
-    if !a.exact {
-        bail!("only exact HPR is available so far (the GPU approximation of 003 ch. 4 is not built): pass --exact");
-    }
-    let eye = parse_vec3(&a.eye).map_err(anyhow::Error::msg)?;
+    use crate::hpr::approx::{self, ApproxError, Params, Propagation};
+    let eye = glam::Vec3::from(parse_vec3(&a.eye).map_err(anyhow::Error::msg)?);
     let cloud = load_prepared(&a.file, &a.input.options())?;
     let radius = match a.radius {
         Some(r) => crate::hpr::Radius::Absolute(r),
         None => crate::hpr::Radius::Factor(a.radius_factor),
     };
     let start = std::time::Instant::now();
-    let v = crate::hpr::exact(&cloud.positions, glam::Vec3::from(eye), radius)
-        .with_context(|| a.file.display().to_string())?;
+    let exact = || {
+        crate::hpr::exact(&cloud.positions, eye, radius)
+            .with_context(|| a.file.display().to_string())
+    };
+    let v = if a.exact {
+        exact()?
+    } else {
+        let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)
+            .with_context(|| a.file.display().to_string())?;
+        let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
+        let params = Params {
+            sqrt_k: (a.sectors as f64).sqrt().round().max(1.0) as u32,
+            radius: r,
+            propagation: a.m.map_or(Propagation::Adaptive, Propagation::Fixed),
+        };
+        match approx::approximate(&points, eye.as_dvec3(), params) {
+            Ok(found) => {
+                println!(
+                    "sectors           {0} x {0}, {1} propagation round(s), EMPTY grid 1/{2}",
+                    params.sqrt_k, found.rounds, found.coarse
+                );
+                crate::hpr::Visibility {
+                    visible: found.visible,
+                    radius: r,
+                    ..Default::default()
+                }
+            }
+            Err(ApproxError::Inside) => {
+                println!("viewpoint inside or near the bounding sphere: exact HPR instead");
+                exact()?
+            }
+            Err(e) => return Err(anyhow::anyhow!("{}: {e}", a.file.display())),
+        }
+    };
     let seconds = start.elapsed().as_secs_f64();
     println!("points            {}", cloud.len());
     println!(

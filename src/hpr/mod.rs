@@ -14,6 +14,8 @@
 //! dimensions ("initial simplex is flat") is retried with Qhull's joggle (`QJ`), and one that
 //! still fails (fewer than four distinct points) has every flippable point visible.
 
+pub mod approx;
+
 use std::collections::HashMap;
 
 use anyhow::{bail, Result};
@@ -47,14 +49,17 @@ pub struct Visibility {
     pub joggled: bool,
 }
 
-/// Exact HPR of `points` seen from `viewpoint`.
-pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibility> {
+/// The flipping radius for `points` seen from `viewpoint`; an error unless it exceeds every
+/// point's distance from the viewpoint.
+pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f64> {
     if points.is_empty() {
         bail!("hidden point removal needs at least one point");
     }
     let eye = viewpoint.as_dvec3();
-    let centred: Vec<DVec3> = points.iter().map(|p| p.as_dvec3() - eye).collect();
-    let max_norm = centred.iter().map(|p| p.length()).fold(0.0, f64::max);
+    let max_norm = points
+        .iter()
+        .map(|p| (p.as_dvec3() - eye).length())
+        .fold(0.0, f64::max);
     let r = match radius {
         Radius::Factor(f) => {
             let (lo, hi) = points.iter().fold(
@@ -71,6 +76,14 @@ pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibil
              viewpoint, {max_norm} (raise the radius factor)"
         );
     }
+    Ok(r)
+}
+
+/// Exact HPR of `points` seen from `viewpoint`.
+pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibility> {
+    let eye = viewpoint.as_dvec3();
+    let centred: Vec<DVec3> = points.iter().map(|p| p.as_dvec3() - eye).collect();
+    let r = flip_radius(points, viewpoint, radius)?;
     // One representative per exact position (duplicates share a hull vertex), flippable only.
     let mut first_of: HashMap<[u64; 3], u32> = HashMap::new();
     let mut representative = vec![0u32; points.len()];
