@@ -185,6 +185,9 @@ pub struct RenderArgs {
     /// Print the available methods, one per line, and exit.
     #[arg(long)]
     pub list_methods: bool,
+    /// Render only the points visible from the camera (hidden point removal, 003).
+    #[arg(long, value_enum)]
+    pub visibility: Option<Visibility>,
     /// Enable the Vulkan validation layers.
     #[arg(long)]
     pub validation: bool,
@@ -484,6 +487,24 @@ fn render(a: RenderArgs) -> Result<()> {
         s
     };
     let cloud = load_scene(&file, &settings, &a.input.options())?;
+    // The camera frames the whole cloud, also when only its visible points are rendered.
+    let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+    let camera = settings.camera(centre, radius, cloud.up);
+    let cloud = match a.visibility {
+        Some(mode) => {
+            let factor = crate::hpr::Radius::Factor(100.0);
+            let (v, note) = visible_points(&cloud, camera.eye, mode, factor, 1 << 18, None)?;
+            eprintln!(
+                "{note}; {} of {} points visible",
+                v.visible.len(),
+                cloud.len()
+            );
+            let mut visible = crate::hpr::visible_cloud(&cloud, &v);
+            visible.faces = None;
+            visible
+        }
+        None => cloud,
+    };
     let coloring = settings.coloring(&file, &cloud)?;
     let load_s = since();
     let ctx = context(a.validation)?;
@@ -508,7 +529,7 @@ fn render(a: RenderArgs) -> Result<()> {
         print!("{}", renderer.schedule());
     }
     let view = View {
-        camera: settings.camera(info.centre, info.radius, info.up),
+        camera,
         lights: settings.lights,
         use_color: !a.camera.no_color,
         time: 0.0,
@@ -736,8 +757,57 @@ fn sample(a: SampleArgs) -> Result<()> {
     Ok(())
 }
 
-fn hpr(a: HprArgs) -> Result<()> {
+/// Which hidden point removal filters a render (`--visibility`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Visibility {
+    /// The sector approximation (003 ch. 4), exact HPR where the viewpoint is too near.
+    Hpr,
+    /// Exact HPR (003 §2.1).
+    HprExact,
+}
+
+/// The points of `cloud` visible from `eye` and a line saying how they were found.
+fn visible_points(
+    cloud: &Cloud,
+    eye: glam::Vec3,
+    mode: Visibility,
+    radius: crate::hpr::Radius,
+    sectors: u64,
+    m: Option<u32>,
+) -> Result<(crate::hpr::Visibility, String)> {
     use crate::hpr::approx::{self, ApproxError, Params, Propagation};
+    let exact = || crate::hpr::exact(&cloud.positions, eye, radius);
+    if mode == Visibility::HprExact {
+        return Ok((exact()?, "method            exact HPR".into()));
+    }
+    let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
+    let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
+    let params = Params {
+        sqrt_k: (sectors as f64).sqrt().round().max(1.0) as u32,
+        radius: r,
+        propagation: m.map_or(Propagation::Adaptive, Propagation::Fixed),
+    };
+    match approx::approximate(&points, eye.as_dvec3(), params) {
+        Ok(found) => Ok((
+            crate::hpr::Visibility {
+                visible: found.visible,
+                radius: r,
+                ..Default::default()
+            },
+            format!(
+                "sectors           {0} x {0}, {1} propagation round(s), EMPTY grid 1/{2}",
+                params.sqrt_k, found.rounds, found.coarse
+            ),
+        )),
+        Err(ApproxError::Inside) => Ok((
+            exact()?,
+            "viewpoint inside or near the bounding sphere: exact HPR instead".into(),
+        )),
+        Err(e) => Err(anyhow::anyhow!("{e}")),
+    }
+}
+
+fn hpr(a: HprArgs) -> Result<()> {
     let eye = glam::Vec3::from(parse_vec3(&a.eye).map_err(anyhow::Error::msg)?);
     let cloud = load_prepared(&a.file, &a.input.options())?;
     let radius = match a.radius {
@@ -745,40 +815,14 @@ fn hpr(a: HprArgs) -> Result<()> {
         None => crate::hpr::Radius::Factor(a.radius_factor),
     };
     let start = std::time::Instant::now();
-    let exact = || {
-        crate::hpr::exact(&cloud.positions, eye, radius)
-            .with_context(|| a.file.display().to_string())
-    };
-    let v = if a.exact {
-        exact()?
+    let mode = if a.exact {
+        Visibility::HprExact
     } else {
-        let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)
-            .with_context(|| a.file.display().to_string())?;
-        let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
-        let params = Params {
-            sqrt_k: (a.sectors as f64).sqrt().round().max(1.0) as u32,
-            radius: r,
-            propagation: a.m.map_or(Propagation::Adaptive, Propagation::Fixed),
-        };
-        match approx::approximate(&points, eye.as_dvec3(), params) {
-            Ok(found) => {
-                println!(
-                    "sectors           {0} x {0}, {1} propagation round(s), EMPTY grid 1/{2}",
-                    params.sqrt_k, found.rounds, found.coarse
-                );
-                crate::hpr::Visibility {
-                    visible: found.visible,
-                    radius: r,
-                    ..Default::default()
-                }
-            }
-            Err(ApproxError::Inside) => {
-                println!("viewpoint inside or near the bounding sphere: exact HPR instead");
-                exact()?
-            }
-            Err(e) => return Err(anyhow::anyhow!("{}: {e}", a.file.display())),
-        }
+        Visibility::Hpr
     };
+    let (v, note) = visible_points(&cloud, eye, mode, radius, a.sectors, a.m)
+        .with_context(|| a.file.display().to_string())?;
+    println!("{note}");
     let seconds = start.elapsed().as_secs_f64();
     println!("points            {}", cloud.len());
     println!(

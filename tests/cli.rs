@@ -853,3 +853,30 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("must exceed"), "{}", stderr(&o));
 }
+
+#[test]
+fn render_visibility_keeps_only_the_points_hpr_finds_visible() {
+    let bunny = data("stanford/bun_zipper.ply");
+    for (mode, expect) in [("hpr-exact", "exact HPR"), ("hpr", "sectors")] {
+        let out = tmp(&format!("visible-{mode}.png"));
+        let o = surfel(&[
+            "render",
+            bunny.to_str().expect("utf8"),
+            "--size",
+            "96x96",
+            "--frames",
+            "1",
+            "--visibility",
+            mode,
+            "--out",
+            out.to_str().expect("utf8"),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains(expect) && e.contains("of 35947 points visible"),
+            "{e}"
+        );
+        std::fs::remove_file(&out).unwrap();
+    }
+}
