@@ -7,28 +7,10 @@ mod common;
 
 use std::path::Path;
 
-use common::{render, render_view};
+use common::{layer, render, render_view};
 use glam::Vec3;
 use surfel::eval::metrics;
 use surfel::scene::{pack, preprocess, Camera, Cloud};
-
-/// `n` × `n` points of one color on the unit square at height `z` facing +z, keeping those whose
-/// x passes `keep`; the radius is the grid spacing (what the k-NN estimate gives a grid).
-fn layer(n: usize, color: [u8; 4], z: f32, keep: impl Fn(f32) -> bool) -> Cloud {
-    let t = |k: usize| -0.5 + (k as f32 + 0.5) / n as f32;
-    let positions: Vec<Vec3> = (0..n * n)
-        .map(|k| Vec3::new(t(k % n), t(k / n), z))
-        .filter(|p| keep(p.x))
-        .collect();
-    let count = positions.len();
-    Cloud {
-        normals: Some(vec![Vec3::Z; count]),
-        radii: Some(vec![1.0 / n as f32; count]),
-        colors: Some(vec![color; count]),
-        positions,
-        ..Default::default()
-    }
-}
 
 fn merge(layers: Vec<Cloud>) -> Cloud {
     let mut out = Cloud {

@@ -304,18 +304,7 @@ fn synthesis_matches_the_cpu_model_in_both_layouts() {
 
 /// `n` x `n` points on the unit square at height `z` facing +z, radius = the grid spacing.
 fn plane(n: usize, z: f32, color: [u8; 4]) -> Cloud {
-    let t = |k: usize| -0.5 + (k as f32 + 0.5) / n as f32;
-    let positions: Vec<Vec3> = (0..n * n)
-        .map(|k| Vec3::new(t(k % n), t(k / n), z))
-        .collect();
-    let count = positions.len();
-    Cloud {
-        normals: Some(vec![Vec3::Z; count]),
-        radii: Some(vec![1.0 / n as f32; count]),
-        colors: Some(vec![color; count]),
-        positions,
-        ..Default::default()
-    }
+    common::layer(n, color, z, |_| true)
 }
 
 /// `method` with one more `key=value` parameter.

@@ -259,20 +259,9 @@ pub fn approximate(points: &[DVec3], eye: DVec3, params: Params) -> Result<Appro
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hpr::tests::sphere;
     use crate::hpr::{exact, Radius};
     use glam::Vec3;
-
-    fn sphere(n: usize) -> Vec<Vec3> {
-        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-        (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-                let r = (1.0 - y * y).sqrt();
-                let a = golden * i as f32;
-                Vec3::new(r * a.cos(), y, r * a.sin())
-            })
-            .collect()
-    }
 
     /// (precision, recall) of `found` against `truth`.
     fn scores(found: &[u32], truth: &[u32]) -> (f64, f64) {

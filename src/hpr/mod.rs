@@ -195,7 +195,7 @@ mod tests {
     use super::*;
 
     /// Points on the unit sphere (a Fibonacci lattice of `n`).
-    fn sphere(n: usize) -> Vec<Vec3> {
+    pub(super) fn sphere(n: usize) -> Vec<Vec3> {
         let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
         (0..n)
             .map(|i| {
