@@ -279,13 +279,21 @@ pub struct HprArgs {
     /// Fixed propagation over an m × m window (odd); adaptive propagation without it.
     #[arg(long)]
     pub m: Option<u32>,
+    /// The approximation's reconstruction drops triangles with an edge longer than this many
+    /// pixels of a `--size` view from the eye (003 §4.4).
+    #[arg(long, default_value_t = 10.0)]
+    pub max_edge: f32,
+    /// The view the edge threshold is measured in (the thesis' 900 x 900).
+    #[arg(long, default_value = "900x900")]
+    pub size: String,
     /// Flipping radius R as a factor of the cloud's diameter.
     #[arg(long, default_value_t = 100.0, conflicts_with = "radius")]
     pub radius_factor: f64,
     /// Flipping radius R in scene units.
     #[arg(long)]
     pub radius: Option<f64>,
-    /// Write the visible points (and the hull's triangles over them) as binary PLY.
+    /// Write the visible points and the triangles over them (exact: the hull's; approximate:
+    /// the sector reconstruction's) as binary PLY.
     #[arg(long)]
     pub out: Option<PathBuf>,
     #[command(flatten)]
@@ -493,7 +501,9 @@ fn render(a: RenderArgs) -> Result<()> {
     let cloud = match a.visibility {
         Some(mode) => {
             let factor = crate::hpr::Radius::Factor(100.0);
-            let (v, note) = visible_points(&cloud, camera.eye, mode, factor, 1 << 18, None)?;
+            let found = visible_points(&cloud, camera.eye, mode, factor, 1 << 18, None)?;
+            let v = found.visibility;
+            let note = found.note;
             eprintln!(
                 "{note}; {} of {} points visible",
                 v.visible.len(),
@@ -766,7 +776,16 @@ pub enum Visibility {
     HprExact,
 }
 
-/// The points of `cloud` visible from `eye` and a line saying how they were found.
+/// What `visible_points` found.
+struct Found {
+    visibility: crate::hpr::Visibility,
+    /// How the points were found.
+    note: String,
+    /// The sector approximation's extremes per sector (MAX) and √k.
+    sectors: Option<(Vec<u32>, u32)>,
+}
+
+/// The points of `cloud` visible from `eye`.
 fn visible_points(
     cloud: &Cloud,
     eye: glam::Vec3,
@@ -774,11 +793,15 @@ fn visible_points(
     radius: crate::hpr::Radius,
     sectors: u64,
     m: Option<u32>,
-) -> Result<(crate::hpr::Visibility, String)> {
+) -> Result<Found> {
     use crate::hpr::approx::{self, ApproxError, Params, Propagation};
     let exact = || crate::hpr::exact(&cloud.positions, eye, radius);
     if mode == Visibility::HprExact {
-        return Ok((exact()?, "method            exact HPR".into()));
+        return Ok(Found {
+            visibility: exact()?,
+            note: "method            exact HPR".into(),
+            sectors: None,
+        });
     }
     let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
     let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
@@ -788,21 +811,23 @@ fn visible_points(
         propagation: m.map_or(Propagation::Adaptive, Propagation::Fixed),
     };
     match approx::approximate(&points, eye.as_dvec3(), params) {
-        Ok(found) => Ok((
-            crate::hpr::Visibility {
+        Ok(found) => Ok(Found {
+            visibility: crate::hpr::Visibility {
                 visible: found.visible,
                 radius: r,
                 ..Default::default()
             },
-            format!(
+            note: format!(
                 "sectors           {0} x {0}, {1} propagation round(s), EMPTY grid 1/{2}",
                 params.sqrt_k, found.rounds, found.coarse
             ),
-        )),
-        Err(ApproxError::Inside) => Ok((
-            exact()?,
-            "viewpoint inside or near the bounding sphere: exact HPR instead".into(),
-        )),
+            sectors: Some((found.max, params.sqrt_k)),
+        }),
+        Err(ApproxError::Inside) => Ok(Found {
+            visibility: exact()?,
+            note: "viewpoint inside or near the bounding sphere: exact HPR instead".into(),
+            sectors: None,
+        }),
         Err(e) => Err(anyhow::anyhow!("{e}")),
     }
 }
@@ -820,9 +845,29 @@ fn hpr(a: HprArgs) -> Result<()> {
     } else {
         Visibility::Hpr
     };
-    let (v, note) = visible_points(&cloud, eye, mode, radius, a.sectors, a.m)
+    let Found {
+        visibility: mut v,
+        note,
+        sectors,
+    } = visible_points(&cloud, eye, mode, radius, a.sectors, a.m)
         .with_context(|| a.file.display().to_string())?;
     println!("{note}");
+    // The approximation's partial reconstruction (003 §4.4), its edges measured in pixels of a
+    // `--size` view from the eye towards the bounding sphere's centre.
+    if let Some((max, sqrt_k)) = sectors {
+        let (w, h) = parse_size(&a.size)?;
+        let (centre, r) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+        let camera = crate::scene::Camera::look_at_up(cloud.up, eye, centre, r);
+        let clip = camera.projection(w as f32 / h as f32) * camera.view();
+        let pixel = |i: u32| {
+            let c = clip * cloud.positions[i as usize].extend(1.0);
+            (c.w > 0.0).then(|| {
+                let ndc = c.truncate().truncate() / c.w;
+                (ndc + 1.0) * 0.5 * glam::Vec2::new(w as f32, h as f32)
+            })
+        };
+        v.triangles = crate::hpr::approx::triangulate(&max, sqrt_k, pixel, a.max_edge);
+    }
     let seconds = start.elapsed().as_secs_f64();
     println!("points            {}", cloud.len());
     println!(
@@ -830,7 +875,7 @@ fn hpr(a: HprArgs) -> Result<()> {
         v.visible.len(),
         100.0 * v.visible.len() as f64 / cloud.len() as f64
     );
-    println!("hull triangles    {}", v.triangles.len());
+    println!("triangles         {}", v.triangles.len());
     println!("radius R          {}", v.radius);
     println!("at the viewpoint  {}", v.at_viewpoint);
     if v.joggled {

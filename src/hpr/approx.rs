@@ -256,6 +256,38 @@ pub fn approximate(points: &[DVec3], eye: DVec3, params: Params) -> Result<Appro
     })
 }
 
+/// Partial surface reconstruction (003 §4.4): for each 2 × 2 block of sectors with extremes
+/// a = MAX[i, j], b = MAX[i + 1, j], c = MAX[i, j + 1], d = MAX[i + 1, j + 1], the triangles
+/// (a, b, d) and (a, d, c); a triangle is dropped when a corner has no extreme, a vertex
+/// repeats, a vertex does not project (`pixel` gives `None`, e.g. behind the camera) or an
+/// edge spans more than `max_edge` pixels. At most 2 (√k − 1)² triangles.
+pub fn triangulate(
+    max: &[u32],
+    sqrt_k: u32,
+    pixel: impl Fn(u32) -> Option<glam::Vec2>,
+    max_edge: f32,
+) -> Vec<[u32; 3]> {
+    let s = sqrt_k as usize;
+    let mut out = Vec::new();
+    let keep = |t: [u32; 3]| {
+        if t.contains(&u32::MAX) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            return false;
+        }
+        let Some(p) = t.iter().map(|&v| pixel(v)).collect::<Option<Vec<_>>>() else {
+            return false;
+        };
+        (0..3).all(|e| p[e].distance(p[(e + 1) % 3]) <= max_edge)
+    };
+    for i in 0..s.saturating_sub(1) {
+        for j in 0..s - 1 {
+            let (a, b) = (max[i * s + j], max[(i + 1) * s + j]);
+            let (c, d) = (max[i * s + j + 1], max[(i + 1) * s + j + 1]);
+            out.extend([[a, b, d], [a, d, c]].into_iter().filter(|&t| keep(t)));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -357,5 +389,33 @@ mod tests {
         }
         // With more sectors than points the EMPTY grid is coarser.
         assert!(run(128, Propagation::Adaptive).coarse > 1);
+    }
+
+    #[test]
+    fn the_triangle_filter_drops_gaps_repeats_and_long_edges() {
+        // A 4 x 4 grid of sectors whose extremes are distinct points 1 pixel apart: every
+        // block gives its two triangles, 2 (4 - 1)² = 18.
+        let s = 4u32;
+        let max: Vec<u32> = (0..s * s).collect();
+        let pixel = |v: u32| Some(glam::Vec2::new((v / s) as f32, (v % s) as f32));
+        assert_eq!(triangulate(&max, s, pixel, 2.0).len(), 18);
+        // The diagonal edges (√2) exceed a 1.2-pixel threshold: nothing survives.
+        assert!(triangulate(&max, s, pixel, 1.2).is_empty());
+        // A sector without an extreme removes the triangles touching it (all 6 around an
+        // inner corner). Sector (0, 1) taking sector (0, 0)'s extreme makes one triangle
+        // degenerate and stretches the next block's two over 2.2 pixels: 15 remain.
+        let mut holes = max.clone();
+        holes[5] = u32::MAX;
+        assert_eq!(triangulate(&holes, s, pixel, 2.0).len(), 12);
+        let mut shared = max.clone();
+        shared[1] = 0;
+        let t = triangulate(&shared, s, pixel, 2.0);
+        assert!(t
+            .iter()
+            .all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]));
+        assert_eq!(t.len(), 15);
+        // A point that does not project removes its triangles.
+        let behind = |v: u32| (v != 5).then(|| glam::Vec2::new((v / s) as f32, (v % s) as f32));
+        assert_eq!(triangulate(&max, s, behind, 2.0).len(), 12);
     }
 }
