@@ -286,6 +286,9 @@ pub struct HprArgs {
     /// The view the edge threshold is measured in (the thesis' 900 x 900).
     #[arg(long, default_value = "900x900")]
     pub size: String,
+    /// Also run exact HPR and print the approximation's precision, recall and F1 against it.
+    #[arg(long)]
+    pub compare: bool,
     /// Flipping radius R as a factor of the cloud's diameter.
     #[arg(long, default_value_t = 100.0, conflicts_with = "radius")]
     pub radius_factor: f64,
@@ -882,6 +885,14 @@ fn hpr(a: HprArgs) -> Result<()> {
         println!("joggled           yes (flat input: Qhull QJ)");
     }
     println!("time              {seconds:.3} s");
+    if a.compare {
+        let truth = crate::hpr::exact(&cloud.positions, eye, radius)?;
+        let (p, r, f1) = crate::hpr::agreement(&v.visible, &truth.visible);
+        println!(
+            "against exact     precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} exactly visible)",
+            truth.visible.len()
+        );
+    }
     if let Some(out) = &a.out {
         let visible = crate::hpr::visible_cloud(&cloud, &v);
         crate::scene::ply::save(out, &visible)

@@ -152,6 +152,31 @@ pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibil
     })
 }
 
+/// Precision, recall and F1 of the ascending index list `found` against `truth` (1 where both
+/// are empty).
+pub fn agreement(found: &[u32], truth: &[u32]) -> (f64, f64, f64) {
+    let (mut i, mut j, mut hits) = (0, 0, 0usize);
+    while i < found.len() && j < truth.len() {
+        match found[i].cmp(&truth[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                hits += 1;
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    let ratio = |n: usize| if n == 0 { 1.0 } else { hits as f64 / n as f64 };
+    let (p, r) = (ratio(found.len()), ratio(truth.len()));
+    let f1 = if p + r > 0.0 {
+        2.0 * p * r / (p + r)
+    } else {
+        0.0
+    };
+    (p, r, f1)
+}
+
 /// The visible points of `cloud` with all their attributes, and the hull's triangles over them
 /// as faces (a partial surface of what is seen).
 pub fn visible_cloud(cloud: &Cloud, v: &Visibility) -> Cloud {
@@ -227,6 +252,14 @@ mod tests {
         }
         assert!(!v.triangles.is_empty() && !v.joggled);
         assert!(v.triangles.iter().flatten().all(|&i| visible.contains(&i)));
+    }
+
+    #[test]
+    fn agreement_counts_common_indices() {
+        assert_eq!(agreement(&[1, 2, 3, 4], &[2, 4, 6, 8]), (0.5, 0.5, 0.5));
+        assert_eq!(agreement(&[], &[]), (1.0, 1.0, 1.0));
+        assert_eq!(agreement(&[1], &[]).1, 1.0);
+        assert_eq!(agreement(&[], &[1]), (1.0, 0.0, 0.0));
     }
 
     #[test]
