@@ -33,9 +33,7 @@ void main() {
         store_out(p, empty_texel());
         return;
     }
-    Texel sum = empty_texel();
-    vec2 centres = vec2(0.0);
-    float count = 0.0;
+    Blend blend = blend_empty();
     for (int y = lo.y; y <= hi.y; ++y) {
         for (int x = lo.x; x <= hi.x; ++x) {
             ivec2 c = ivec2(x, y);
@@ -43,23 +41,9 @@ void main() {
             if (t.depth == 0.0 || !overlaps(t, front)) {
                 continue;
             }
-            sum.n += t.n;
-            sum.radius += t.radius;
-            sum.depth += t.depth;
-            sum.half_range += t.half_range;
-            sum.color += t.color;
-            centres += pixel_centre(c, child_level) + t.disp;
-            count += 1.0;
+            blend_add(blend, t, pixel_centre(c, child_level) + t.disp, 1.0);
         }
     }
-    Texel parent;
-    float len = length(sum.n);
-    parent.n = len > 0.0 ? sum.n / len : front.n;
-    parent.radius = sum.radius / count;
-    parent.depth = sum.depth / count;
-    parent.half_range = sum.half_range / count;
-    parent.disp = centres / count - pixel_centre(p, pyr.level);
-    // The primitive id is not averaged: the front-most child's.
-    parent.color = vec4(sum.color.rgb / count, front.color.a);
+    Texel parent = blend_finish(blend, front, pixel_centre(p, pyr.level));
     store_out(p, parent);
 }

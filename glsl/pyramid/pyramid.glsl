@@ -38,6 +38,43 @@ bool overlaps(Texel a, Texel b) {
     return abs(a.depth - b.depth) <= a.half_range + b.half_range;
 }
 
+// Weighted sums of texels and of their ellipse centres: the average analysis takes (weight 1)
+// and synthesis takes (Gaussian weights).
+struct Blend {
+    Texel sum;
+    vec2 centres;
+    float weight;
+};
+
+Blend blend_empty() {
+    return Blend(empty_texel(), vec2(0.0), 0.0);
+}
+
+void blend_add(inout Blend b, Texel t, vec2 centre, float w) {
+    b.sum.n += w * t.n;
+    b.sum.radius += w * t.radius;
+    b.sum.depth += w * t.depth;
+    b.sum.half_range += w * t.half_range;
+    b.sum.color += w * t.color;
+    b.centres += w * centre;
+    b.weight += w;
+}
+
+// The blended texel at pixel centre `x` (level-0 pixels): its displacement points to the mean
+// centre; the primitive id is not averaged but the front-most texel's, whose normal also
+// stands in for normals that cancel out.
+Texel blend_finish(Blend b, Texel front, vec2 x) {
+    float len = length(b.sum.n);
+    Texel t;
+    t.n = len > 0.0 ? b.sum.n / len : front.n;
+    t.radius = b.sum.radius / b.weight;
+    t.depth = b.sum.depth / b.weight;
+    t.half_range = b.sum.half_range / b.weight;
+    t.disp = b.centres / b.weight - x;
+    t.color = vec4(b.sum.color.rgb / b.weight, front.color.a);
+    return t;
+}
+
 // Squared elliptical distance of `x` (level-0 pixels) from the ellipse of texel `t` centred at
 // `c` (000 Fig. 4.6): the major axis, of half-length `radius`, is perpendicular to the projected
 // normal; the minor axis, along it, has half-length radius * |n_z|. 1 on the rim. A tube's

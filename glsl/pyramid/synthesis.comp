@@ -63,30 +63,12 @@ void main() {
         store_out(q, occluded ? own : empty_texel());
         return;
     }
-    Texel sum = empty_texel();
-    vec2 centres = vec2(0.0);
-    float weight = 0.0;
+    Blend blend = blend_empty();
     for (int k = 0; k < n; ++k) {
-        if (!overlaps(cand[k], cand[front])) {
-            continue;
+        if (overlaps(cand[k], cand[front])) {
+            blend_add(blend, cand[k], centre[k], exp(-pyr.falloff * dist2[k]));
         }
-        float w = exp(-pyr.falloff * dist2[k]);
-        sum.n += w * cand[k].n;
-        sum.radius += w * cand[k].radius;
-        sum.depth += w * cand[k].depth;
-        sum.half_range += w * cand[k].half_range;
-        sum.color += w * cand[k].color;
-        centres += w * centre[k];
-        weight += w;
     }
-    Texel t;
-    float len = length(sum.n);
-    t.n = len > 0.0 ? sum.n / len : cand[front].n;
-    t.radius = sum.radius / weight;
-    t.depth = sum.depth / weight;
-    t.half_range = sum.half_range / weight;
-    t.disp = centres / weight - x;
-    // The primitive id is not averaged: the front-most parent's.
-    t.color = vec4(sum.color.rgb / weight, cand[front].color.a);
+    Texel t = blend_finish(blend, cand[front], x);
     store_out(q, t);
 }

@@ -348,33 +348,22 @@ pub fn cost_ratios(results: &Results) -> Vec<(String, String, f64)> {
             }
         }
     }
-    let methods: Vec<(Key, String)> = pairs
-        .iter()
-        .map(|(k, m, _)| (k.clone(), m.clone()))
-        .collect();
-    let mut seen = Vec::new();
-    for (key, method) in methods {
-        if seen.contains(&(key.clone(), method.clone())) {
-            continue;
-        }
-        seen.push((key.clone(), method.clone()));
-        let counts: Vec<u32> = pairs
-            .iter()
-            .filter(|(k, m, _)| *k == key && *m == method)
-            .map(|p| p.2)
-            .collect();
-        let (Some(&lo), Some(&hi)) = (counts.iter().min(), counts.iter().max()) else {
-            continue;
-        };
-        if lo < hi {
-            let t = |l: u32| median(&times[&(key.clone(), method.clone(), l)]);
-            let (m, p, (w, h)) = &key;
-            out.push((
-                format!("{m}, {p} points, {w}x{h}"),
-                format!("{method}: {hi} lights / {lo}"),
-                t(hi) / t(lo),
-            ));
-        }
+    // The smallest and largest light count of each (slice, method).
+    let mut range: BTreeMap<(Key, String), (u32, u32)> = BTreeMap::new();
+    for (key, method, lights) in &pairs {
+        let r = range
+            .entry((key.clone(), method.clone()))
+            .or_insert((*lights, *lights));
+        *r = (r.0.min(*lights), r.1.max(*lights));
+    }
+    for ((key, method), (lo, hi)) in range.into_iter().filter(|(_, (lo, hi))| lo < hi) {
+        let t = |l: u32| median(&times[&(key.clone(), method.clone(), l)]);
+        let (m, p, (w, h)) = &key;
+        out.push((
+            format!("{m}, {p} points, {w}x{h}"),
+            format!("{method}: {hi} lights / {lo}"),
+            t(hi) / t(lo),
+        ));
     }
     out
 }

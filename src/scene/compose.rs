@@ -94,13 +94,10 @@ pub fn append(base: &mut Cloud, mut other: Cloud) -> Result<()> {
     for p in &mut other.positions {
         *p += offset;
     }
-    let first = base.len();
-    let Ok(first_index) = u32::try_from(first) else {
-        bail!("the merged scene has more than 4G points");
-    };
-    if u32::try_from(first + other.len()).is_err() {
+    if u32::try_from(base.len() + other.len()).is_err() {
         bail!("the merged scene has more than 4G points");
     }
+    let first_index = base.len() as u32;
     let (n, m) = (base.len(), other.len());
     base.normals = match (base.normals.take(), other.normals.take()) {
         (Some(mut a), Some(b)) => {

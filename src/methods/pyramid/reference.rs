@@ -84,6 +84,41 @@ impl Level {
     }
 }
 
+/// Weighted sums of texels and their ellipse centres (see `Blend` in pyramid.glsl).
+#[derive(Default)]
+struct Blend {
+    sum: Texel,
+    centres: Vec2,
+    weight: f32,
+}
+
+impl Blend {
+    fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
+        self.sum.n += w * t.n;
+        self.sum.radius += w * t.radius;
+        self.sum.depth += w * t.depth;
+        self.sum.half_range += w * t.half_range;
+        self.sum.color += w * t.color;
+        self.centres += w * centre;
+        self.weight += w;
+    }
+
+    /// The blended texel at pixel centre `x`, with the primitive id (and the fallback normal)
+    /// of `front`.
+    fn finish(&self, front: &Texel, x: Vec2) -> Texel {
+        let (s, w) = (&self.sum, self.weight);
+        let len = s.n.length();
+        Texel {
+            n: if len > 0.0 { s.n / len } else { front.n },
+            radius: s.radius / w,
+            depth: s.depth / w,
+            half_range: s.half_range / w,
+            disp: self.centres / w - x,
+            color: (s.color / w).truncate().extend(front.color.w),
+        }
+    }
+}
+
 /// Centre of pixel `q` of `level` in level-0 pixels.
 pub fn pixel_centre(q: IVec2, level: u32) -> Vec2 {
     (q.as_vec2() + 0.5) * (1u32 << level) as f32
@@ -151,27 +186,11 @@ fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel {
     else {
         return Texel::default();
     };
-    let mut sum = Texel::default();
-    let mut centres = Vec2::ZERO;
-    let mut count = 0.0;
+    let mut blend = Blend::default();
     for (c, t) in children.iter().filter(|(_, t)| t.overlaps(&front)) {
-        sum.n += t.n;
-        sum.radius += t.radius;
-        sum.depth += t.depth;
-        sum.half_range += t.half_range;
-        sum.color += t.color;
-        centres += pixel_centre(*c, level - 1) + t.disp;
-        count += 1.0;
+        blend.add(t, pixel_centre(*c, level - 1) + t.disp, 1.0);
     }
-    let len = sum.n.length();
-    Texel {
-        n: if len > 0.0 { sum.n / len } else { front.n },
-        radius: sum.radius / count,
-        depth: sum.depth / count,
-        half_range: sum.half_range / count,
-        disp: centres / count - pixel_centre(p, level),
-        color: (sum.color / count).truncate().extend(front.color.w),
-    }
+    blend.finish(&front, pixel_centre(p, level))
 }
 
 /// Synthesis, top-down over the analysed `levels`; returns the reconstructed levels (the top
@@ -225,28 +244,11 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
         // An occluded texel no parent covers keeps its value (see synthesis.comp).
         return if occluded { t } else { Texel::default() };
     };
-    let mut sum = Texel::default();
-    let mut centres = Vec2::ZERO;
-    let mut weight = 0.0;
+    let mut blend = Blend::default();
     for (p, c, d2) in cands.iter().filter(|c| c.0.overlaps(&front)) {
-        let w = (-falloff * d2).exp();
-        sum.n += w * p.n;
-        sum.radius += w * p.radius;
-        sum.depth += w * p.depth;
-        sum.half_range += w * p.half_range;
-        sum.color += w * p.color;
-        centres += w * *c;
-        weight += w;
+        blend.add(p, *c, (-falloff * d2).exp());
     }
-    let len = sum.n.length();
-    Texel {
-        n: if len > 0.0 { sum.n / len } else { front.n },
-        radius: sum.radius / weight,
-        depth: sum.depth / weight,
-        half_range: sum.half_range / weight,
-        disp: centres / weight - x,
-        color: (sum.color / weight).truncate().extend(front.color.w),
-    }
+    blend.finish(&front, x)
 }
 
 #[cfg(test)]
