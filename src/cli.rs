@@ -773,7 +773,8 @@ fn sample(a: SampleArgs) -> Result<()> {
 /// Which hidden point removal filters a render (`--visibility`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Visibility {
-    /// The sector approximation (003 ch. 4), exact HPR where the viewpoint is too near.
+    /// The sector approximation (003 ch. 4; the full-sphere partition where the viewpoint is
+    /// inside or near the bounding sphere).
     Hpr,
     /// Exact HPR (003 §2.1).
     HprExact,
@@ -797,7 +798,7 @@ fn visible_points(
     sectors: u64,
     m: Option<u32>,
 ) -> Result<Found> {
-    use crate::hpr::approx::{self, ApproxError, Params, Propagation};
+    use crate::hpr::approx::{self, Params, Propagation};
     let exact = || crate::hpr::exact(&cloud.positions, eye, radius);
     if mode == Visibility::HprExact {
         return Ok(Found {
@@ -811,28 +812,27 @@ fn visible_points(
     let params = Params {
         sqrt_k: (sectors as f64).sqrt().round().max(1.0) as u32,
         radius: r,
-        propagation: m.map_or(Propagation::Adaptive, Propagation::Fixed),
+        propagation: m.map_or(Propagation::UNTIL_STABLE, Propagation::Fixed),
     };
-    match approx::approximate(&points, eye.as_dvec3(), params) {
-        Ok(found) => Ok(Found {
-            visibility: crate::hpr::Visibility {
-                visible: found.visible,
-                radius: r,
-                ..Default::default()
-            },
-            note: format!(
-                "sectors           {0} x {0}, {1} propagation round(s), EMPTY grid 1/{2}",
-                params.sqrt_k, found.rounds, found.coarse
-            ),
-            sectors: Some((found.max, params.sqrt_k)),
-        }),
-        Err(ApproxError::Inside) => Ok(Found {
-            visibility: exact()?,
-            note: "viewpoint inside or near the bounding sphere: exact HPR instead".into(),
-            sectors: None,
-        }),
-        Err(e) => Err(anyhow::anyhow!("{e}")),
-    }
+    let found = approx::approximate(&points, eye.as_dvec3(), params)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let partition = if found.full {
+        "full sphere: the viewpoint is inside or near the bounding sphere"
+    } else {
+        "the bounding sphere's cone"
+    };
+    Ok(Found {
+        visibility: crate::hpr::Visibility {
+            visible: found.visible,
+            radius: r,
+            ..Default::default()
+        },
+        note: format!(
+            "sectors           {0} x {0} over {partition}, {1} propagation round(s), EMPTY grid 1/{2}",
+            params.sqrt_k, found.rounds, found.coarse
+        ),
+        sectors: Some((found.max, params.sqrt_k)),
+    })
 }
 
 fn hpr(a: HprArgs) -> Result<()> {
