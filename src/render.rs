@@ -131,6 +131,7 @@ pub fn upload_with(
             tubes,
             point_count,
             index_count,
+            hpr_density: (0.25 / crate::hpr::spacing(cloud)) as f32,
         },
         SceneInfo {
             centre,

@@ -122,6 +122,51 @@ pub struct PyramidParams {
     pub falloff: f32,
 }
 
+/// Push constants of the HPR passes (`HprParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct HprParams {
+    pub sqrt_k_max: u32,
+    pub sqrt_k: u32,
+    pub point_count: u32,
+    pub max_rounds: u32,
+    pub radius_factor: f32,
+    pub radius: f32,
+    pub density: f32,
+    pub max_edge: f32,
+}
+
+/// The per-frame HPR state (`HprFrame` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct HprFrame {
+    pub axis_x: Vec4,
+    pub axis_y: Vec4,
+    pub axis_z: Vec4,
+    pub eye_radius: Vec4,
+    pub grid: Vec4,
+    pub sqrt_k: u32,
+    pub full: u32,
+    pub coarse: u32,
+    pub coarse_side: u32,
+    pub groups_x: u32,
+    pub groups_y: u32,
+    pub groups_z: u32,
+    pub changed: u32,
+    pub rounds: u32,
+    pub visible: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub index_count: u32,
+    pub instance_count: u32,
+    pub first_index: u32,
+    pub vertex_offset: u32,
+    pub first_instance: u32,
+    pub pad2: u32,
+    pub pad3: u32,
+    pub pad4: u32,
+}
+
 /// The frame storage buffer: uniforms followed by the light array (`FrameBlock` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -247,6 +292,43 @@ pub fn mirrors() -> Vec<Mirror> {
             level_count,
             radius_scale,
             falloff
+        }),
+        mirror!(HprParams {
+            sqrt_k_max,
+            sqrt_k,
+            point_count,
+            max_rounds,
+            radius_factor,
+            radius,
+            density,
+            max_edge
+        }),
+        mirror!(HprFrame {
+            axis_x,
+            axis_y,
+            axis_z,
+            eye_radius,
+            grid,
+            sqrt_k,
+            full,
+            coarse,
+            coarse_side,
+            groups_x,
+            groups_y,
+            groups_z,
+            changed,
+            rounds,
+            visible,
+            pad0,
+            pad1,
+            index_count,
+            instance_count,
+            first_index,
+            vertex_offset,
+            first_instance,
+            pad2,
+            pad3,
+            pad4
         }),
     ]
 }

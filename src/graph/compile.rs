@@ -333,6 +333,18 @@ impl GraphBuilder {
 }
 
 impl CompiledGraph {
+    /// Records, submits and waits for one frame of this graph (set-up work such as a
+    /// reduction computed once per cloud, or tests).
+    pub fn run_once(&mut self, ctx: &Arc<Context>) -> Result<()> {
+        let mut frames = crate::gpu::FrameRing::new(ctx, 1, false)?;
+        let slot = frames.advance()?;
+        let cmd = frames.begin()?;
+        self.record(cmd, slot, true);
+        frames.end()?;
+        frames.submit(None, None)?;
+        frames.wait(slot)
+    }
+
     fn image_slot(&self, id: ImageId) -> &ImageSlot {
         &self.images[id.0 as usize].1
     }

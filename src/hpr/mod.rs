@@ -32,6 +32,33 @@ pub enum Radius {
     Factor(f64),
     /// R in scene units.
     Absolute(f64),
+    /// R from the sampling density: R = D² / (4 s) for the viewpoint's distance D to the
+    /// cloud's centre and the sample spacing `spacing` = s ([`spacing`]). A point between two
+    /// neighbours δ = s / D apart (as seen from the eye) stays on the hull while it lies less
+    /// than about R δ² behind them (the sagitta of the flipped shell, radius ≈ 2R, over 2δ):
+    /// this R keeps points up to s / 4 behind their neighbours (noise, slanted sampling)
+    /// visible, and hides points further behind, such as a back surface a few spacings away.
+    /// The dependence on D² / s follows Mehra et al. 2010's analysis of the operator on
+    /// noisy, non-uniform samples; their per-point robust operator is not implemented.
+    /// Raised to 1.01 × the farthest point's distance where that is larger.
+    Density { spacing: f64 },
+}
+
+/// The sample spacing of `cloud`: the median of its per-point radii (the density spacing of
+/// preprocessing, √(area per point)), else the bounding box diagonal / √n.
+pub fn spacing(cloud: &Cloud) -> f64 {
+    if let Some(radii) = cloud.radii.as_ref().filter(|r| !r.is_empty()) {
+        let mut r: Vec<f32> = radii.clone();
+        let mid = r.len() / 2;
+        let (_, m, _) = r.select_nth_unstable_by(mid, f32::total_cmp);
+        if *m > 0.0 && m.is_finite() {
+            return f64::from(*m);
+        }
+    }
+    let diag = cloud
+        .bounds()
+        .map_or(1.0, |(lo, hi)| f64::from((hi - lo).length()));
+    (diag / (cloud.len().max(1) as f64).sqrt()).max(f64::MIN_POSITIVE)
 }
 
 /// The visible part of a cloud.
@@ -69,6 +96,11 @@ pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f
             f * (hi - lo).length()
         }
         Radius::Absolute(r) => r,
+        Radius::Density { spacing } => {
+            let centre = points.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / points.len() as f64;
+            let d = centre.distance(eye);
+            (d * d / (4.0 * spacing)).max(1.01 * max_norm)
+        }
     };
     if !(r.is_finite() && r > max_norm) {
         bail!(

@@ -12,7 +12,7 @@ use crate::gpu::layout::{
     BINDING_SEGMENTS, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{Access, Descriptor, Load, Stages};
+use crate::graph::{Access, BufferId, BufferRange, Descriptor, Load, Stages};
 
 pub const INFO: MethodInfo = MethodInfo {
     name: "mesh",
@@ -38,6 +38,32 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         bail!("method 'mesh' needs triangle faces; this input has none");
     };
     let samples = b.config.get("samples").round().max(1.0) as u32;
+    let count = b.scene.index_count;
+    add_mesh(b, "mesh", samples, Indices::Static { indices, count })
+}
+
+/// Where the triangles' indices (into the point streams) come from.
+#[derive(Clone, Copy, Debug)]
+pub enum Indices {
+    /// `count` indices of a buffer.
+    Static { indices: BufferId, count: u32 },
+    /// A `VkDrawIndexedIndirectCommand` at `range` of `args`, written by an earlier pass.
+    Indirect {
+        indices: BufferId,
+        args: BufferId,
+        range: BufferRange,
+    },
+}
+
+/// Draws `indices`' triangles (vertices, normals and albedo from the point streams) at
+/// `samples` x `samples` the output resolution and resolves them into the standard targets:
+/// passes `{prefix}.raster` and `{prefix}.resolve`.
+pub fn add_mesh(
+    b: &mut BuildContext<'_>,
+    prefix: &str,
+    samples: u32,
+    source: Indices,
+) -> Result<()> {
     let (w, h) = (b.width * samples, b.height * samples);
     if w > b.ctx.caps.max_image_dimension_2d || h > b.ctx.caps.max_image_dimension_2d {
         bail!("{w}x{h} supersampled target exceeds the device limit");
@@ -88,29 +114,42 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         usage,
     };
     let color_usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
-    let hi_color = b
-        .graph
-        .image("mesh.hi_color", target(HI_COLOR_FORMAT, color_usage));
-    let hi_depth = b
-        .graph
-        .image("mesh.hi_depth", target(DEPTH_FORMAT, color_usage));
-    let hi_normal = b
-        .graph
-        .image("mesh.hi_normal", target(NORMAL_FORMAT, color_usage));
+    let hi_color = b.graph.image(
+        &format!("{prefix}.hi_color"),
+        target(HI_COLOR_FORMAT, color_usage),
+    );
+    let hi_depth = b.graph.image(
+        &format!("{prefix}.hi_depth"),
+        target(DEPTH_FORMAT, color_usage),
+    );
+    let hi_normal = b.graph.image(
+        &format!("{prefix}.hi_normal"),
+        target(NORMAL_FORMAT, color_usage),
+    );
     let zbuffer = b.graph.image(
-        "mesh.zbuffer",
+        &format!("{prefix}.zbuffer"),
         target(
             ZBUFFER_FORMAT,
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         ),
     );
     let (frame, segments, t) = (b.frame, b.segments, b.targets);
-    let index_count = b.scene.index_count;
-    b.graph
-        .pass("mesh.raster")
+    let mut raster_pass = b
+        .graph
+        .pass(&format!("{prefix}.raster"))
         .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(segments, Access::StorageRead(Stages::Vertex))
-        .buffer(indices, Access::IndexRead)
+        .buffer(segments, Access::StorageRead(Stages::Vertex));
+    raster_pass = match source {
+        Indices::Static { indices, .. } => raster_pass.buffer(indices, Access::IndexRead),
+        Indices::Indirect {
+            indices,
+            args,
+            range,
+        } => raster_pass
+            .buffer(indices, Access::IndexRead)
+            .buffer_range(args, range, Access::IndirectRead),
+    };
+    raster_pass
         .color(hi_color, Load::Clear([0.0; 4]))
         .color(hi_depth, Load::Clear([0.0; 4]))
         .color(hi_normal, Load::Clear([0.0; 4]))
@@ -123,11 +162,18 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
                     Descriptor::Buffer(BINDING_SEGMENTS, segments),
                 ],
             );
-            ctx.draw_indexed(indices, index_count);
+            match source {
+                Indices::Static { indices, count } => ctx.draw_indexed(indices, count),
+                Indices::Indirect {
+                    indices,
+                    args,
+                    range,
+                } => ctx.draw_indexed_indirect(indices, args, range.offset, 1, 20),
+            }
         });
     let (ow, oh) = (b.width, b.height);
     b.graph
-        .pass("mesh.resolve")
+        .pass(&format!("{prefix}.resolve"))
         .image(hi_color, Access::StorageRead(Stages::Compute))
         .image(hi_depth, Access::StorageRead(Stages::Compute))
         .image(hi_normal, Access::StorageRead(Stages::Compute))

@@ -4,6 +4,7 @@
 
 pub mod compute;
 mod ewa;
+pub mod hpr;
 mod mesh;
 mod points;
 pub mod pyramid;
@@ -131,6 +132,8 @@ pub static METHODS: &[MethodInfo] = &[
     ewa::INFO,
     pyramid::INFO,
     pyramid::HYBRID_INFO,
+    hpr::INFO,
+    hpr::MESH_INFO,
 ];
 
 /// Looks a method up by name.
@@ -236,6 +239,9 @@ pub struct GpuScene {
     pub tubes: Option<(Arc<Buffer>, u32)>,
     pub point_count: u32,
     pub index_count: u32,
+    /// R / D² of hidden point removal's flipping radius from the sampling density
+    /// (`hpr::Radius::Density`: 1 / (4 × the sample spacing)).
+    pub hpr_density: f32,
 }
 
 /// The standard outputs every method writes.

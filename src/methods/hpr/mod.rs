@@ -1,0 +1,658 @@
+//! Hidden point removal on the GPU (003 ch. 4), compute only, and the methods built on it.
+//!
+//! Passes (the CPU reference is `crate::hpr::approx`, operation for operation):
+//! * once per cloud, [`bounding_sphere`]: the centroid by per-workgroup partial sums and one
+//!   workgroup adding them, then the radius by a workgroup maximum and a 64-bit-free atomic
+//!   maximum of the radius' bits (`glsl/hpr/sphere.comp`), run as its own one-frame graph;
+//! * per frame: `hpr.frame` (one thread: the sector frame from the view, √k from the viewport
+//!   unless requested, R, the EMPTY grid), clears, `hpr.sector` (one thread per point: flip,
+//!   sector, DIST; the sort-free 64-bit `atomicMax` of (DIST, ~index) per sector, or sort keys
+//!   and values for the thesis' radix sort by sector and segmented maximum), then propagation:
+//!   fixed (`hpr.gather`, one m × m gather from the extremes) or adaptive (`hpr.extract`, then
+//!   up to `max_rounds` rounds of a 3 × 3 gather `hpr.round.N` ping-ponging between two
+//!   buffers, each followed by `hpr.advance`, which empties the indirect dispatch of every
+//!   later round once a round changed nothing); `hpr.visible` clears the extremes' bits in
+//!   the hidden-point mask;
+//! * `hpr-mesh` adds `hpr.triangulate` (the partial reconstruction, 003 §4.4: triangles
+//!   appended to an index list) and draws it with an indexed indirect draw through the
+//!   `mesh` method's raster and resolve passes.
+//!
+//! Converged adaptive rounds leave both ping-pong buffers equal (the last round that ran
+//! wrote what it read), so the statically last destination holds the result.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use super::compute::{self, storage, ProjectOptions};
+use super::{BuildContext, Feature, GpuScene, MethodInfo, ParamSpec};
+use crate::gpu::layout::{
+    FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_DST, BINDING_HPR_EMPTY,
+    BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
+    BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
+    BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SPEC_ADAPTIVE,
+    HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH, HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS,
+    HPR_SPHERE_SUM,
+};
+use crate::gpu::{Buffer, Context, Pipeline};
+use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, Stages};
+use crate::hpr::approx::Propagation;
+
+/// Points per thread of the sphere reduction (`ITEMS` in `glsl/hpr/sphere.comp`).
+const SPHERE_ITEMS: u32 = 16;
+
+/// Workgroups per row of a folded 1D dispatch (`thread_id` in `glsl/hpr/hpr.glsl`).
+const ROW_GROUPS: u32 = 32_768;
+
+/// The (x, y) workgroups covering `threads` threads.
+fn groups(threads: u64) -> (u32, u32) {
+    let g = threads.div_ceil(u64::from(HPR_GROUP)).max(1) as u32;
+    (g.min(ROW_GROUPS), g.div_ceil(ROW_GROUPS))
+}
+
+/// How the GPU approximation runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// √k of the sector buffers: the largest grid a frame may use.
+    pub sqrt_k_max: u32,
+    pub params: HprParams,
+    pub propagation: Propagation,
+}
+
+/// The graph resources of one HPR evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct Hpr {
+    /// `HprFrame`: the frame, counters and indirect arguments.
+    pub state: BufferId,
+    /// The final extreme per sector (u32, `HPR_EMPTY` where none), √k_max² entries of which
+    /// the frame's √k² are used.
+    pub extremes: BufferId,
+    /// One bit per point, set for hidden points.
+    pub hidden: BufferId,
+}
+
+fn bind(ids: &[u32]) -> Vec<crate::gpu::Binding> {
+    ids.iter().map(|&b| storage(b)).collect()
+}
+
+fn pipeline(
+    ctx: &Arc<Context>,
+    shader: &str,
+    bindings: &[u32],
+    spec: &[(u32, u32)],
+) -> Result<Arc<Pipeline>> {
+    Ok(Arc::new(Pipeline::compute_specialized(
+        ctx,
+        shader,
+        &bind(bindings),
+        spec,
+    )?))
+}
+
+/// The bounding sphere of `scene`'s points (centre xyz, radius bits), by parallel reduction
+/// in a one-frame graph: a 16-byte device buffer the HPR passes read.
+pub fn bounding_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
+    let n = scene.point_count;
+    if n == 0 {
+        bail!("hidden point removal needs at least one point");
+    }
+    let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
+    block.u.point_count = n;
+    block.u.segment_points = scene.streams.segment_points;
+    let frame_buffer = Arc::new(Buffer::with_data(
+        ctx,
+        "hpr.sphere.frame",
+        bytemuck::bytes_of(&block),
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?);
+    let sphere = Arc::new(Buffer::new(
+        ctx,
+        "hpr.sphere",
+        16,
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryLocation::GpuOnly,
+    )?);
+    let per_group = u64::from(HPR_GROUP * SPHERE_ITEMS);
+    let partial_count = u64::from(n).div_ceil(per_group) as u32;
+    let mut g = GraphBuilder::new();
+    let frame = g.import_buffer("frame", frame_buffer);
+    let segments = g.import_buffer("stream.segments", scene.streams.table.clone());
+    let sphere_id = g.import_buffer("hpr.sphere", sphere.clone());
+    let partials = g.buffer(
+        "hpr.sphere.partials",
+        u64::from(partial_count) * 16,
+        vk::BufferUsageFlags::empty(),
+    );
+    let bindings = [
+        BINDING_FRAME,
+        BINDING_SEGMENTS,
+        BINDING_HPR_SPHERE,
+        BINDING_HPR_PARTIALS,
+    ];
+    // Every variant statically references all four bindings (and validation counts every
+    // store a shader holds): those a step does not use alias a buffer its pass declares, and
+    // the writable ones are declared read-write.
+    let descriptors = |segments: BufferId, sphere: BufferId| {
+        vec![
+            Descriptor::Buffer(BINDING_FRAME, frame),
+            Descriptor::Buffer(BINDING_SEGMENTS, segments),
+            Descriptor::Buffer(BINDING_HPR_SPHERE, sphere),
+            Descriptor::Buffer(BINDING_HPR_PARTIALS, partials),
+        ]
+    };
+    let params = HprParams {
+        point_count: n,
+        // The centre pass reads the number of partials here.
+        sqrt_k: partial_count,
+        ..Default::default()
+    };
+    let c = Stages::Compute;
+    for (name, mode, size) in [
+        ("hpr.sphere.sum", HPR_SPHERE_SUM, partial_count),
+        ("hpr.sphere.centre", HPR_SPHERE_CENTRE, 1),
+        ("hpr.sphere.radius", HPR_SPHERE_RADIUS, partial_count),
+    ] {
+        let p = pipeline(
+            ctx,
+            "hpr/sphere.comp",
+            &bindings,
+            &[(HPR_SPEC_MODE, mode)],
+        )?;
+        let pass = g.pass(name).buffer(frame, Access::StorageRead(c));
+        let (pass, d) = match mode {
+            HPR_SPHERE_SUM => (
+                pass.buffer(segments, Access::StorageRead(c))
+                    .buffer(partials, Access::StorageReadWrite(c)),
+                descriptors(segments, partials),
+            ),
+            HPR_SPHERE_CENTRE => (
+                pass.buffer(partials, Access::StorageReadWrite(c))
+                    .buffer(sphere_id, Access::StorageReadWrite(c)),
+                descriptors(partials, sphere_id),
+            ),
+            _ => (
+                pass.buffer(segments, Access::StorageRead(c))
+                    .buffer(sphere_id, Access::StorageReadWrite(c))
+                    .buffer(partials, Access::StorageReadWrite(c)),
+                descriptors(segments, sphere_id),
+            ),
+        };
+        pass.record(move |ctx| {
+            ctx.bind(&p, &d);
+            ctx.push(&p, bytemuck::bytes_of(&params));
+            ctx.dispatch(size, 1, 1);
+        });
+    }
+    g.compile(ctx)?.run_once(ctx)?;
+    Ok(sphere)
+}
+
+/// What the HPR passes read that the caller owns.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs {
+    pub frame: BufferId,
+    pub segments: BufferId,
+    /// The bounding sphere of [`bounding_sphere`].
+    pub sphere: BufferId,
+}
+
+/// Declares the per-frame HPR passes on `g` (module docs).
+pub fn add(
+    g: &mut GraphBuilder,
+    ctx: &Arc<Context>,
+    point_count: u32,
+    inputs: Inputs,
+    settings: &Settings,
+) -> Result<Hpr> {
+    let Inputs {
+        frame,
+        segments,
+        sphere,
+    } = inputs;
+    let s_max = settings.sqrt_k_max.max(1);
+    let k_max = u64::from(s_max) * u64::from(s_max);
+    let params = HprParams {
+        sqrt_k_max: s_max,
+        point_count,
+        ..settings.params
+    };
+    let usage = vk::BufferUsageFlags::empty();
+    let state = g.buffer(
+        "hpr.state",
+        std::mem::size_of::<HprFrame>() as u64,
+        usage,
+    );
+    let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
+    let occupied = g.buffer("hpr.empty", k_max * 4, usage);
+    let ping = g.buffer("hpr.extremes.a", k_max * 4, usage);
+    let hidden = g.buffer(
+        "hpr.hidden",
+        u64::from(point_count.div_ceil(32).max(1)) * 4,
+        usage,
+    );
+    let c = Stages::Compute;
+    let push = bytemuck::bytes_of(&params).to_vec();
+
+    let frame_pass = pipeline(
+        ctx,
+        "hpr/frame.comp",
+        &[BINDING_FRAME, BINDING_HPR_SPHERE, BINDING_HPR_FRAME],
+        &[],
+    )?;
+    {
+        let push = push.clone();
+        g.pass("hpr.frame")
+            .buffer(frame, Access::StorageRead(c))
+            .buffer(sphere, Access::StorageRead(c))
+            .buffer(state, Access::StorageWrite(c))
+            .record(move |ctx| {
+                ctx.bind(
+                    &frame_pass,
+                    &[
+                        Descriptor::Buffer(BINDING_FRAME, frame),
+                        Descriptor::Buffer(BINDING_HPR_SPHERE, sphere),
+                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    ],
+                );
+                ctx.push(&frame_pass, &push);
+                ctx.dispatch(1, 1, 1);
+            });
+    }
+    g.fill_buffer("hpr.clear.max", max64, BufferRange::WHOLE, 0);
+    g.fill_buffer("hpr.clear.empty", occupied, BufferRange::WHOLE, 0);
+    g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
+
+    // Per point: sector, DIST and the sort-free extreme.
+    let sector = pipeline(
+        ctx,
+        "hpr/sector.comp",
+        &[
+            BINDING_FRAME,
+            BINDING_SEGMENTS,
+            BINDING_HPR_FRAME,
+            BINDING_HPR_MAX,
+            BINDING_HPR_EMPTY,
+            BINDING_HPR_KEYS,
+            BINDING_HPR_VALUES,
+        ],
+        &[(HPR_SPEC_MODE, HPR_SECTOR_ATOMIC)],
+    )?;
+    {
+        let push = push.clone();
+        let (gx, gy) = groups(u64::from(point_count));
+        g.pass("hpr.sector")
+            .buffer(frame, Access::StorageRead(c))
+            .buffer(segments, Access::StorageRead(c))
+            .buffer(state, Access::StorageRead(c))
+            .buffer(max64, Access::StorageReadWrite(c))
+            .buffer(occupied, Access::StorageWrite(c))
+            .record(move |ctx| {
+                ctx.bind(
+                    &sector,
+                    &[
+                        Descriptor::Buffer(BINDING_FRAME, frame),
+                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                        Descriptor::Buffer(BINDING_HPR_MAX, max64),
+                        Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
+                        // The sort outputs are dead code in this variant (statically present).
+                        Descriptor::Buffer(BINDING_HPR_KEYS, occupied),
+                        Descriptor::Buffer(BINDING_HPR_VALUES, max64),
+                    ],
+                );
+                ctx.push(&sector, &push);
+                ctx.dispatch(gx, gy, 1);
+            });
+    }
+
+    // Propagation.
+    let propagate = |reach: u32, from_max: bool, adaptive: bool| {
+        pipeline(
+            ctx,
+            "hpr/propagate.comp",
+            &[
+                BINDING_FRAME,
+                BINDING_SEGMENTS,
+                BINDING_HPR_FRAME,
+                BINDING_HPR_MAX,
+                BINDING_HPR_SRC,
+                BINDING_HPR_DST,
+                BINDING_HPR_EMPTY,
+            ],
+            &[
+                (HPR_SPEC_REACH, reach),
+                (HPR_SPEC_FROM_MAX, u32::from(from_max)),
+                (HPR_SPEC_ADAPTIVE, u32::from(adaptive)),
+            ],
+        )
+    };
+    let sector_groups = groups(k_max);
+    // A pass gathering into `dst` from the 64-bit extremes (`src` None) or from `src`.
+    let add_gather = |g: &mut GraphBuilder,
+                          name: &str,
+                          pipeline: Arc<Pipeline>,
+                          src: Option<BufferId>,
+                          dst: BufferId,
+                          indirect: bool| {
+        let push = push.clone();
+        let mut pass = g
+            .pass(name)
+            .buffer(frame, Access::StorageRead(c))
+            .buffer(segments, Access::StorageRead(c))
+            .buffer(occupied, Access::StorageRead(c))
+            .buffer(dst, Access::StorageWrite(c));
+        pass = match src {
+            Some(src) => pass.buffer(src, Access::StorageRead(c)),
+            None => pass.buffer(max64, Access::StorageRead(c)),
+        };
+        // The adaptive round's change flag is a store in every variant.
+        pass = pass.buffer(state, Access::StorageReadWrite(c));
+        if indirect {
+            pass = pass.buffer_range(state, dispatch_range(), Access::IndirectRead);
+        }
+        // Unused inputs of a variant alias a buffer the pass declares.
+        let source = src.unwrap_or(dst);
+        let extremes = if src.is_some() { source } else { max64 };
+        pass.record(move |ctx| {
+            ctx.bind(
+                &pipeline,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    Descriptor::Buffer(BINDING_HPR_MAX, extremes),
+                    Descriptor::Buffer(BINDING_HPR_SRC, source),
+                    Descriptor::Buffer(BINDING_HPR_DST, dst),
+                    Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
+                ],
+            );
+            ctx.push(&pipeline, &push);
+            if indirect {
+                ctx.dispatch_indirect(state, dispatch_range().offset);
+            } else {
+                ctx.dispatch(sector_groups.0, sector_groups.1, 1);
+            }
+        });
+    };
+    let result = match settings.propagation {
+        Propagation::Fixed(m) => {
+            add_gather(
+                g,
+                "hpr.gather",
+                propagate(m.max(1) / 2, true, false)?,
+                None,
+                ping,
+                false,
+            );
+            ping
+        }
+        Propagation::Adaptive { max_rounds } => {
+            add_gather(
+                g,
+                "hpr.extract",
+                propagate(0, true, false)?,
+                None,
+                ping,
+                false,
+            );
+            let round = propagate(1, false, true)?;
+            let advance = pipeline(ctx, "hpr/advance.comp", &[BINDING_HPR_FRAME], &[])?;
+            let pong = g.buffer("hpr.extremes.b", k_max * 4, usage);
+            let (mut src, mut dst) = (ping, pong);
+            for r in 0..max_rounds.max(1) {
+                add_gather(
+                    g,
+                    &format!("hpr.round.{r}"),
+                    round.clone(),
+                    Some(src),
+                    dst,
+                    true,
+                );
+                let advance = advance.clone();
+                g.pass(&format!("hpr.advance.{r}"))
+                    .buffer(state, Access::StorageReadWrite(c))
+                    .record(move |ctx| {
+                        ctx.bind(&advance, &[Descriptor::Buffer(BINDING_HPR_FRAME, state)]);
+                        ctx.dispatch(1, 1, 1);
+                    });
+                std::mem::swap(&mut src, &mut dst);
+            }
+            src
+        }
+    };
+
+    let visible = pipeline(
+        ctx,
+        "hpr/visible.comp",
+        &[BINDING_HPR_FRAME, BINDING_HPR_SRC, BINDING_HPR_MASK],
+        &[],
+    )?;
+    g.pass("hpr.visible")
+        .buffer(state, Access::StorageReadWrite(c))
+        .buffer(result, Access::StorageRead(c))
+        .buffer(hidden, Access::StorageReadWrite(c))
+        .record(move |ctx| {
+            ctx.bind(
+                &visible,
+                &[
+                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    Descriptor::Buffer(BINDING_HPR_SRC, result),
+                    Descriptor::Buffer(BINDING_HPR_MASK, hidden),
+                ],
+            );
+            ctx.dispatch(sector_groups.0, sector_groups.1, 1);
+        });
+    Ok(Hpr {
+        state,
+        extremes: result,
+        hidden,
+    })
+}
+
+/// Bytes of `HprFrame` holding the propagation rounds' indirect dispatch.
+fn dispatch_range() -> BufferRange {
+    BufferRange::new(std::mem::offset_of!(HprFrame, groups_x) as u64, 12)
+}
+
+/// Bytes of `HprFrame` holding the reconstruction's indexed indirect draw.
+pub fn draw_range() -> BufferRange {
+    BufferRange::new(std::mem::offset_of!(HprFrame, index_count) as u64, 20)
+}
+
+/// Declares the partial reconstruction (003 §4.4) of `hpr`: an index list of at most
+/// 2 (√k_max − 1)² triangles, counted in `HprFrame::index_count`.
+pub fn add_triangulation(
+    g: &mut GraphBuilder,
+    ctx: &Arc<Context>,
+    inputs: Inputs,
+    hpr: &Hpr,
+    settings: &Settings,
+) -> Result<BufferId> {
+    let s_max = u64::from(settings.sqrt_k_max.max(2));
+    let blocks = (s_max - 1) * (s_max - 1);
+    let indices = g.buffer(
+        "hpr.triangles",
+        blocks * 6 * 4,
+        vk::BufferUsageFlags::empty(),
+    );
+    let params = HprParams {
+        sqrt_k_max: settings.sqrt_k_max,
+        ..settings.params
+    };
+    let triangulate = pipeline(
+        ctx,
+        "hpr/triangulate.comp",
+        &[
+            BINDING_FRAME,
+            BINDING_SEGMENTS,
+            BINDING_HPR_FRAME,
+            BINDING_HPR_SRC,
+            BINDING_HPR_TRIANGLES,
+        ],
+        &[],
+    )?;
+    let (frame, segments) = (inputs.frame, inputs.segments);
+    let (state, extremes) = (hpr.state, hpr.extremes);
+    let (gx, gy) = groups(blocks);
+    let c = Stages::Compute;
+    g.pass("hpr.triangulate")
+        .buffer(frame, Access::StorageRead(c))
+        .buffer(segments, Access::StorageRead(c))
+        .buffer(state, Access::StorageReadWrite(c))
+        .buffer(extremes, Access::StorageRead(c))
+        .buffer(indices, Access::StorageWrite(c))
+        .record(move |ctx| {
+            ctx.bind(
+                &triangulate,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    Descriptor::Buffer(BINDING_HPR_SRC, extremes),
+                    Descriptor::Buffer(BINDING_HPR_TRIANGLES, indices),
+                ],
+            );
+            ctx.push(&triangulate, bytemuck::bytes_of(&params));
+            ctx.dispatch(gx, gy, 1);
+        });
+    Ok(indices)
+}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "sectors",
+        default: 0.0,
+        min: 0.0,
+        max: 8192.0,
+        doc: "√k, sectors per angular direction; 0: one per pixel of the object's projection",
+    },
+    ParamSpec {
+        name: "max_sectors",
+        default: 1024.0,
+        min: 2.0,
+        max: 8192.0,
+        doc: "√k of the sector buffers (the largest grid a frame may use)",
+    },
+    ParamSpec {
+        name: "m",
+        default: 0.0,
+        min: 0.0,
+        max: 31.0,
+        doc: "0: adaptive propagation; odd m: one fixed m x m gather (003 4.3)",
+    },
+    ParamSpec {
+        name: "rounds",
+        default: 64.0,
+        min: 1.0,
+        max: 1024.0,
+        doc: "adaptive propagation: the most rounds (reported when reached)",
+    },
+    ParamSpec {
+        name: "radius",
+        default: 0.0,
+        min: 0.0,
+        max: 1e9,
+        doc: "R as a factor of the bounding sphere's diameter; 0: from the sampling density",
+    },
+    ParamSpec {
+        name: "max_edge",
+        default: 8.0,
+        min: 0.5,
+        max: 4096.0,
+        doc: "hpr-mesh: the longest projected triangle edge kept, in pixels",
+    },
+];
+
+pub const INFO: MethodInfo = MethodInfo {
+    name: "hpr",
+    summary: "hidden point removal on the GPU (003 ch. 4), the visible points by the compute rasterizer",
+    params: PARAMS,
+    needs_faces: false,
+    features: &[Feature::Int64Atomics],
+    culls_batches: false,
+    build: build_points,
+};
+
+pub const MESH_INFO: MethodInfo = MethodInfo {
+    name: "hpr-mesh",
+    summary: "HPR's partial surface reconstruction (003 4.4), drawn as triangles",
+    params: PARAMS,
+    needs_faces: false,
+    features: &[Feature::Int64Atomics],
+    culls_batches: false,
+    build: build_mesh,
+};
+
+/// The settings of a method configuration; `density` is R / |C − C_e|² from the sampling
+/// density (`GpuScene::hpr_density`).
+fn settings(b: &BuildContext<'_>) -> Settings {
+    let cfg = b.config;
+    let m = cfg.get("m").round() as u32;
+    let factor = cfg.get("radius");
+    Settings {
+        sqrt_k_max: cfg.get("max_sectors").round() as u32,
+        params: HprParams {
+            sqrt_k: cfg.get("sectors").round() as u32,
+            max_rounds: cfg.get("rounds").round() as u32,
+            radius_factor: factor,
+            density: if factor > 0.0 { 0.0 } else { b.scene.hpr_density },
+            max_edge: cfg.get("max_edge"),
+            ..Default::default()
+        },
+        propagation: if m == 0 {
+            Propagation::Adaptive {
+                max_rounds: cfg.get("rounds").round() as u32,
+            }
+        } else {
+            Propagation::Fixed(m | 1)
+        },
+    }
+}
+
+fn add_for_method(b: &mut BuildContext<'_>) -> Result<(Hpr, Inputs, Settings)> {
+    let sphere = bounding_sphere(b.ctx, b.scene)?;
+    let inputs = Inputs {
+        frame: b.frame,
+        segments: b.segments,
+        sphere: b.graph.import_buffer_with(
+            "hpr.sphere",
+            sphere,
+            Access::StorageWrite(Stages::Compute),
+        ),
+    };
+    let settings = settings(b);
+    let hpr = add(b.graph, b.ctx, b.scene.point_count, inputs, &settings)?;
+    Ok((hpr, inputs, settings))
+}
+
+fn build_points(b: &mut BuildContext<'_>) -> Result<()> {
+    let (hpr, _, _) = add_for_method(b)?;
+    let projection = compute::project(
+        b,
+        "hpr",
+        ProjectOptions {
+            skip: Some(hpr.hidden),
+            ..Default::default()
+        },
+    )?;
+    let resolve = compute::resolve_pipeline(b, "compute/resolve.comp", &[(0, 0)])?;
+    compute::add_resolve(b, "hpr.resolve", resolve, projection, false);
+    Ok(())
+}
+
+fn build_mesh(b: &mut BuildContext<'_>) -> Result<()> {
+    let (hpr, inputs, settings) = add_for_method(b)?;
+    let indices = add_triangulation(b.graph, b.ctx, inputs, &hpr, &settings)?;
+    super::mesh::add_mesh(
+        b,
+        "hpr-mesh",
+        1,
+        super::mesh::Indices::Indirect {
+            indices,
+            args: hpr.state,
+            range: draw_range(),
+        },
+    )
+}
