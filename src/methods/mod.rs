@@ -4,6 +4,7 @@
 
 pub mod compute;
 mod ewa;
+pub mod hpr;
 mod mesh;
 mod points;
 pub mod pyramid;

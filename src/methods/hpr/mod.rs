@@ -1,0 +1,3 @@
+//! GPU building blocks of hidden point removal (003): radix sort and segmented maximum.
+
+pub mod sort;
