@@ -1,7 +1,8 @@
 //! The GPU radix sort and segmented maximum (`methods::hpr::sort`) on lavapipe under
 //! synchronization validation, element for element against the CPU: a stable sort by the low
-//! key bits (values hold the original index, keys repeat often) and the per-key maximum of
-//! sorted data with segments crossing tiles.
+//! key bits (values hold the original index, keys repeat often), including more block sums
+//! than the scan workgroup handles at once, and the per-key maximum of sorted data with
+//! segments crossing tiles.
 
 mod common;
 
@@ -107,8 +108,14 @@ fn pairs(rng: &mut Lcg, count: usize) -> (Vec<u32>, Vec<u64>) {
 
 /// Sorts `count` random pairs by each of `key_bits` on the GPU and compares with a stable CPU
 /// sort by the same bits.
-fn check_sort(ctx: &Arc<Context>, p: &SortPipelines, rng: &mut Lcg, count: usize) {
-    for key_bits in [5u32, 16, 24, 32] {
+fn check_sort(
+    ctx: &Arc<Context>,
+    p: &SortPipelines,
+    rng: &mut Lcg,
+    count: usize,
+    key_bits: &[u32],
+) {
+    for &key_bits in key_bits {
         let (keys, values) = pairs(rng, count);
         let mut g = GraphBuilder::new();
         let key_in = input(ctx, &mut g, "keys", &bytes(&keys));
@@ -150,8 +157,22 @@ fn radix_sort_matches_a_stable_cpu_sort() {
     let p = SortPipelines::new(&ctx).expect("sort pipelines");
     let mut rng = Lcg(7);
     for count in [0, 1, 1000, 100_003] {
-        check_sort(&ctx, &p, &mut rng, count);
+        check_sort(&ctx, &p, &mut rng, count, &[5, 16, 24, 32]);
     }
+    drop(p);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn radix_sort_scans_block_sums_in_more_than_one_chunk() {
+    use surfel::gpu::layout::{SCAN_GROUP, SCAN_ITEMS, SORT_GROUP, SORT_ITEMS, SORT_RADIX};
+    let ctx = common::context();
+    let p = SortPipelines::new(&ctx).expect("sort pipelines");
+    // Just over one chunk of block sums: the single scan workgroup carries a running total.
+    let chunk = (SCAN_GROUP * SCAN_ITEMS) as usize;
+    let tiles = chunk * chunk / SORT_RADIX as usize + 3;
+    let count = tiles * (SORT_GROUP * SORT_ITEMS) as usize - 5;
+    check_sort(&ctx, &p, &mut Lcg(3), count, &[8]);
     drop(p);
     common::assert_clean(&ctx);
 }
