@@ -100,6 +100,7 @@ fn run_gpu(
     sqrt_k: u32,
     radius: f32,
     propagation: Propagation,
+    sort: bool,
 ) -> GpuResult {
     let (scene, _) = surfel::render::upload(ctx, &cloud_of(points)).expect("upload");
     let sphere = gpu_hpr::bounding_sphere(ctx, &scene).expect("bounding sphere");
@@ -131,6 +132,7 @@ fn run_gpu(
             ..Default::default()
         },
         propagation,
+        sort,
     };
     let mut g = GraphBuilder::new();
     let inputs = Inputs {
@@ -219,12 +221,20 @@ fn run_cpu(
     .expect("approximation")
 }
 
-fn assert_same(points: &[Vec3], eye: Vec3, sqrt_k: u32, propagation: Propagation) -> GpuResult {
+/// Runs the GPU passes (sorted by sector or with the sort-free atomic maximum) and the CPU
+/// reference and checks they agree exactly.
+fn assert_same(
+    points: &[Vec3],
+    eye: Vec3,
+    sqrt_k: u32,
+    propagation: Propagation,
+    sort: bool,
+) -> GpuResult {
     let ctx = common::context();
     let radius = 400.0;
-    let gpu = run_gpu(&ctx, points, eye, sqrt_k, radius, propagation);
+    let gpu = run_gpu(&ctx, points, eye, sqrt_k, radius, propagation, sort);
     let cpu = run_cpu(points, eye, &gpu, sqrt_k, radius, propagation);
-    let what = format!("{propagation:?} at sqrt(k) = {sqrt_k}");
+    let what = format!("{propagation:?} at sqrt(k) = {sqrt_k}, sorted: {sort}");
     assert_eq!(gpu.state.sqrt_k, sqrt_k, "{what}");
     assert_eq!(gpu.state.coarse, cpu.coarse, "{what}: EMPTY grid");
     assert_eq!(gpu.state.full, u32::from(cpu.full), "{what}: partition");
@@ -267,6 +277,7 @@ fn the_bounding_sphere_reduction_matches_the_cpu() {
         8,
         1000.0,
         Propagation::Fixed(1),
+        false,
     );
     assert!(gpu.centre.as_dvec3().distance(c) < 1e-4, "{} {c}", gpu.centre);
     assert!((f64::from(gpu.radius) - r).abs() < 1e-4 * r, "{} {r}", gpu.radius);
@@ -277,8 +288,8 @@ fn the_bounding_sphere_reduction_matches_the_cpu() {
 fn gpu_extremes_equal_the_cpu_reference_with_fixed_propagation() {
     let eye = Vec3::new(0.3, 0.2, 3.0);
     let points = two_shells(eye, 48);
-    let one = assert_same(&points, eye, 48, Propagation::Fixed(1));
-    let three = assert_same(&points, eye, 48, Propagation::Fixed(3));
+    let one = assert_same(&points, eye, 48, Propagation::Fixed(1), false);
+    let three = assert_same(&points, eye, 48, Propagation::Fixed(3), false);
     // Gathering over 3 x 3 replaces extremes (the comparison is then non-trivial).
     let replaced = one
         .extremes
@@ -287,17 +298,33 @@ fn gpu_extremes_equal_the_cpu_reference_with_fixed_propagation() {
         .filter(|(a, b)| a != b)
         .count();
     assert!(replaced > 100, "{replaced}");
-    assert_same(&points, eye, 48, Propagation::Fixed(5));
+    assert_same(&points, eye, 48, Propagation::Fixed(5), false);
+    // The thesis' pipeline, radix sort by sector and segmented maximum, finds the same
+    // extremes as the sort-free atomic maximum.
+    let sorted = assert_same(&points, eye, 48, Propagation::Fixed(3), true);
+    assert_eq!(sorted.extremes, three.extremes);
 }
 
 #[test]
 fn gpu_adaptive_propagation_equals_the_cpu_reference_and_reports_its_cap() {
     let eye = Vec3::new(0.3, 0.2, 3.0);
     let points = two_shells(eye, 64);
-    let stable = assert_same(&points, eye, 64, Propagation::Adaptive { max_rounds: 64 });
+    let stable = assert_same(
+        &points,
+        eye,
+        64,
+        Propagation::Adaptive { max_rounds: 64 },
+        true,
+    );
     assert!(stable.state.rounds > 1 && stable.state.rounds < 64);
     // A cap below the rounds needed stops there, on the GPU as on the CPU.
-    let capped = assert_same(&points, eye, 64, Propagation::Adaptive { max_rounds: 2 });
+    let capped = assert_same(
+        &points,
+        eye,
+        64,
+        Propagation::Adaptive { max_rounds: 2 },
+        false,
+    );
     assert_eq!(capped.state.rounds, 2);
 }
 
@@ -306,7 +333,13 @@ fn a_viewpoint_inside_the_cloud_uses_the_full_sphere_partition() {
     // From inside the outer shell (off centre), the full-sphere grid: phi wraps around.
     let eye = Vec3::new(0.1, 0.75, 0.2);
     let points = two_shells(eye, 32);
-    let gpu = assert_same(&points, eye, 32, Propagation::Adaptive { max_rounds: 64 });
+    let gpu = assert_same(
+        &points,
+        eye,
+        32,
+        Propagation::Adaptive { max_rounds: 64 },
+        false,
+    );
     assert_eq!(gpu.state.full, 1);
     assert!(!gpu.visible.is_empty());
 }

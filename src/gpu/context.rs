@@ -65,7 +65,14 @@ pub struct Capabilities {
     pub max_image_dimension_2d: u32,
     pub max_color_attachments: u32,
     pub max_compute_workgroup_invocations: u32,
+    /// `maxComputeSharedMemorySize`: bytes of shared memory per workgroup.
+    pub max_compute_shared_memory: u32,
     pub max_storage_buffer_range: u32,
+    /// `VkPhysicalDeviceSubgroupProperties::subgroupSize`: invocations per subgroup (the
+    /// size compute shaders see, as shaders target SPIR-V 1.5).
+    pub subgroup_size: u32,
+    /// Subgroup ballot operations (`GL_KHR_shader_subgroup_ballot`) in compute shaders.
+    pub subgroup_ballot_compute: bool,
     pub max_mesh_output_vertices: u32,
     pub max_geometry_output_vertices: u32,
 }
@@ -88,6 +95,12 @@ impl fmt::Display for Capabilities {
             yes(self.task_shader)
         )?;
         writeln!(f, "int64 atomics     {}", yes(self.buffer_int64_atomics))?;
+        writeln!(
+            f,
+            "subgroups         {} invocations, compute ballot {}",
+            self.subgroup_size,
+            yes(self.subgroup_ballot_compute)
+        )?;
         writeln!(
             f,
             "indirect draws    multi {}, count {}, draw parameters {}",
@@ -586,7 +599,10 @@ unsafe fn capabilities(
 ) -> Capabilities {
     let mut driver = vk::PhysicalDeviceDriverProperties::default();
     let mut mesh_props = vk::PhysicalDeviceMeshShaderPropertiesEXT::default();
-    let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+    let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+    let mut props2 = vk::PhysicalDeviceProperties2::default()
+        .push_next(&mut driver)
+        .push_next(&mut subgroup);
     if mesh.is_some() {
         props2 = props2.push_next(&mut mesh_props);
     }
@@ -632,7 +648,15 @@ unsafe fn capabilities(
         max_image_dimension_2d: limits.max_image_dimension2_d,
         max_color_attachments: limits.max_color_attachments,
         max_compute_workgroup_invocations: limits.max_compute_work_group_invocations,
+        max_compute_shared_memory: limits.max_compute_shared_memory_size,
         max_storage_buffer_range: limits.max_storage_buffer_range,
+        subgroup_size: subgroup.subgroup_size,
+        subgroup_ballot_compute: subgroup
+            .supported_stages
+            .contains(vk::ShaderStageFlags::COMPUTE)
+            && subgroup
+                .supported_operations
+                .contains(vk::SubgroupFeatureFlags::BALLOT),
         max_mesh_output_vertices: if mesh.is_some() {
             mesh_props.max_mesh_output_vertices
         } else {

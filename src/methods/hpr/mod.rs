@@ -20,6 +20,8 @@
 //! Converged adaptive rounds leave both ping-pong buffers equal (the last round that ran
 //! wrote what it read), so the statically last destination holds the result.
 
+pub mod sort;
+
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -32,7 +34,7 @@ use crate::gpu::layout::{
     FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_DST, BINDING_HPR_EMPTY,
     BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
     BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
-    BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SPEC_ADAPTIVE,
+    BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE,
     HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH, HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS,
     HPR_SPHERE_SUM,
 };
@@ -59,6 +61,9 @@ pub struct Settings {
     pub sqrt_k_max: u32,
     pub params: HprParams,
     pub propagation: Propagation,
+    /// The thesis' pipeline: radix sort by sector and a segmented maximum
+    /// ([`sort`]); otherwise the sort-free 64-bit `atomicMax` per sector.
+    pub sort: bool,
 }
 
 /// The graph resources of one HPR evaluation.
@@ -264,7 +269,12 @@ pub fn add(
     g.fill_buffer("hpr.clear.empty", occupied, BufferRange::WHOLE, 0);
     g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
 
-    // Per point: sector, DIST and the sort-free extreme.
+    // Per point: sector, DIST and the sort-free extreme, or the sort's keys and values.
+    let mode = if settings.sort {
+        HPR_SECTOR_SORT
+    } else {
+        HPR_SECTOR_ATOMIC
+    };
     let sector = pipeline(
         ctx,
         "hpr/sector.comp",
@@ -277,34 +287,59 @@ pub fn add(
             BINDING_HPR_KEYS,
             BINDING_HPR_VALUES,
         ],
-        &[(HPR_SPEC_MODE, HPR_SECTOR_ATOMIC)],
+        &[(HPR_SPEC_MODE, mode)],
     )?;
+    let n = u64::from(point_count);
+    // The sort outputs are dead code in the sort-free variant and the 64-bit extremes in the
+    // sort variant (statically present): alias them to buffers the pass declares.
+    let (keys, values) = if settings.sort {
+        (
+            g.buffer("hpr.keys", n.max(1) * 4, usage),
+            g.buffer("hpr.values", n.max(1) * 8, usage),
+        )
+    } else {
+        (occupied, max64)
+    };
     {
         let push = push.clone();
-        let (gx, gy) = groups(u64::from(point_count));
-        g.pass("hpr.sector")
+        let (gx, gy) = groups(n);
+        let extremes = if settings.sort { values } else { max64 };
+        let mut pass = g
+            .pass("hpr.sector")
             .buffer(frame, Access::StorageRead(c))
             .buffer(segments, Access::StorageRead(c))
             .buffer(state, Access::StorageRead(c))
-            .buffer(max64, Access::StorageReadWrite(c))
-            .buffer(occupied, Access::StorageWrite(c))
-            .record(move |ctx| {
-                ctx.bind(
-                    &sector,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                        Descriptor::Buffer(BINDING_HPR_MAX, max64),
-                        Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
-                        // The sort outputs are dead code in this variant (statically present).
-                        Descriptor::Buffer(BINDING_HPR_KEYS, occupied),
-                        Descriptor::Buffer(BINDING_HPR_VALUES, max64),
-                    ],
-                );
-                ctx.push(&sector, &push);
-                ctx.dispatch(gx, gy, 1);
-            });
+            .buffer(occupied, Access::StorageWrite(c));
+        pass = if settings.sort {
+            pass.buffer(keys, Access::StorageWrite(c))
+                .buffer(values, Access::StorageReadWrite(c))
+        } else {
+            pass.buffer(max64, Access::StorageReadWrite(c))
+        };
+        pass.record(move |ctx| {
+            ctx.bind(
+                &sector,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    Descriptor::Buffer(BINDING_HPR_MAX, extremes),
+                    Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
+                    Descriptor::Buffer(BINDING_HPR_KEYS, keys),
+                    Descriptor::Buffer(BINDING_HPR_VALUES, values),
+                ],
+            );
+            ctx.push(&sector, &push);
+            ctx.dispatch(gx, gy, 1);
+        });
+    }
+    if settings.sort {
+        // Sector ids run to k_max (the sentinel of points at the eye).
+        let key_bits = (32 - (k_max as u32).leading_zeros()).max(1);
+        let pipelines = sort::SortPipelines::new(ctx)?;
+        let (sorted_keys, sorted_values) =
+            sort::add_sort(g, &pipelines, keys, values, point_count, key_bits);
+        sort::add_segmented_max(g, &pipelines, sorted_keys, sorted_values, point_count, max64);
     }
 
     // Propagation.
@@ -557,6 +592,13 @@ const PARAMS: &[ParamSpec] = &[
         doc: "R as a factor of the bounding sphere's diameter; 0: from the sampling density",
     },
     ParamSpec {
+        name: "sort",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "1: radix sort by sector and segmented maximum (the thesis); 0: 64-bit atomicMax",
+    },
+    ParamSpec {
         name: "max_edge",
         default: 8.0,
         min: 0.5,
@@ -608,6 +650,7 @@ fn settings(b: &BuildContext<'_>) -> Settings {
         } else {
             Propagation::Fixed(m | 1)
         },
+        sort: cfg.get("sort") >= 0.5,
     }
 }
 

@@ -1,0 +1,340 @@
+//! A stable GPU radix sort of (u32 key, u64 value) pairs and a segmented maximum over sorted
+//! keys, declared as render-graph passes.
+//!
+//! The sort is least-significant-digit first with 8-bit digits. Each digit pass is
+//! reduce-then-scan, five compute passes:
+//!
+//! * `count`: one workgroup per tile of `SORT_GROUP * SORT_ITEMS` keys writes the tile's digit
+//!   histogram digit-major (`hist[digit * tiles + tile]`).
+//! * `reduce`, `scan`, `downsweep`: the exclusive prefix sum over that whole array. `reduce`
+//!   sums each block of `SCAN_GROUP * SCAN_ITEMS` entries, `scan` (one workgroup) scans the
+//!   block sums serially in chunks, and `downsweep` scans each block and adds its offset, so
+//!   `hist[digit * tiles + tile]` becomes the first output position of that digit's elements
+//!   of that tile.
+//! * `scatter`: each tile ranks its elements among the tile's earlier elements of the same
+//!   digit (subgroup ballots, then per-subgroup counts combined in order) and writes each pair
+//!   to its position: stable.
+//!
+//! Why not a single-pass scan with decoupled look-back: it makes a workgroup spin on a flag
+//! that an earlier workgroup publishes, which needs forward progress between workgroups, and
+//! lavapipe (and the Vulkan specification) gives none, so it can hang. Reduce-then-scan only
+//! ever waits at pass boundaries, where the graph places the barriers.
+//!
+//! The segmented maximum (`segmax.comp`) reduces each tile in shared memory and combines the
+//! segments that cross tile boundaries with 64-bit atomics.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use ash::vk;
+
+use crate::gpu::layout::{
+    BINDING_SORT_HIST, BINDING_SORT_KEYS, BINDING_SORT_KEYS_OUT, BINDING_SORT_SUMS,
+    BINDING_SORT_VALUES, BINDING_SORT_VALUES_OUT, SCAN_GROUP, SCAN_ITEMS, SEGMAX_GROUP,
+    SORT_DIGIT_BITS, SORT_GROUP, SORT_ITEMS, SORT_RADIX, SORT_SPEC_SUBGROUPS,
+};
+use crate::gpu::{Context, Pipeline};
+use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, Stages};
+use crate::methods::compute::storage;
+
+/// Elements per tile of the count and scatter passes.
+const TILE: u32 = SORT_GROUP * SORT_ITEMS;
+/// Histogram entries per block of the reduce and downsweep passes.
+const SCAN_BLOCK: u32 = SCAN_GROUP * SCAN_ITEMS;
+/// Workgroups per dispatch dimension every device allows; larger counts fold into 2D.
+const MAX_GROUPS: u32 = 65_535;
+
+/// The compute pipelines of `add_sort` and `add_segmented_max`.
+pub struct SortPipelines {
+    count: Arc<Pipeline>,
+    reduce: Arc<Pipeline>,
+    scan: Arc<Pipeline>,
+    downsweep: Arc<Pipeline>,
+    scatter: Arc<Pipeline>,
+    segmax: Arc<Pipeline>,
+}
+
+impl SortPipelines {
+    /// Creates the pipelines; fails when the device lacks what they need: subgroup ballots in
+    /// compute shaders with subgroups of at most `SORT_GROUP` invocations, enough shared memory
+    /// for the scatter's per-subgroup digit counts, and 64-bit buffer atomics.
+    pub fn new(ctx: &Arc<Context>) -> Result<Self> {
+        let caps = &ctx.caps;
+        if !caps.subgroup_ballot_compute {
+            bail!(
+                "{} lacks subgroup ballot operations in compute shaders \
+                 (GL_KHR_shader_subgroup_ballot): the GPU radix sort needs them",
+                caps.device_name
+            );
+        }
+        let size = caps.subgroup_size;
+        if size == 0 || size > SORT_GROUP || !size.is_power_of_two() {
+            bail!(
+                "{} has subgroups of {size} invocations: the GPU radix sort needs a power of \
+                 two of at most {SORT_GROUP}",
+                caps.device_name
+            );
+        }
+        let subgroups = SORT_GROUP / size;
+        let shared = (subgroups + 1) * SORT_RADIX * 4;
+        if shared > caps.max_compute_shared_memory {
+            bail!(
+                "{}: the radix sort's scatter needs {shared} bytes of shared memory with \
+                 subgroups of {size} (the device allows {})",
+                caps.device_name,
+                caps.max_compute_shared_memory
+            );
+        }
+        if !caps.buffer_int64_atomics {
+            bail!(
+                "{} lacks 64-bit buffer atomics (shaderBufferInt64Atomics): the segmented \
+                 maximum needs them",
+                caps.device_name
+            );
+        }
+        let pipeline = |shader: &str, bindings: &[u32], specialization: &[(u32, u32)]| {
+            let bindings: Vec<_> = bindings.iter().map(|&b| storage(b)).collect();
+            Pipeline::compute_specialized(ctx, shader, &bindings, specialization).map(Arc::new)
+        };
+        Ok(Self {
+            count: pipeline(
+                "hpr/sort_count.comp",
+                &[BINDING_SORT_KEYS, BINDING_SORT_HIST],
+                &[],
+            )?,
+            reduce: pipeline(
+                "hpr/sort_reduce.comp",
+                &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
+                &[],
+            )?,
+            scan: pipeline("hpr/sort_scan.comp", &[BINDING_SORT_SUMS], &[])?,
+            downsweep: pipeline(
+                "hpr/sort_downsweep.comp",
+                &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
+                &[],
+            )?,
+            scatter: pipeline(
+                "hpr/sort_scatter.comp",
+                &[
+                    BINDING_SORT_KEYS,
+                    BINDING_SORT_VALUES,
+                    BINDING_SORT_KEYS_OUT,
+                    BINDING_SORT_VALUES_OUT,
+                    BINDING_SORT_HIST,
+                ],
+                &[(SORT_SPEC_SUBGROUPS, subgroups)],
+            )?,
+            segmax: pipeline(
+                "hpr/segmax.comp",
+                &[
+                    BINDING_SORT_KEYS,
+                    BINDING_SORT_VALUES,
+                    BINDING_SORT_VALUES_OUT,
+                ],
+                &[],
+            )?,
+        })
+    }
+}
+
+/// Push constants of every sort shader (`Push` in `glsl/hpr/sort.glsl`).
+#[derive(Clone, Copy)]
+struct Push {
+    count: u32,
+    shift: u32,
+    mask: u32,
+    tiles: u32,
+    blocks: u32,
+}
+
+impl Push {
+    fn bytes(self) -> Vec<u8> {
+        [self.count, self.shift, self.mask, self.tiles, self.blocks]
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .collect()
+    }
+}
+
+/// Group counts of a dispatch of `groups` workgroups, folded into 2D past `MAX_GROUPS` (the
+/// shaders skip indices past their group count).
+fn fold(groups: u32) -> (u32, u32) {
+    (groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS))
+}
+
+/// Declares a compute pass binding `pipeline` with `descriptors` (all storage buffers, whose
+/// accesses `uses` declares) and dispatching `groups` workgroups.
+fn compute_pass(
+    g: &mut GraphBuilder,
+    name: &str,
+    pipeline: &Arc<Pipeline>,
+    uses: &[(u32, BufferId, Access)],
+    push: Push,
+    groups: u32,
+) {
+    let mut pass = g.pass(name);
+    for &(_, id, access) in uses {
+        pass = pass.buffer(id, access);
+    }
+    let descriptors: Vec<_> = uses
+        .iter()
+        .map(|&(binding, id, _)| Descriptor::Buffer(binding, id))
+        .collect();
+    let pipeline = pipeline.clone();
+    let push = push.bytes();
+    let (x, y) = fold(groups);
+    pass.record(move |ctx| {
+        ctx.bind(&pipeline, &descriptors);
+        ctx.push(&pipeline, &push);
+        ctx.dispatch(x, y, 1);
+    });
+}
+
+/// Declares a stable LSD radix sort of the first `count` (key, value) pairs of `keys` (`u32`
+/// each) and `values` (`u64` each) by the low `key_bits` bits of the key (1..=32): one digit
+/// pass per 8 bits, each five compute passes (`sort.count.N`, `sort.reduce.N`, `sort.scan.N`,
+/// `sort.downsweep.N`, `sort.scatter.N`). The passes ping-pong between the input buffers
+/// (which they overwrite) and two transient buffers; returns the buffers that hold the sorted
+/// keys and values (the inputs after an even number of digit passes). Fewer than two pairs
+/// are already sorted: no passes, the inputs are returned.
+pub fn add_sort(
+    g: &mut GraphBuilder,
+    p: &SortPipelines,
+    keys: BufferId,
+    values: BufferId,
+    count: u32,
+    key_bits: u32,
+) -> (BufferId, BufferId) {
+    assert!(
+        (1..=32).contains(&key_bits),
+        "sort keys have 1 to 32 bits, not {key_bits}"
+    );
+    if count < 2 {
+        return (keys, values);
+    }
+    let tiles = count.div_ceil(TILE);
+    let entries = tiles * SORT_RADIX;
+    let blocks = entries.div_ceil(SCAN_BLOCK);
+    // Usage flags follow from the declared accesses.
+    let usage = vk::BufferUsageFlags::empty();
+    let alt = (
+        g.buffer("sort.keys", u64::from(count) * 4, usage),
+        g.buffer("sort.values", u64::from(count) * 8, usage),
+    );
+    let hist = g.buffer("sort.hist", u64::from(entries) * 4, usage);
+    let sums = g.buffer("sort.sums", u64::from(blocks) * 4, usage);
+    let read = Access::StorageRead(Stages::Compute);
+    let write = Access::StorageWrite(Stages::Compute);
+    let read_write = Access::StorageReadWrite(Stages::Compute);
+    let (mut src, mut dst) = ((keys, values), alt);
+    for digit in 0..key_bits.div_ceil(SORT_DIGIT_BITS) {
+        let shift = digit * SORT_DIGIT_BITS;
+        let bits = (key_bits - shift).min(SORT_DIGIT_BITS);
+        let push = Push {
+            count,
+            shift,
+            mask: (1 << bits) - 1,
+            tiles,
+            blocks,
+        };
+        compute_pass(
+            g,
+            &format!("sort.count.{digit}"),
+            &p.count,
+            &[
+                (BINDING_SORT_KEYS, src.0, read),
+                (BINDING_SORT_HIST, hist, write),
+            ],
+            push,
+            tiles,
+        );
+        compute_pass(
+            g,
+            &format!("sort.reduce.{digit}"),
+            &p.reduce,
+            &[
+                (BINDING_SORT_HIST, hist, read),
+                (BINDING_SORT_SUMS, sums, write),
+            ],
+            push,
+            blocks,
+        );
+        compute_pass(
+            g,
+            &format!("sort.scan.{digit}"),
+            &p.scan,
+            &[(BINDING_SORT_SUMS, sums, read_write)],
+            push,
+            1,
+        );
+        compute_pass(
+            g,
+            &format!("sort.downsweep.{digit}"),
+            &p.downsweep,
+            &[
+                (BINDING_SORT_HIST, hist, read_write),
+                (BINDING_SORT_SUMS, sums, read),
+            ],
+            push,
+            blocks,
+        );
+        compute_pass(
+            g,
+            &format!("sort.scatter.{digit}"),
+            &p.scatter,
+            &[
+                (BINDING_SORT_KEYS, src.0, read),
+                (BINDING_SORT_VALUES, src.1, read),
+                (BINDING_SORT_KEYS_OUT, dst.0, write),
+                (BINDING_SORT_VALUES_OUT, dst.1, write),
+                (BINDING_SORT_HIST, hist, read),
+            ],
+            push,
+            tiles,
+        );
+        std::mem::swap(&mut src, &mut dst);
+    }
+    src
+}
+
+/// Declares the pass `sort.segmax`: for the first `count` pairs of `keys` (`u32`, sorted
+/// ascending) and `values` (`u64`), writes `out[s] = max(values[i] for keys[i] == s)` (`u64`
+/// per possible key) for every key `s` present. The caller clears `out` to 0 before (the
+/// segments crossing tile boundaries combine with `atomicMax`); keys without elements keep
+/// their value.
+pub fn add_segmented_max(
+    g: &mut GraphBuilder,
+    p: &SortPipelines,
+    keys: BufferId,
+    values: BufferId,
+    count: u32,
+    out: BufferId,
+) {
+    if count == 0 {
+        return;
+    }
+    let push = Push {
+        count,
+        shift: 0,
+        mask: 0,
+        tiles: 0,
+        blocks: 0,
+    };
+    let read = Access::StorageRead(Stages::Compute);
+    compute_pass(
+        g,
+        "sort.segmax",
+        &p.segmax,
+        &[
+            (BINDING_SORT_KEYS, keys, read),
+            (BINDING_SORT_VALUES, values, read),
+            (
+                BINDING_SORT_VALUES_OUT,
+                out,
+                Access::StorageReadWrite(Stages::Compute),
+            ),
+        ],
+        push,
+        count.div_ceil(SEGMAX_GROUP),
+    );
+}
