@@ -814,8 +814,8 @@ fn visible_points(
         radius: r,
         propagation: m.map_or(Propagation::UNTIL_STABLE, Propagation::Fixed),
     };
-    let found = approx::approximate(&points, eye.as_dvec3(), params)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let found =
+        approx::approximate(&points, eye.as_dvec3(), params).map_err(|e| anyhow::anyhow!("{e}"))?;
     let partition = if found.full {
         "full sphere: the viewpoint is inside or near the bounding sphere"
     } else {

@@ -5,13 +5,11 @@ mod common;
 
 use std::sync::Arc;
 
-use ash::vk;
-use glam::{DVec3, Mat4, Vec3, Vec4};
-use surfel::gpu::layout::{FrameBlock, HprFrame, HprParams};
-use surfel::gpu::{Buffer, Context};
-use surfel::graph::{Access, BufferId, GraphBuilder};
+use glam::{DVec3, Mat4, Vec3};
+use surfel::gpu::layout::HprParams;
+use surfel::gpu::Context;
 use surfel::hpr::approx::{self, Params, Propagation, Sectors};
-use surfel::methods::hpr::{self as gpu_hpr, Inputs, Settings};
+use surfel::methods::hpr::{self as gpu_hpr, Evaluation, Settings};
 use surfel::scene::Cloud;
 
 /// Points on a unit sphere (Fibonacci lattice), scaled.
@@ -39,31 +37,27 @@ fn grid_position(s: &Sectors, eye: DVec3, p: DVec3) -> (f64, f64) {
     )
 }
 
-/// `points` without those within 3 % of a sector boundary (the GPU's f32 angles must put
-/// every point in the sector the f64 reference does), repeated until the bounding sphere (and
-/// so the grid) no longer moves; then in stream (Morton) order, so GPU and CPU indices agree.
-fn away_from_boundaries(mut points: Vec<Vec3>, eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
-    loop {
-        let d: Vec<DVec3> = points.iter().map(|p| p.as_dvec3()).collect();
-        let (c, r) = approx::bounding_sphere(&d).unwrap();
-        let s = Sectors::new(c, r, eye.as_dvec3(), sqrt_k);
-        let inside = |x: f64| {
-            let f = x - x.floor();
-            (0.03..0.97).contains(&f)
-        };
-        let kept: Vec<Vec3> = points
-            .iter()
-            .copied()
-            .filter(|p| {
-                let (a, b) = grid_position(&s, eye.as_dvec3(), p.as_dvec3());
-                inside(a) && inside(b)
-            })
-            .collect();
-        if kept.len() == points.len() {
-            break;
-        }
-        points = kept;
-    }
+/// `points` and their mirror images -p, without the pairs where either lies within 3 % of a
+/// sector boundary (the GPU's f32 angles must put every point in the sector the f64
+/// reference does). Mirrored pairs keep the centroid at the origin and the radius at the
+/// largest |p|, so dropping points does not move the grid. In stream (Morton) order, so GPU
+/// and CPU indices agree.
+fn away_from_boundaries(half: Vec<Vec3>, eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
+    let r = half
+        .iter()
+        .map(|p| f64::from(p.length()))
+        .fold(0.0, f64::max);
+    let s = Sectors::new(DVec3::ZERO, r, eye.as_dvec3(), sqrt_k);
+    let clear = |p: Vec3| {
+        let (a, b) = grid_position(&s, eye.as_dvec3(), p.as_dvec3());
+        let inside = |x: f64| (0.03..0.97).contains(&(x - x.floor()));
+        inside(a) && inside(b)
+    };
+    let points: Vec<Vec3> = half
+        .iter()
+        .filter(|&&p| clear(p) && clear(-p))
+        .flat_map(|&p| [p, -p])
+        .collect();
     let order = surfel::streams::morton_order(&points);
     let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
     let again = surfel::streams::morton_order(&sorted);
@@ -80,18 +74,6 @@ fn cloud_of(points: &[Vec3]) -> Cloud {
     }
 }
 
-struct GpuResult {
-    centre: Vec3,
-    radius: f32,
-    state: HprFrame,
-    extremes: Vec<u32>,
-    visible: Vec<u32>,
-}
-
-fn host(ctx: &Arc<Context>, bytes: u64) -> Arc<Buffer> {
-    Arc::new(Buffer::readback(ctx, "readback", bytes).expect("readback buffer"))
-}
-
 /// Runs the GPU passes once on `points` (in stream order) from `eye`.
 fn run_gpu(
     ctx: &Arc<Context>,
@@ -101,25 +83,8 @@ fn run_gpu(
     radius: f32,
     propagation: Propagation,
     sort: bool,
-) -> GpuResult {
+) -> Evaluation {
     let (scene, _) = surfel::render::upload(ctx, &cloud_of(points)).expect("upload");
-    let sphere = gpu_hpr::bounding_sphere(ctx, &scene).expect("bounding sphere");
-    let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
-    block.u.view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
-    block.u.proj = Mat4::perspective_rh(0.8, 1.0, 0.1, 100.0);
-    block.u.view_proj = block.u.proj * block.u.view;
-    block.u.viewport = Vec4::new(64.0, 64.0, 1.0 / 64.0, 1.0 / 64.0);
-    block.u.point_count = scene.point_count;
-    block.u.segment_points = scene.streams.segment_points;
-    let frame_buffer = Arc::new(
-        Buffer::with_data(
-            ctx,
-            "frame",
-            bytemuck::bytes_of(&block),
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-        )
-        .expect("frame"),
-    );
     let settings = Settings {
         sqrt_k_max: sqrt_k,
         params: HprParams {
@@ -129,80 +94,22 @@ fn run_gpu(
                 Propagation::Adaptive { max_rounds } => max_rounds,
                 Propagation::Fixed(_) => 0,
             },
+            max_edge: 4.0,
             ..Default::default()
         },
         propagation,
         sort,
     };
-    let mut g = GraphBuilder::new();
-    let inputs = Inputs {
-        frame: g.import_buffer("frame", frame_buffer),
-        segments: g.import_buffer("stream.segments", scene.streams.table.clone()),
-        sphere: g.import_buffer_with(
-            "hpr.sphere",
-            sphere.clone(),
-            Access::StorageWrite(surfel::graph::Stages::Compute),
-        ),
-    };
-    let hpr = gpu_hpr::add(&mut g, ctx, scene.point_count, inputs, &settings).expect("passes");
-    let k = u64::from(sqrt_k * sqrt_k);
-    let words = u64::from(scene.point_count.div_ceil(32));
-    let outputs: [(BufferId, u64); 4] = [
-        (inputs.sphere, 16),
-        (hpr.state, std::mem::size_of::<HprFrame>() as u64),
-        (hpr.extremes, k * 4),
-        (hpr.hidden, words * 4),
-    ];
-    let hosts: Vec<Arc<Buffer>> = outputs.iter().map(|&(_, n)| host(ctx, n)).collect();
-    let mut ids = Vec::new();
-    for (i, (&(src, n), buffer)) in outputs.iter().zip(&hosts).enumerate() {
-        let id = g.import_buffer("readback", buffer.clone());
-        g.copy_buffer(
-            &format!("readback.{i}"),
-            src,
-            id,
-            &[vk::BufferCopy {
-                src_offset: 0,
-                dst_offset: 0,
-                size: n,
-            }],
-        );
-        ids.push(id);
-    }
-    let mut done = g.pass("readback.host");
-    for &id in &ids {
-        done = done.buffer(id, Access::HostRead);
-    }
-    done.record(|_| {});
-    let mut graph = g.compile(ctx).expect("compile");
-    graph.run_once(ctx).expect("run");
-    let words_of = |b: &Buffer| -> Vec<u32> {
-        bytemuck::cast_slice(b.mapped().expect("mapped")).to_vec()
-    };
-    let s = words_of(&hosts[0]);
-    let hidden = words_of(&hosts[3]);
-    let result = GpuResult {
-        centre: Vec3::new(
-            f32::from_bits(s[0]),
-            f32::from_bits(s[1]),
-            f32::from_bits(s[2]),
-        ),
-        radius: f32::from_bits(s[3]),
-        state: *bytemuck::from_bytes(hosts[1].mapped().expect("mapped")),
-        extremes: words_of(&hosts[2]),
-        visible: (0..scene.point_count)
-            .filter(|&i| hidden[(i / 32) as usize] & (1 << (i % 32)) == 0)
-            .collect(),
-    };
-    drop(graph);
-    result
+    let view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
+    let proj = Mat4::perspective_rh(0.8, 1.0, 0.1, 100.0);
+    gpu_hpr::evaluate(ctx, &scene, (view, proj), (64, 64), &settings, true).expect("evaluate")
 }
 
 /// The CPU reference with the GPU's bounding sphere.
 fn run_cpu(
     points: &[Vec3],
     eye: Vec3,
-    gpu: &GpuResult,
+    gpu: &Evaluation,
     sqrt_k: u32,
     radius: f32,
     propagation: Propagation,
@@ -229,7 +136,7 @@ fn assert_same(
     sqrt_k: u32,
     propagation: Propagation,
     sort: bool,
-) -> GpuResult {
+) -> Evaluation {
     let ctx = common::context();
     let radius = 400.0;
     let gpu = run_gpu(&ctx, points, eye, sqrt_k, radius, propagation, sort);
@@ -257,16 +164,20 @@ fn assert_same(
 /// A sphere seen from outside with a smaller shell inside it (hidden points propagation must
 /// remove).
 fn two_shells(eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
-    let mut points = shell(6000, 1.0);
-    points.extend(shell(2000, 0.6));
-    away_from_boundaries(points, eye, sqrt_k)
+    let mut half = shell(3000, 1.0);
+    half.extend(shell(1000, 0.6));
+    let points = away_from_boundaries(half, eye, sqrt_k);
+    assert!(points.len() > 6000, "{}", points.len());
+    points
 }
 
 #[test]
 fn the_bounding_sphere_reduction_matches_the_cpu() {
     let ctx = common::context();
     let mut points = shell(50_000, 2.0);
-    points.iter_mut().for_each(|p| *p += Vec3::new(3.0, -1.0, 0.5));
+    points
+        .iter_mut()
+        .for_each(|p| *p += Vec3::new(3.0, -1.0, 0.5));
     points.push(Vec3::new(3.0, -1.0, 9.0));
     let d: Vec<DVec3> = points.iter().map(|p| p.as_dvec3()).collect();
     let (c, r) = approx::bounding_sphere(&d).unwrap();
@@ -279,8 +190,16 @@ fn the_bounding_sphere_reduction_matches_the_cpu() {
         Propagation::Fixed(1),
         false,
     );
-    assert!(gpu.centre.as_dvec3().distance(c) < 1e-4, "{} {c}", gpu.centre);
-    assert!((f64::from(gpu.radius) - r).abs() < 1e-4 * r, "{} {r}", gpu.radius);
+    assert!(
+        gpu.centre.as_dvec3().distance(c) < 1e-4,
+        "{} {c}",
+        gpu.centre
+    );
+    assert!(
+        (f64::from(gpu.radius) - r).abs() < 1e-4 * r,
+        "{} {r}",
+        gpu.radius
+    );
     common::assert_clean(&ctx);
 }
 
@@ -290,6 +209,20 @@ fn gpu_extremes_equal_the_cpu_reference_with_fixed_propagation() {
     let points = two_shells(eye, 48);
     let one = assert_same(&points, eye, 48, Propagation::Fixed(1), false);
     let three = assert_same(&points, eye, 48, Propagation::Fixed(3), false);
+    // The partial reconstruction: the GPU's triangles are the CPU filter's over the same
+    // extremes (two per 2 x 2 block, minus gaps, repeats and edges over 4 pixels).
+    let view_proj =
+        Mat4::perspective_rh(0.8, 1.0, 0.1, 100.0) * Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
+    let pixel = |i: u32| {
+        let c = view_proj * points[i as usize].extend(1.0);
+        (c.w > 0.0).then(|| (c.truncate().truncate() / c.w + 1.0) * 0.5 * 64.0)
+    };
+    let mut cpu = approx::triangulate(&one.extremes, 48, pixel, 4.0);
+    let mut gpu = one.triangles.clone();
+    cpu.sort_unstable();
+    gpu.sort_unstable();
+    assert!(cpu.len() > 500, "{}", cpu.len());
+    assert_eq!(gpu, cpu);
     // Gathering over 3 x 3 replaces extremes (the comparison is then non-trivial).
     let replaced = one
         .extremes

@@ -243,7 +243,8 @@ pub fn approximate_in(
         }
     }
     let visited = |i: u32, j: u32| occupied[((i / coarse) * cs + j / coarse) as usize];
-    let along = |point: u32, id: usize| distance_along(points[point as usize] - eye, dirs[id], radius);
+    let along =
+        |point: u32, id: usize| distance_along(points[point as usize] - eye, dirs[id], radius);
     // Better: further along the direction, ties to the lower index.
     let better = |cand: u32, cur: u32, id: usize| {
         cur == u32::MAX || {
@@ -491,8 +492,15 @@ mod tests {
         let (centre, r) = bounding_sphere(points).unwrap();
         let sectors = Sectors::new(centre, r, eye, sqrt_k);
         let s = sqrt_k;
-        let dirs: Vec<DVec3> = (0..s * s).map(|id| sectors.direction(id / s, id % s)).collect();
-        let key = |p: u32, t: usize| (distance_along(points[p as usize] - eye, dirs[t], radius), -(p as i64));
+        let dirs: Vec<DVec3> = (0..s * s)
+            .map(|id| sectors.direction(id / s, id % s))
+            .collect();
+        let key = |p: u32, t: usize| {
+            (
+                distance_along(points[p as usize] - eye, dirs[t], radius),
+                -(p as i64),
+            )
+        };
         let mut max = extract.max;
         // The occupied sectors (one EMPTY cell per sector here: fewer sectors than points).
         assert_eq!(extract.coarse, 1);

@@ -145,9 +145,11 @@ pub fn add_mesh(
             indices,
             args,
             range,
-        } => raster_pass
-            .buffer(indices, Access::IndexRead)
-            .buffer_range(args, range, Access::IndirectRead),
+        } => raster_pass.buffer(indices, Access::IndexRead).buffer_range(
+            args,
+            range,
+            Access::IndirectRead,
+        ),
     };
     raster_pass
         .color(hi_color, Load::Clear([0.0; 4]))

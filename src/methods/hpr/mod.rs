@@ -32,9 +32,9 @@ use super::compute::{self, storage, ProjectOptions};
 use super::{BuildContext, Feature, GpuScene, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_DST, BINDING_HPR_EMPTY,
-    BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
-    BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
-    BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE,
+    BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX, BINDING_HPR_PARTIALS,
+    BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES, BINDING_HPR_VALUES,
+    BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE,
     HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH, HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS,
     HPR_SPHERE_SUM,
 };
@@ -159,12 +159,7 @@ pub fn bounding_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffe
         ("hpr.sphere.centre", HPR_SPHERE_CENTRE, 1),
         ("hpr.sphere.radius", HPR_SPHERE_RADIUS, partial_count),
     ] {
-        let p = pipeline(
-            ctx,
-            "hpr/sphere.comp",
-            &bindings,
-            &[(HPR_SPEC_MODE, mode)],
-        )?;
+        let p = pipeline(ctx, "hpr/sphere.comp", &bindings, &[(HPR_SPEC_MODE, mode)])?;
         let pass = g.pass(name).buffer(frame, Access::StorageRead(c));
         let (pass, d) = match mode {
             HPR_SPHERE_SUM => (
@@ -224,11 +219,7 @@ pub fn add(
         ..settings.params
     };
     let usage = vk::BufferUsageFlags::empty();
-    let state = g.buffer(
-        "hpr.state",
-        std::mem::size_of::<HprFrame>() as u64,
-        usage,
-    );
+    let state = g.buffer("hpr.state", std::mem::size_of::<HprFrame>() as u64, usage);
     let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
     let occupied = g.buffer("hpr.empty", k_max * 4, usage);
     let ping = g.buffer("hpr.extremes.a", k_max * 4, usage);
@@ -339,7 +330,14 @@ pub fn add(
         let pipelines = sort::SortPipelines::new(ctx)?;
         let (sorted_keys, sorted_values) =
             sort::add_sort(g, &pipelines, keys, values, point_count, key_bits);
-        sort::add_segmented_max(g, &pipelines, sorted_keys, sorted_values, point_count, max64);
+        sort::add_segmented_max(
+            g,
+            &pipelines,
+            sorted_keys,
+            sorted_values,
+            point_count,
+            max64,
+        );
     }
 
     // Propagation.
@@ -366,11 +364,11 @@ pub fn add(
     let sector_groups = groups(k_max);
     // A pass gathering into `dst` from the 64-bit extremes (`src` None) or from `src`.
     let add_gather = |g: &mut GraphBuilder,
-                          name: &str,
-                          pipeline: Arc<Pipeline>,
-                          src: Option<BufferId>,
-                          dst: BufferId,
-                          indirect: bool| {
+                      name: &str,
+                      pipeline: Arc<Pipeline>,
+                      src: Option<BufferId>,
+                      dst: BufferId,
+                      indirect: bool| {
         let push = push.clone();
         let mut pass = g
             .pass(name)
@@ -609,7 +607,8 @@ const PARAMS: &[ParamSpec] = &[
 
 pub const INFO: MethodInfo = MethodInfo {
     name: "hpr",
-    summary: "hidden point removal on the GPU (003 ch. 4), the visible points by the compute rasterizer",
+    summary:
+        "hidden point removal on the GPU (003 ch. 4), the visible points by the compute rasterizer",
     params: PARAMS,
     needs_faces: false,
     features: &[Feature::Int64Atomics],
@@ -639,7 +638,11 @@ fn settings(b: &BuildContext<'_>) -> Settings {
             sqrt_k: cfg.get("sectors").round() as u32,
             max_rounds: cfg.get("rounds").round() as u32,
             radius_factor: factor,
-            density: if factor > 0.0 { 0.0 } else { b.scene.hpr_density },
+            density: if factor > 0.0 {
+                0.0
+            } else {
+                b.scene.hpr_density
+            },
             max_edge: cfg.get("max_edge"),
             ..Default::default()
         },
@@ -698,4 +701,131 @@ fn build_mesh(b: &mut BuildContext<'_>) -> Result<()> {
             range: draw_range(),
         },
     )
+}
+
+/// What one GPU evaluation of HPR found (indices in stream order).
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    /// The bounding sphere of the reduction.
+    pub centre: glam::Vec3,
+    pub radius: f32,
+    /// The frame's state after the passes: √k, rounds, visible count, triangles.
+    pub state: HprFrame,
+    /// The final extreme of each of the frame's √k² sectors (`HPR_EMPTY` where none).
+    pub extremes: Vec<u32>,
+    /// The visible points, ascending.
+    pub visible: Vec<u32>,
+    /// The reconstruction's triangles (when `triangulate`), in the order they were appended.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Runs the HPR passes once outside the frame loop, seen through `view` and `proj` on a
+/// `width` x `height` viewport, and reads the results back (the `surfel hpr --gpu` command
+/// and the tests).
+pub fn evaluate(
+    ctx: &Arc<Context>,
+    scene: &GpuScene,
+    (view, proj): (glam::Mat4, glam::Mat4),
+    (width, height): (u32, u32),
+    settings: &Settings,
+    triangulate: bool,
+) -> Result<Evaluation> {
+    let sphere = bounding_sphere(ctx, scene)?;
+    let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
+    block.u.view = view;
+    block.u.proj = proj;
+    block.u.view_proj = proj * view;
+    let (w, h) = (width as f32, height as f32);
+    block.u.viewport = glam::Vec4::new(w, h, 1.0 / w, 1.0 / h);
+    block.u.point_count = scene.point_count;
+    block.u.segment_points = scene.streams.segment_points;
+    let frame_buffer = Arc::new(Buffer::with_data(
+        ctx,
+        "frame",
+        bytemuck::bytes_of(&block),
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?);
+    let mut g = GraphBuilder::new();
+    let inputs = Inputs {
+        frame: g.import_buffer("frame", frame_buffer),
+        segments: g.import_buffer("stream.segments", scene.streams.table.clone()),
+        sphere: g.import_buffer_with("hpr.sphere", sphere, Access::StorageWrite(Stages::Compute)),
+    };
+    let hpr = add(&mut g, ctx, scene.point_count, inputs, settings)?;
+    let s_max = u64::from(settings.sqrt_k_max.max(1));
+    let mut outputs: Vec<(BufferId, u64)> = vec![
+        (inputs.sphere, 16),
+        (hpr.state, std::mem::size_of::<HprFrame>() as u64),
+        (hpr.extremes, s_max * s_max * 4),
+        (
+            hpr.hidden,
+            u64::from(scene.point_count.div_ceil(32).max(1)) * 4,
+        ),
+    ];
+    if triangulate {
+        let indices = add_triangulation(&mut g, ctx, inputs, &hpr, settings)?;
+        let s = s_max.max(2);
+        outputs.push((indices, (s - 1) * (s - 1) * 24));
+    }
+    let hosts = outputs
+        .iter()
+        .map(|&(_, n)| Buffer::readback(ctx, "hpr.readback", n).map(Arc::new))
+        .collect::<Result<Vec<_>>>()?;
+    let mut ids = Vec::new();
+    for (i, (&(src, n), buffer)) in outputs.iter().zip(&hosts).enumerate() {
+        let id = g.import_buffer("hpr.readback", buffer.clone());
+        g.copy_buffer(
+            &format!("hpr.download.{i}"),
+            src,
+            id,
+            &[vk::BufferCopy {
+                src_offset: 0,
+                dst_offset: 0,
+                size: n,
+            }],
+        );
+        ids.push(id);
+    }
+    let mut done = g.pass("hpr.download.host");
+    for &id in &ids {
+        done = done.buffer(id, Access::HostRead);
+    }
+    done.record(|_| {});
+    g.compile(ctx)?.run_once(ctx)?;
+    let words = |b: &Buffer| -> Result<Vec<u32>> {
+        Ok(bytemuck::pod_collect_to_vec::<u8, u32>(b.mapped()?))
+    };
+    let sphere_words = words(&hosts[0])?;
+    let state: HprFrame = bytemuck::pod_read_unaligned(hosts[1].mapped()?);
+    let k = (state.sqrt_k * state.sqrt_k) as usize;
+    let mut extremes = words(&hosts[2])?;
+    extremes.truncate(k);
+    let hidden = words(&hosts[3])?;
+    let visible = (0..scene.point_count)
+        .filter(|&i| hidden[(i / 32) as usize] & (1 << (i % 32)) == 0)
+        .collect();
+    let triangles = match hosts.get(4) {
+        Some(b) => {
+            let all = words(b)?;
+            let n = (state.index_count as usize).min(all.len());
+            all[..n]
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
+        }
+        None => Vec::new(),
+    };
+    Ok(Evaluation {
+        centre: glam::Vec3::from_slice(
+            &sphere_words[..3]
+                .iter()
+                .map(|&b| f32::from_bits(b))
+                .collect::<Vec<_>>(),
+        ),
+        radius: f32::from_bits(sphere_words[3]),
+        state,
+        extremes,
+        visible,
+        triangles,
+    })
 }
