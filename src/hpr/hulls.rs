@@ -359,7 +359,8 @@ mod tests {
         // flipped cap from q through only a few per cent of the sphere of directions.
         let points = sphere(20_000);
         let truth = exact(&points, eye(), FACTOR).unwrap();
-        let methods: [(fn(u32) -> Hull, f64, f64); 3] = [
+        type Make = fn(u32) -> Hull;
+        let methods: [(Make, f64, f64); 3] = [
             (|k| Hull::Bfp { cells: k }, 0.7, 0.95),
             (|k| Hull::Kavan { sectors: k }, 0.05, 0.98),
             (|k| Hull::Hybrid { sectors: k }, 0.11, 0.98),
