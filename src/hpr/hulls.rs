@@ -114,12 +114,7 @@ fn bfp_sample(points: &[DVec3], cells: u32) -> Vec<usize> {
     let mut lowest: Vec<Option<(usize, f64)>> = vec![None; side * side];
     let mut highest = lowest.clone();
     // The points of least and greatest x and y; ties keep the first.
-    let mut axis_extremes = [
-        (0usize, f64::MAX),
-        (0, f64::MIN),
-        (0, f64::MAX),
-        (0, f64::MIN),
-    ];
+    let mut axis_extremes = [(0usize, f64::MAX); 4];
     for (i, &p) in points.iter().enumerate() {
         let l = local(p);
         let c = cell(l.x, lo.x, hi.x) * side + cell(l.y, lo.y, hi.y);
@@ -129,14 +124,9 @@ fn bfp_sample(points: &[DVec3], cells: u32) -> Vec<usize> {
         if highest[c].is_none_or(|(_, z)| l.z > z) {
             highest[c] = Some((i, l.z));
         }
-        for (k, value) in [l.x, -l.x, l.y, -l.y].into_iter().enumerate() {
-            let best = &mut axis_extremes[k];
-            let better = if k % 2 == 0 {
-                value < best.1
-            } else {
-                value > best.1
-            };
-            if better {
+        // Least x, greatest x (least −x), least y, greatest y.
+        for (best, value) in axis_extremes.iter_mut().zip([l.x, -l.x, l.y, -l.y]) {
+            if value < best.1 {
                 *best = (i, value);
             }
         }
@@ -411,6 +401,28 @@ mod tests {
         }
         // At most 2 × 32² cell extremes and 4 axis extremes; one extreme per sector.
         assert!(bfp.len() <= 2 * 32 * 32 + 4 && sectors.len() <= 4096);
+    }
+
+    #[test]
+    fn one_bfp_cell_keeps_the_extremes_of_all_three_axes() {
+        let flip = Flip::new(&sphere(3_000), eye(), FACTOR).unwrap();
+        let z = view_axis(&flip.points);
+        let (x, y) = z.any_orthonormal_pair();
+        let arg = |axis: DVec3, sign: f64| {
+            (0..flip.points.len())
+                .max_by(|&a, &b| {
+                    (sign * flip.points[a].dot(axis)).total_cmp(&(sign * flip.points[b].dot(axis)))
+                })
+                .unwrap()
+        };
+        let mut expected: Vec<usize> = [x, y, z]
+            .into_iter()
+            .flat_map(|axis| [arg(axis, 1.0), arg(axis, -1.0)])
+            .collect();
+        expected.sort_unstable();
+        expected.dedup();
+        assert_eq!(expected.len(), 6);
+        assert_eq!(bfp_sample(&flip.points, 1), expected);
     }
 
     #[test]
