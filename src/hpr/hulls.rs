@@ -344,7 +344,7 @@ mod tests {
     #[test]
     fn the_hulls_keep_exactly_visible_points_and_find_more_with_larger_k() {
         // Measured on 20,000 points (exact: 7,645 visible), recall at k = 1024, 4096, 16384:
-        // BFP 0.113, 0.423, 0.776 (precision 0.886, 0.960, 0.986); Kavan 0.007, 0.019, 0.060;
+        // BFP 0.114, 0.423, 0.776 (precision 0.886, 0.960, 0.986); Kavan 0.007, 0.019, 0.060;
         // hybrid 0.010, 0.035, 0.130 (precision 0.993 or more). The sector methods see the
         // flipped cap from q through only a few per cent of the sphere of directions.
         let points = sphere(20_000);
