@@ -273,7 +273,11 @@ pub struct HprArgs {
     /// sector approximation of 003 ch. 4 (its CPU reference).
     #[arg(long)]
     pub exact: bool,
-    /// Sectors k of the approximation (rounded to a square √k × √k grid).
+    /// An approximate convex hull of 003 ch. 3 in place of the exact one, over k = `--sectors`
+    /// grid cells (bfp) or sphere sectors (kavan, hybrid).
+    #[arg(long, value_enum, conflicts_with_all = ["exact", "m"])]
+    pub hull: Option<HullKind>,
+    /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k).
     #[arg(long, default_value_t = 262_144)]
     pub sectors: u64,
     /// Fixed propagation over an m × m window (odd); adaptive propagation without it.
@@ -295,8 +299,9 @@ pub struct HprArgs {
     /// Flipping radius R in scene units.
     #[arg(long)]
     pub radius: Option<f64>,
-    /// Write the visible points and the triangles over them (exact: the hull's; approximate:
-    /// the sector reconstruction's) as binary PLY.
+    /// Write the visible points and the triangles over them (exact, `--hull bfp|hybrid`: the
+    /// hull's; the sector approximation: its reconstruction's; `--hull kavan`: none) as binary
+    /// PLY.
     #[arg(long)]
     pub out: Option<PathBuf>,
     #[command(flatten)]
@@ -780,6 +785,17 @@ pub enum Visibility {
     HprExact,
 }
 
+/// The approximate convex hulls of 003 ch. 3 (`surfel hpr --hull`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HullKind {
+    /// Bentley, Faust and Preparata: extremes per grid cell, then their exact hull (§3.1).
+    Bfp,
+    /// Kavan, Kolingerová and Žára: extremes per sphere sector, refined in O(k²) (§3.2).
+    Kavan,
+    /// The exact hull of the sector extremes (§3.3).
+    Hybrid,
+}
+
 /// What `visible_points` found.
 struct Found {
     visibility: crate::hpr::Visibility,
@@ -835,6 +851,29 @@ fn visible_points(
     })
 }
 
+/// The points of `cloud` visible from `eye` through the approximate hull `kind` over `k` cells
+/// or sectors.
+fn approximate_hull(
+    cloud: &Cloud,
+    eye: glam::Vec3,
+    radius: crate::hpr::Radius,
+    kind: HullKind,
+    k: u64,
+) -> Result<Found> {
+    use crate::hpr::hulls::Hull;
+    let k = u32::try_from(k).map_err(|_| anyhow::anyhow!("--sectors {k} is too large"))?;
+    let hull = match kind {
+        HullKind::Bfp => Hull::Bfp { cells: k },
+        HullKind::Kavan => Hull::Kavan { sectors: k },
+        HullKind::Hybrid => Hull::Hybrid { sectors: k },
+    };
+    Ok(Found {
+        visibility: crate::hpr::hulls::approximate_hull(&cloud.positions, eye, radius, hull)?,
+        note: format!("method            approximate hull {hull:?} (003 ch. 3)"),
+        sectors: None,
+    })
+}
+
 fn hpr(a: HprArgs) -> Result<()> {
     let eye = glam::Vec3::from(parse_vec3(&a.eye).map_err(anyhow::Error::msg)?);
     let cloud = load_prepared(&a.file, &a.input.options())?;
@@ -848,12 +887,15 @@ fn hpr(a: HprArgs) -> Result<()> {
     } else {
         Visibility::Hpr
     };
+    let found = match a.hull {
+        Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors),
+        None => visible_points(&cloud, eye, mode, radius, a.sectors, a.m),
+    };
     let Found {
         visibility: mut v,
         note,
         sectors,
-    } = visible_points(&cloud, eye, mode, radius, a.sectors, a.m)
-        .with_context(|| a.file.display().to_string())?;
+    } = found.with_context(|| a.file.display().to_string())?;
     println!("{note}");
     // The approximation's partial reconstruction (003 §4.4), its edges measured in pixels of a
     // `--size` view from the eye towards the bounding sphere's centre.

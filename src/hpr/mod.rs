@@ -15,6 +15,7 @@
 //! still fails (fewer than four distinct points) has every flippable point visible.
 
 pub mod approx;
+pub mod hulls;
 
 use std::collections::HashMap;
 
@@ -113,75 +114,119 @@ pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f
 
 /// Exact HPR of `points` seen from `viewpoint`.
 pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibility> {
-    let eye = viewpoint.as_dvec3();
-    let centred: Vec<DVec3> = points.iter().map(|p| p.as_dvec3() - eye).collect();
-    let r = flip_radius(points, viewpoint, radius)?;
-    // One representative per exact position (duplicates share a hull vertex), flippable only.
-    let mut first_of: HashMap<[u64; 3], u32> = HashMap::new();
-    let mut representative = vec![0u32; points.len()];
-    let mut flipped: Vec<DVec3> = Vec::new();
-    let mut flipped_of: Vec<u32> = Vec::new();
-    let mut at_viewpoint = 0;
-    for (i, p) in centred.iter().enumerate() {
-        let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());
-        let rep = *first_of.entry(key).or_insert(i as u32);
-        representative[i] = rep;
-        let n = p.length();
-        if n == 0.0 {
-            at_viewpoint += 1;
-            continue;
+    let flip = Flip::new(points, viewpoint, radius)?;
+    let all: Vec<usize> = (0..flip.points.len()).collect();
+    Ok(flip.hull_of(&all))
+}
+
+/// The spherically flipped cloud shared by [`exact`] and the approximate hulls
+/// ([`hulls`]): the viewpoint at the origin, one flipped point per distinct flippable position.
+pub(crate) struct Flip {
+    /// The flipping radius R.
+    pub(crate) radius: f64,
+    /// The flipped points (the viewpoint is the origin).
+    pub(crate) points: Vec<DVec3>,
+    /// The original index of each flipped point.
+    pub(crate) original: Vec<u32>,
+    /// Each original point's representative: the first point at its position.
+    representative: Vec<u32>,
+    /// Whether each original point is away from the viewpoint (flippable).
+    flippable: Vec<bool>,
+    /// Points at the viewpoint.
+    at_viewpoint: usize,
+}
+
+impl Flip {
+    pub(crate) fn new(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Self> {
+        let eye = viewpoint.as_dvec3();
+        let r = flip_radius(points, viewpoint, radius)?;
+        let mut first_of: HashMap<[u64; 3], u32> = HashMap::new();
+        let mut flip = Flip {
+            radius: r,
+            points: Vec::new(),
+            original: Vec::new(),
+            representative: vec![0; points.len()],
+            flippable: vec![false; points.len()],
+            at_viewpoint: 0,
+        };
+        for (i, p) in points.iter().enumerate() {
+            let p = p.as_dvec3() - eye;
+            let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());
+            let rep = *first_of.entry(key).or_insert(i as u32);
+            flip.representative[i] = rep;
+            let n = p.length();
+            if n == 0.0 {
+                flip.at_viewpoint += 1;
+                continue;
+            }
+            flip.flippable[i] = true;
+            if rep == i as u32 {
+                flip.points.push(p + 2.0 * (r - n) * p / n);
+                flip.original.push(i as u32);
+            }
         }
-        if rep == i as u32 {
-            flipped.push(*p + 2.0 * (r - n) * *p / n);
-            flipped_of.push(i as u32);
+        Ok(flip)
+    }
+
+    /// The visibility given by the convex hull of the flipped points `subset` (indices into
+    /// `points`) and the viewpoint: its vertices are visible, its facets without the viewpoint
+    /// are the triangles. A flat input is retried joggled (`QJ`); one that still fails (fewer
+    /// than four distinct points) has all of `subset` visible.
+    pub(crate) fn hull_of(&self, subset: &[usize]) -> Visibility {
+        let viewpoint_index = subset.len();
+        let coords: Vec<f64> = subset
+            .iter()
+            .map(|&i| self.points[i])
+            .chain(std::iter::once(DVec3::ZERO))
+            .flat_map(|p| [p.x, p.y, p.z])
+            .collect();
+        let mut joggled = false;
+        let hull = match hull(&coords, "Qt") {
+            Ok(h) => Some(h),
+            Err(_) => {
+                joggled = true;
+                hull(&coords, "QJ").ok()
+            }
+        };
+        let Some((vertices, facets)) = hull else {
+            return self.visibility(subset.iter().copied(), Vec::new(), joggled);
+        };
+        let triangles = facets
+            .into_iter()
+            .filter(|f| !f.contains(&viewpoint_index))
+            .map(|f| f.map(|v| self.original[subset[v]]))
+            .collect();
+        let on_hull = vertices
+            .into_iter()
+            .filter(|&v| v != viewpoint_index)
+            .map(|v| subset[v]);
+        self.visibility(on_hull, triangles, joggled)
+    }
+
+    /// The visibility where the flipped points `on_hull` (indices into `points`) are visible,
+    /// with every exact duplicate of them.
+    pub(crate) fn visibility(
+        &self,
+        on_hull: impl IntoIterator<Item = usize>,
+        triangles: Vec<[u32; 3]>,
+        joggled: bool,
+    ) -> Visibility {
+        let mut visible_rep = vec![false; self.representative.len()];
+        for i in on_hull {
+            visible_rep[self.original[i] as usize] = true;
+        }
+        let visible = (0..self.representative.len())
+            .filter(|&i| self.flippable[i] && visible_rep[self.representative[i] as usize])
+            .map(|i| i as u32)
+            .collect();
+        Visibility {
+            visible,
+            triangles,
+            radius: self.radius,
+            at_viewpoint: self.at_viewpoint,
+            joggled,
         }
     }
-    let viewpoint_index = flipped.len();
-    let coords: Vec<f64> = flipped
-        .iter()
-        .chain(std::iter::once(&DVec3::ZERO))
-        .flat_map(|p| [p.x, p.y, p.z])
-        .collect();
-    let mut joggled = false;
-    let hull = match hull(&coords, "Qt") {
-        Ok(h) => Some(h),
-        Err(_) => {
-            joggled = true;
-            hull(&coords, "QJ").ok()
-        }
-    };
-    let mut visible_rep = vec![false; points.len()];
-    let mut triangles = Vec::new();
-    match hull {
-        Some((vertices, facets)) => {
-            for v in vertices.into_iter().filter(|&v| v != viewpoint_index) {
-                visible_rep[flipped_of[v] as usize] = true;
-            }
-            for f in facets {
-                if f.contains(&viewpoint_index) {
-                    continue;
-                }
-                triangles.push(f.map(|v| flipped_of[v]));
-            }
-        }
-        // Fewer than four distinct points even joggled: every flippable point is on the hull.
-        None => {
-            for &i in &flipped_of {
-                visible_rep[i as usize] = true;
-            }
-        }
-    }
-    let visible = (0..points.len())
-        .filter(|&i| centred[i].length() > 0.0 && visible_rep[representative[i] as usize])
-        .map(|i| i as u32)
-        .collect();
-    Ok(Visibility {
-        visible,
-        triangles,
-        radius: r,
-        at_viewpoint,
-        joggled,
-    })
 }
 
 /// Precision, recall and F1 of the ascending index list `found` against `truth` (1 where both
