@@ -277,31 +277,54 @@ pub struct HprArgs {
     /// grid cells (bfp) or sphere sectors (kavan, hybrid).
     #[arg(long, value_enum, conflicts_with_all = ["exact", "m"])]
     pub hull: Option<HullKind>,
-    /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k).
-    #[arg(long, default_value_t = 262_144)]
-    pub sectors: u64,
+    /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k);
+    /// by default one sector per pixel of the bounding sphere's projection in the `--size`
+    /// view (`--hull`: 65,536).
+    #[arg(long, alias = "k")]
+    pub sectors: Option<u64>,
     /// Fixed propagation over an m × m window (odd); adaptive propagation without it.
     #[arg(long)]
     pub m: Option<u32>,
+    /// Adaptive propagation: at most this many rounds (reported when reached); default: until
+    /// stable on the CPU, 256 rounds on the GPU.
+    #[arg(long)]
+    pub rounds: Option<u32>,
+    /// Run the sector approximation on the GPU (compute passes of `methods::hpr`).
+    #[arg(long, conflicts_with_all = ["exact", "hull"])]
+    pub gpu: bool,
+    /// With `--gpu`: the thesis' radix sort by sector and segmented maximum instead of the
+    /// sort-free 64-bit atomicMax.
+    #[arg(long, requires = "gpu")]
+    pub sort: bool,
+    /// The point the view looks at (default: the bounding sphere's centre).
+    #[arg(long)]
+    pub target: Option<String>,
     /// The approximation's reconstruction drops triangles with an edge longer than this many
-    /// pixels of a `--size` view from the eye (003 §4.4).
+    /// pixels of the `--size` view (003 §4.4).
     #[arg(long, default_value_t = 10.0)]
     pub max_edge: f32,
-    /// The view the edge threshold is measured in (the thesis' 900 x 900).
+    /// The view from the eye towards the target that sectors, edge lengths, true visibility
+    /// and `--out *.png` are measured in (the thesis' 900 x 900).
     #[arg(long, default_value = "900x900")]
     pub size: String,
-    /// Also run exact HPR and print the approximation's precision, recall and F1 against it.
+    /// Also run exact HPR and print the result's precision, recall and F1 against it; for an
+    /// input with faces, also against the true visibility of its vertices (the mesh's depth
+    /// buffer in the `--size` view).
     #[arg(long)]
     pub compare: bool,
-    /// Flipping radius R as a factor of the cloud's diameter.
-    #[arg(long, default_value_t = 100.0, conflicts_with = "radius")]
-    pub radius_factor: f64,
+    /// Flipping radius R as a factor of the cloud's diameter (default: R from the sampling
+    /// density, `hpr::Radius::Density`).
+    #[arg(long, conflicts_with = "radius")]
+    pub radius_factor: Option<f64>,
     /// Flipping radius R in scene units.
     #[arg(long)]
     pub radius: Option<f64>,
+    /// Print one JSON line of the numbers (for scripts and the HPR report).
+    #[arg(long)]
+    pub json: bool,
     /// Write the visible points and the triangles over them (exact, `--hull bfp|hybrid`: the
     /// hull's; the sector approximation: its reconstruction's; `--hull kavan`: none) as binary
-    /// PLY.
+    /// PLY, or (`.png`) render them in the `--size` view (triangles where there are any).
     #[arg(long)]
     pub out: Option<PathBuf>,
     #[command(flatten)]
@@ -508,8 +531,19 @@ fn render(a: RenderArgs) -> Result<()> {
     let camera = settings.camera(centre, radius, cloud.up);
     let cloud = match a.visibility {
         Some(mode) => {
-            let factor = crate::hpr::Radius::Factor(100.0);
-            let found = visible_points(&cloud, camera.eye, mode, factor, 1 << 18, None)?;
+            let radius = crate::hpr::Radius::Density {
+                spacing: crate::hpr::spacing(&cloud),
+            };
+            let view = HprView {
+                camera,
+                width,
+                height,
+            };
+            let options = SectorOptions {
+                max_edge: f32::INFINITY,
+                ..Default::default()
+            };
+            let found = visible_points(&cloud, &view, mode, radius, options)?;
             let v = found.visibility;
             let note = found.note;
             eprintln!(
@@ -801,34 +835,102 @@ struct Found {
     visibility: crate::hpr::Visibility,
     /// How the points were found.
     note: String,
-    /// The sector approximation's extremes per sector (MAX) and √k.
-    sectors: Option<(Vec<u32>, u32)>,
+    /// The sector approximation's √k.
+    sectors: Option<u32>,
 }
 
-/// The points of `cloud` visible from `eye`.
+/// The view HPR measures pixels in: the camera from the eye to the target and the image size.
+struct HprView {
+    camera: crate::scene::Camera,
+    width: u32,
+    height: u32,
+}
+
+impl HprView {
+    fn new(cloud: &Cloud, eye: glam::Vec3, target: Option<glam::Vec3>, size: (u32, u32)) -> Self {
+        let (centre, r) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+        Self {
+            camera: crate::scene::Camera::look_at_up(cloud.up, eye, target.unwrap_or(centre), r),
+            width: size.0,
+            height: size.1,
+        }
+    }
+
+    fn proj(&self) -> glam::Mat4 {
+        self.camera
+            .projection(self.width as f32 / self.height as f32)
+    }
+
+    fn view_proj(&self) -> glam::Mat4 {
+        self.proj() * self.camera.view()
+    }
+
+    /// The angle of a pixel at the image centre.
+    fn pixel_angle(&self) -> f64 {
+        2.0 / (f64::from(self.proj().y_axis.y.abs()) * f64::from(self.height))
+    }
+
+    /// The pixel of `p`, `None` behind the eye.
+    fn pixel(&self, p: glam::Vec3) -> Option<glam::Vec2> {
+        let c = self.view_proj() * p.extend(1.0);
+        (c.w > 0.0).then(|| {
+            let ndc = c.truncate().truncate() / c.w;
+            (ndc + 1.0) * 0.5 * glam::Vec2::new(self.width as f32, self.height as f32)
+        })
+    }
+}
+
+/// How the sector approximation runs.
+#[derive(Clone, Copy, Debug, Default)]
+struct SectorOptions {
+    /// √k; `None`: from the view.
+    sqrt_k: Option<u32>,
+    m: Option<u32>,
+    rounds: Option<u32>,
+    gpu: bool,
+    sort: bool,
+    max_edge: f32,
+}
+
+/// The largest √k the approximation allocates when k comes from the view.
+const MAX_SQRT_K: u32 = 4096;
+
+/// The points of `cloud` visible from the view's eye.
 fn visible_points(
     cloud: &Cloud,
-    eye: glam::Vec3,
+    view: &HprView,
     mode: Visibility,
     radius: crate::hpr::Radius,
-    sectors: u64,
-    m: Option<u32>,
+    options: SectorOptions,
 ) -> Result<Found> {
     use crate::hpr::approx::{self, Params, Propagation};
-    let exact = || crate::hpr::exact(&cloud.positions, eye, radius);
+    let eye = view.camera.eye;
     if mode == Visibility::HprExact {
         return Ok(Found {
-            visibility: exact()?,
+            visibility: crate::hpr::exact(&cloud.positions, eye, radius)?,
             note: "method            exact HPR".into(),
             sectors: None,
         });
     }
     let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
     let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
+    let sphere = approx::bounding_sphere(&points).context("no points")?;
+    let sqrt_k = options.sqrt_k.unwrap_or_else(|| {
+        approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), MAX_SQRT_K)
+    });
+    let propagation = match (options.m, options.rounds) {
+        (Some(m), _) => Propagation::Fixed(m),
+        (None, Some(max_rounds)) => Propagation::Adaptive { max_rounds },
+        (None, None) if options.gpu => Propagation::Adaptive { max_rounds: 256 },
+        (None, None) => Propagation::UNTIL_STABLE,
+    };
+    if options.gpu {
+        return gpu_visible_points(cloud, view, r, sqrt_k, propagation, options);
+    }
     let params = Params {
-        sqrt_k: (sectors as f64).sqrt().round().max(1.0) as u32,
+        sqrt_k,
         radius: r,
-        propagation: m.map_or(Propagation::UNTIL_STABLE, Propagation::Fixed),
+        propagation,
     };
     let found =
         approx::approximate(&points, eye.as_dvec3(), params).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -837,17 +939,93 @@ fn visible_points(
     } else {
         "the bounding sphere's cone"
     };
+    let capped = if found.capped { " (the cap)" } else { "" };
+    let pixel = |i: u32| view.pixel(cloud.positions[i as usize]);
+    let triangles = approx::triangulate(&found.max, sqrt_k, pixel, options.max_edge);
     Ok(Found {
         visibility: crate::hpr::Visibility {
             visible: found.visible,
+            triangles,
             radius: r,
             ..Default::default()
         },
         note: format!(
-            "sectors           {0} x {0} over {partition}, {1} propagation round(s), EMPTY grid 1/{2}",
-            params.sqrt_k, found.rounds, found.coarse
+            "sectors           {sqrt_k} x {sqrt_k} over {partition}, {} propagation round(s){capped}, EMPTY grid 1/{} (CPU)",
+            found.rounds, found.coarse
         ),
-        sectors: Some((found.max, params.sqrt_k)),
+        sectors: Some(sqrt_k),
+    })
+}
+
+/// `visible_points` on the GPU (`methods::hpr::evaluate`), indices mapped back to the file's
+/// order.
+fn gpu_visible_points(
+    cloud: &Cloud,
+    view: &HprView,
+    radius: f64,
+    sqrt_k: u32,
+    propagation: crate::hpr::approx::Propagation,
+    options: SectorOptions,
+) -> Result<Found> {
+    use crate::hpr::approx::Propagation;
+    let ctx = context(false)?;
+    let (scene, _) = crate::render::upload(&ctx, cloud)?;
+    // Stream order is the Morton order of the positions.
+    let order = crate::streams::morton_order(&cloud.positions);
+    let settings = crate::methods::hpr::Settings {
+        sqrt_k_max: sqrt_k,
+        params: crate::gpu::layout::HprParams {
+            sqrt_k,
+            radius: radius as f32,
+            max_rounds: match propagation {
+                Propagation::Adaptive { max_rounds } => max_rounds,
+                Propagation::Fixed(_) => 0,
+            },
+            max_edge: options.max_edge,
+            ..Default::default()
+        },
+        propagation,
+        sort: options.sort,
+    };
+    let found = crate::methods::hpr::evaluate(
+        &ctx,
+        &scene,
+        (view.camera.view(), view.proj()),
+        (view.width, view.height),
+        &settings,
+        true,
+    )?;
+    if ctx.validation && ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    let mut visible: Vec<u32> = found.visible.iter().map(|&i| order[i as usize]).collect();
+    visible.sort_unstable();
+    let triangles = found
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| order[i as usize]))
+        .collect();
+    let state = found.state;
+    let capped = match propagation {
+        Propagation::Adaptive { max_rounds } if state.rounds >= max_rounds => " (the cap)",
+        _ => "",
+    };
+    Ok(Found {
+        visibility: crate::hpr::Visibility {
+            visible,
+            triangles,
+            radius,
+            ..Default::default()
+        },
+        note: format!(
+            "sectors           {0} x {0}{1}, {2} propagation round(s){capped}, EMPTY grid 1/{3} (GPU, {4})",
+            state.sqrt_k,
+            if state.full != 0 { " over the full sphere" } else { "" },
+            state.rounds,
+            state.coarse,
+            if options.sort { "radix sort + segmented max" } else { "atomicMax" },
+        ),
+        sectors: Some(state.sqrt_k),
     })
 }
 
@@ -876,11 +1054,20 @@ fn approximate_hull(
 
 fn hpr(a: HprArgs) -> Result<()> {
     let eye = glam::Vec3::from(parse_vec3(&a.eye).map_err(anyhow::Error::msg)?);
+    let target = a
+        .target
+        .as_deref()
+        .map(|t| parse_vec3(t).map(glam::Vec3::from).map_err(anyhow::Error::msg))
+        .transpose()?;
     let cloud = load_prepared(&a.file, &a.input.options())?;
-    let radius = match a.radius {
-        Some(r) => crate::hpr::Radius::Absolute(r),
-        None => crate::hpr::Radius::Factor(a.radius_factor),
+    let radius = match (a.radius, a.radius_factor) {
+        (Some(r), _) => crate::hpr::Radius::Absolute(r),
+        (None, Some(f)) => crate::hpr::Radius::Factor(f),
+        (None, None) => crate::hpr::Radius::Density {
+            spacing: crate::hpr::spacing(&cloud),
+        },
     };
+    let view = HprView::new(&cloud, eye, target, parse_size(&a.size)?);
     let start = std::time::Instant::now();
     let mode = if a.exact {
         Visibility::HprExact
@@ -888,64 +1075,177 @@ fn hpr(a: HprArgs) -> Result<()> {
         Visibility::Hpr
     };
     let found = match a.hull {
-        Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors),
-        None => visible_points(&cloud, eye, mode, radius, a.sectors, a.m),
+        Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors.unwrap_or(65_536)),
+        None => {
+            let sqrt_k = a
+                .sectors
+                .map(|k| (k as f64).sqrt().round().clamp(1.0, f64::from(MAX_SQRT_K * 2)) as u32);
+            let options = SectorOptions {
+                sqrt_k,
+                m: a.m,
+                rounds: a.rounds,
+                gpu: a.gpu,
+                sort: a.sort,
+                max_edge: a.max_edge,
+            };
+            visible_points(&cloud, &view, mode, radius, options)
+        }
     };
     let Found {
-        visibility: mut v,
+        visibility: v,
         note,
         sectors,
     } = found.with_context(|| a.file.display().to_string())?;
-    println!("{note}");
-    // The approximation's partial reconstruction (003 §4.4), its edges measured in pixels of a
-    // `--size` view from the eye towards the bounding sphere's centre.
-    if let Some((max, sqrt_k)) = sectors {
-        let (w, h) = parse_size(&a.size)?;
-        let (centre, r) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
-        let camera = crate::scene::Camera::look_at_up(cloud.up, eye, centre, r);
-        let clip = camera.projection(w as f32 / h as f32) * camera.view();
-        let pixel = |i: u32| {
-            let c = clip * cloud.positions[i as usize].extend(1.0);
-            (c.w > 0.0).then(|| {
-                let ndc = c.truncate().truncate() / c.w;
-                (ndc + 1.0) * 0.5 * glam::Vec2::new(w as f32, h as f32)
-            })
-        };
-        v.triangles = crate::hpr::approx::triangulate(&max, sqrt_k, pixel, a.max_edge);
-    }
     let seconds = start.elapsed().as_secs_f64();
-    println!("points            {}", cloud.len());
-    println!(
-        "visible           {} ({:.1} %)",
-        v.visible.len(),
-        100.0 * v.visible.len() as f64 / cloud.len() as f64
-    );
-    println!("triangles         {}", v.triangles.len());
-    println!("radius R          {}", v.radius);
-    println!("at the viewpoint  {}", v.at_viewpoint);
-    if v.joggled {
-        println!("joggled           yes (flat input: Qhull QJ)");
-    }
-    println!("time              {seconds:.3} s");
-    if a.compare {
-        let truth = crate::hpr::exact(&cloud.positions, eye, radius)?;
-        let (p, r, f1) = crate::hpr::agreement(&v.visible, &truth.visible);
+    let mut report = serde_json::json!({
+        "file": a.file.display().to_string(),
+        "points": cloud.len(),
+        "visible": v.visible.len(),
+        "triangles": v.triangles.len(),
+        "radius": v.radius,
+        "seconds": seconds,
+        "sqrt_k": sectors,
+    });
+    if !a.json {
+        println!("{note}");
+        println!("points            {}", cloud.len());
         println!(
-            "against exact     precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} exactly visible)",
-            truth.visible.len()
+            "visible           {} ({:.1} %)",
+            v.visible.len(),
+            100.0 * v.visible.len() as f64 / cloud.len().max(1) as f64
         );
+        println!("triangles         {}", v.triangles.len());
+        println!("radius R          {}", v.radius);
+        println!("at the viewpoint  {}", v.at_viewpoint);
+        if v.joggled {
+            println!("joggled           yes (flat input: Qhull QJ)");
+        }
+        println!("time              {seconds:.3} s");
+    }
+    if a.compare {
+        let start = std::time::Instant::now();
+        let truth = crate::hpr::exact(&cloud.positions, eye, radius)?;
+        let exact_s = start.elapsed().as_secs_f64();
+        let (p, r, f1) = crate::hpr::agreement(&v.visible, &truth.visible);
+        report["exact"] = serde_json::json!({
+            "visible": truth.visible.len(), "seconds": exact_s,
+            "precision": p, "recall": r, "f1": f1,
+        });
+        if !a.json {
+            println!(
+                "against exact     precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} exactly visible, {exact_s:.3} s)",
+                truth.visible.len()
+            );
+        }
+        if cloud.faces.is_some() {
+            let seen = mesh_visibility(&cloud, &view)?;
+            let (p, r, f1) = crate::hpr::agreement(&v.visible, &seen);
+            let (ep, er, ef1) = crate::hpr::agreement(&truth.visible, &seen);
+            report["truth"] = serde_json::json!({
+                "visible": seen.len(), "precision": p, "recall": r, "f1": f1,
+                "exact_precision": ep, "exact_recall": er, "exact_f1": ef1,
+            });
+            if !a.json {
+                println!(
+                    "against the mesh  precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} vertices seen in its depth buffer; exact HPR: {ep:.4}, {er:.4}, {ef1:.4})",
+                    seen.len()
+                );
+            }
+        }
+    }
+    if a.json {
+        println!("{report}");
     }
     if let Some(out) = &a.out {
         let visible = crate::hpr::visible_cloud(&cloud, &v);
-        crate::scene::ply::save(out, &visible)
-            .with_context(|| format!("{}: cannot write", out.display()))?;
-        println!(
-            "written           {} ({} points)",
-            out.display(),
-            visible.len()
-        );
+        if crate::scene::format_extension(out) == "png" {
+            render_hpr_png(&visible, &view, out)?;
+        } else {
+            crate::scene::ply::save(out, &visible)
+                .with_context(|| format!("{}: cannot write", out.display()))?;
+        }
+        if !a.json {
+            println!(
+                "written           {} ({} points)",
+                out.display(),
+                visible.len()
+            );
+        }
     }
     Ok(())
+}
+
+/// Renders `cloud` (the visible points, with the reconstruction's faces when it has any) in
+/// `view` to a PNG: the faces as a mesh, else the points by the compute rasterizer.
+fn render_hpr_png(cloud: &Cloud, view: &HprView, out: &Path) -> Result<()> {
+    let method = if cloud.faces.is_some() {
+        "mesh:samples=1"
+    } else {
+        "compute"
+    };
+    let frame = render_once(cloud, view, method)?;
+    image::save_buffer(
+        out,
+        bytemuck::cast_slice(&frame.color),
+        view.width,
+        view.height,
+        image::ColorType::Rgba8,
+    )
+    .with_context(|| format!("{}: cannot write", out.display()))
+}
+
+/// One frame of `cloud` by `method` in `view`, read back.
+fn render_once(cloud: &Cloud, view: &HprView, method: &str) -> Result<crate::frame::Frame> {
+    let ctx = context(false)?;
+    let (scene, info) = upload_colored(
+        &ctx,
+        cloud,
+        crate::color::Coloring::default_for(cloud.colors.is_some()),
+    )?;
+    let config = MethodConfig::parse(method)?;
+    let mut renderer = Renderer::new(
+        &ctx,
+        &scene,
+        info,
+        &config,
+        view.width,
+        view.height,
+        Extras {
+            readback: true,
+            ..Extras::default()
+        },
+    )?;
+    let frame = renderer
+        .render(
+            &View {
+                camera: view.camera,
+                lights: vec![crate::scene::Light::headlight()],
+                use_color: true,
+                time: 0.0,
+            },
+            true,
+        )?
+        .context("renderer returned no frame")?;
+    drop(renderer);
+    if ctx.validation && ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    Ok(frame)
+}
+
+/// The vertices of `cloud`'s mesh that its depth buffer shows in `view` (true visibility).
+fn mesh_visibility(cloud: &Cloud, view: &HprView) -> Result<Vec<u32>> {
+    let frame = render_once(cloud, view, "mesh:samples=1")?;
+    // A vertex may sit up to about a sample spacing behind the rasterized surface of its
+    // pixel (interpolation across a triangle); points further back are hidden.
+    let tolerance = 2.0 * crate::hpr::spacing(cloud) as f32;
+    Ok(crate::hpr::truth::visible_from_depth(
+        &cloud.positions,
+        (view.camera.view(), view.view_proj()),
+        (view.width, view.height),
+        &frame.depth,
+        tolerance,
+    ))
 }
 
 fn convert_lines(a: ConvertLinesArgs) -> Result<()> {

@@ -131,7 +131,7 @@ pub fn upload_with(
             tubes,
             point_count,
             index_count,
-            hpr_density: (0.25 / crate::hpr::spacing(cloud)) as f32,
+            hpr_density: (crate::hpr::DENSITY_KAPPA / crate::hpr::spacing(cloud)) as f32,
         },
         SceneInfo {
             centre,

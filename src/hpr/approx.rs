@@ -193,6 +193,23 @@ impl Sectors {
     }
 }
 
+/// √k "from the viewport" (the GPU's `hpr.frame` does the same): one sector per pixel across
+/// the bounding sphere's projection, for pixels `pixel_angle` radians wide at the image centre
+/// (2 / (|P₁₁| × height) for a projection P), at most `max`; `max` for the full-sphere
+/// partition. More sectors than pixels would keep points no pixel can show.
+pub fn sqrt_k_for_view(
+    (centre, r): (DVec3, f64),
+    eye: DVec3,
+    pixel_angle: f64,
+    max: u32,
+) -> u32 {
+    let s = Sectors::new(centre, r, eye, 1);
+    if s.full {
+        return max;
+    }
+    ((s.step[0] / pixel_angle).ceil() as u32).clamp(1, max)
+}
+
 /// DIST − 2R of the point `v` (relative to the eye) along the unit direction `dir`, for the
 /// flipping radius `radius` (module docs).
 pub fn distance_along(v: DVec3, dir: DVec3, radius: f64) -> f64 {
@@ -223,7 +240,11 @@ pub fn approximate_in(
         .map(|id| sectors.direction(id / s, id % s))
         .collect();
     let n = points.len();
-    let coarse = ((k as f64 / n as f64).sqrt().ceil() as u32).max(1);
+    // The smallest c with c² n ≥ k (as the GPU computes it).
+    let mut coarse = 1u32;
+    while u64::from(coarse * coarse) * (n as u64) < k as u64 {
+        coarse += 1;
+    }
     let cs = s.div_ceil(coarse);
     let mut occupied = vec![false; (cs * cs) as usize];
     let mut max = vec![u32::MAX; k];

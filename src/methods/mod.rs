@@ -240,7 +240,7 @@ pub struct GpuScene {
     pub point_count: u32,
     pub index_count: u32,
     /// R / D² of hidden point removal's flipping radius from the sampling density
-    /// (`hpr::Radius::Density`: 1 / (4 × the sample spacing)).
+    /// (`hpr::Radius::Density`: κ / the sample spacing).
     pub hpr_density: f32,
 }
 
