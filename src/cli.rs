@@ -40,6 +40,9 @@ pub enum Command {
     ConvertLines(ConvertLinesArgs),
     /// Hidden point removal: the points of FILE visible from a viewpoint (003).
     Hpr(HprArgs),
+    /// The HPR report: visible points against k, precision/recall/F1 against exact HPR and
+    /// true visibility, time against points, R and noise sweeps, the partial reconstruction.
+    HprStudy(HprStudyArgs),
     /// Run a benchmark sweep: GPU timings and accuracy against the ground truth, with charts.
     Bench(BenchArgs),
     /// Write report.md (tables and charts) from a sweep's results.json.
@@ -331,6 +334,32 @@ pub struct HprArgs {
     pub input: InputArgs,
 }
 
+#[derive(Args, Debug)]
+pub struct HprStudyArgs {
+    /// Output folder (report.md, results.json, charts).
+    #[arg(long, default_value = "docs/report-lavapipe-hpr")]
+    pub out: PathBuf,
+    /// Models as NAME=PATH (meshes give true visibility).
+    #[arg(long = "model", value_name = "NAME=PATH", required = true)]
+    pub models: Vec<String>,
+    /// The mesh sampled for the time-against-points series.
+    #[arg(long)]
+    pub sampled: PathBuf,
+    /// Point counts of that series.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "50000,200000,1000000,5000000"
+    )]
+    pub counts: Vec<usize>,
+    /// The view's size.
+    #[arg(long, default_value = "900x900")]
+    pub size: String,
+    /// GPU frames timed per configuration.
+    #[arg(long, default_value_t = 5)]
+    pub frames: u32,
+}
+
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -340,6 +369,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sample(a) => sample(a),
         Command::ConvertLines(a) => convert_lines(a),
         Command::Hpr(a) => hpr(a),
+        Command::HprStudy(a) => hpr_study(a),
         Command::Bench(a) => bench(a),
         Command::Report(a) => report(a),
     }
@@ -534,7 +564,7 @@ fn render(a: RenderArgs) -> Result<()> {
             let radius = crate::hpr::Radius::Density {
                 spacing: crate::hpr::spacing(&cloud),
             };
-            let view = HprView {
+            let view = crate::hpr::view::HprView {
                 camera,
                 width,
                 height,
@@ -839,47 +869,6 @@ struct Found {
     sectors: Option<u32>,
 }
 
-/// The view HPR measures pixels in: the camera from the eye to the target and the image size.
-struct HprView {
-    camera: crate::scene::Camera,
-    width: u32,
-    height: u32,
-}
-
-impl HprView {
-    fn new(cloud: &Cloud, eye: glam::Vec3, target: Option<glam::Vec3>, size: (u32, u32)) -> Self {
-        let (centre, r) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
-        Self {
-            camera: crate::scene::Camera::look_at_up(cloud.up, eye, target.unwrap_or(centre), r),
-            width: size.0,
-            height: size.1,
-        }
-    }
-
-    fn proj(&self) -> glam::Mat4 {
-        self.camera
-            .projection(self.width as f32 / self.height as f32)
-    }
-
-    fn view_proj(&self) -> glam::Mat4 {
-        self.proj() * self.camera.view()
-    }
-
-    /// The angle of a pixel at the image centre.
-    fn pixel_angle(&self) -> f64 {
-        2.0 / (f64::from(self.proj().y_axis.y.abs()) * f64::from(self.height))
-    }
-
-    /// The pixel of `p`, `None` behind the eye.
-    fn pixel(&self, p: glam::Vec3) -> Option<glam::Vec2> {
-        let c = self.view_proj() * p.extend(1.0);
-        (c.w > 0.0).then(|| {
-            let ndc = c.truncate().truncate() / c.w;
-            (ndc + 1.0) * 0.5 * glam::Vec2::new(self.width as f32, self.height as f32)
-        })
-    }
-}
-
 /// How the sector approximation runs.
 #[derive(Clone, Copy, Debug, Default)]
 struct SectorOptions {
@@ -898,7 +887,7 @@ const MAX_SQRT_K: u32 = 4096;
 /// The points of `cloud` visible from the view's eye.
 fn visible_points(
     cloud: &Cloud,
-    view: &HprView,
+    view: &crate::hpr::view::HprView,
     mode: Visibility,
     radius: crate::hpr::Radius,
     options: SectorOptions,
@@ -961,7 +950,7 @@ fn visible_points(
 /// order.
 fn gpu_visible_points(
     cloud: &Cloud,
-    view: &HprView,
+    view: &crate::hpr::view::HprView,
     radius: f64,
     sqrt_k: u32,
     propagation: crate::hpr::approx::Propagation,
@@ -1057,7 +1046,11 @@ fn hpr(a: HprArgs) -> Result<()> {
     let target = a
         .target
         .as_deref()
-        .map(|t| parse_vec3(t).map(glam::Vec3::from).map_err(anyhow::Error::msg))
+        .map(|t| {
+            parse_vec3(t)
+                .map(glam::Vec3::from)
+                .map_err(anyhow::Error::msg)
+        })
         .transpose()?;
     let cloud = load_prepared(&a.file, &a.input.options())?;
     let radius = match (a.radius, a.radius_factor) {
@@ -1067,7 +1060,7 @@ fn hpr(a: HprArgs) -> Result<()> {
             spacing: crate::hpr::spacing(&cloud),
         },
     };
-    let view = HprView::new(&cloud, eye, target, parse_size(&a.size)?);
+    let view = crate::hpr::view::HprView::new(&cloud, eye, target, parse_size(&a.size)?);
     let start = std::time::Instant::now();
     let mode = if a.exact {
         Visibility::HprExact
@@ -1077,9 +1070,12 @@ fn hpr(a: HprArgs) -> Result<()> {
     let found = match a.hull {
         Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors.unwrap_or(65_536)),
         None => {
-            let sqrt_k = a
-                .sectors
-                .map(|k| (k as f64).sqrt().round().clamp(1.0, f64::from(MAX_SQRT_K * 2)) as u32);
+            let sqrt_k = a.sectors.map(|k| {
+                (k as f64)
+                    .sqrt()
+                    .round()
+                    .clamp(1.0, f64::from(MAX_SQRT_K * 2)) as u32
+            });
             let options = SectorOptions {
                 sqrt_k,
                 m: a.m,
@@ -1138,7 +1134,7 @@ fn hpr(a: HprArgs) -> Result<()> {
             );
         }
         if cloud.faces.is_some() {
-            let seen = mesh_visibility(&cloud, &view)?;
+            let seen = crate::hpr::view::mesh_visibility(&cloud, &view)?;
             let (p, r, f1) = crate::hpr::agreement(&v.visible, &seen);
             let (ep, er, ef1) = crate::hpr::agreement(&truth.visible, &seen);
             report["truth"] = serde_json::json!({
@@ -1177,13 +1173,13 @@ fn hpr(a: HprArgs) -> Result<()> {
 
 /// Renders `cloud` (the visible points, with the reconstruction's faces when it has any) in
 /// `view` to a PNG: the faces as a mesh, else the points by the compute rasterizer.
-fn render_hpr_png(cloud: &Cloud, view: &HprView, out: &Path) -> Result<()> {
+fn render_hpr_png(cloud: &Cloud, view: &crate::hpr::view::HprView, out: &Path) -> Result<()> {
     let method = if cloud.faces.is_some() {
         "mesh:samples=1"
     } else {
         "compute"
     };
-    let frame = render_once(cloud, view, method)?;
+    let frame = crate::hpr::view::render_once(cloud, view, method)?;
     image::save_buffer(
         out,
         bytemuck::cast_slice(&frame.color),
@@ -1194,58 +1190,32 @@ fn render_hpr_png(cloud: &Cloud, view: &HprView, out: &Path) -> Result<()> {
     .with_context(|| format!("{}: cannot write", out.display()))
 }
 
-/// One frame of `cloud` by `method` in `view`, read back.
-fn render_once(cloud: &Cloud, view: &HprView, method: &str) -> Result<crate::frame::Frame> {
+fn hpr_study(a: HprStudyArgs) -> Result<()> {
+    let models = a
+        .models
+        .iter()
+        .map(|m| {
+            m.split_once('=')
+                .map(|(n, p)| (n.to_string(), PathBuf::from(p)))
+                .with_context(|| format!("--model {m}: expected NAME=PATH"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let options = crate::eval::hpr::StudyOptions {
+        models,
+        sampled: a.sampled,
+        counts: a.counts,
+        size: parse_size(&a.size)?,
+        frames: a.frames,
+    };
+    let rows = crate::eval::hpr::run(&options)?;
     let ctx = context(false)?;
-    let (scene, info) = upload_colored(
-        &ctx,
-        cloud,
-        crate::color::Coloring::default_for(cloud.colors.is_some()),
-    )?;
-    let config = MethodConfig::parse(method)?;
-    let mut renderer = Renderer::new(
-        &ctx,
-        &scene,
-        info,
-        &config,
-        view.width,
-        view.height,
-        Extras {
-            readback: true,
-            ..Extras::default()
-        },
-    )?;
-    let frame = renderer
-        .render(
-            &View {
-                camera: view.camera,
-                lights: vec![crate::scene::Light::headlight()],
-                use_color: true,
-                time: 0.0,
-            },
-            true,
-        )?
-        .context("renderer returned no frame")?;
-    drop(renderer);
-    if ctx.validation && ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors", ctx.validation_errors());
-    }
-    Ok(frame)
-}
-
-/// The vertices of `cloud`'s mesh that its depth buffer shows in `view` (true visibility).
-fn mesh_visibility(cloud: &Cloud, view: &HprView) -> Result<Vec<u32>> {
-    let frame = render_once(cloud, view, "mesh:samples=1")?;
-    // A vertex may sit up to about a sample spacing behind the rasterized surface of its
-    // pixel (interpolation across a triangle); points further back are hidden.
-    let tolerance = 2.0 * crate::hpr::spacing(cloud) as f32;
-    Ok(crate::hpr::truth::visible_from_depth(
-        &cloud.positions,
-        (view.camera.view(), view.view_proj()),
-        (view.width, view.height),
-        &frame.depth,
-        tolerance,
-    ))
+    crate::eval::hpr::write_report(&rows, &ctx.caps.device_name, options.size, &a.out)?;
+    eprintln!(
+        "{} rows -> {}",
+        rows.len(),
+        a.out.join("report.md").display()
+    );
+    Ok(())
 }
 
 fn convert_lines(a: ConvertLinesArgs) -> Result<()> {

@@ -549,6 +549,37 @@ impl Chart for LineChart {
     }
 }
 
+/// Writes a line chart of `series` (name, points) as `dir/stem.png` and `.svg` (for studies
+/// outside the benchmark's results sets, e.g. the HPR report); nothing for fewer than two
+/// distinct x values.
+pub fn write_line_chart(
+    dir: &Path,
+    stem: &str,
+    caption: &str,
+    (x_desc, y_desc): (&str, &str),
+    log_x: bool,
+    series: Vec<(String, Vec<(f64, f64)>)>,
+) -> Result<Vec<PathBuf>> {
+    register_font()?;
+    let mut labels: Vec<String> = series.iter().map(|(n, _)| n.clone()).collect();
+    labels.sort();
+    labels.dedup();
+    let chart = LineChart {
+        caption: caption.into(),
+        x_desc: x_desc.into(),
+        y_desc: y_desc.into(),
+        log_x,
+        series,
+        threshold: None,
+        marks: Vec::new(),
+        colors: Colors {
+            labels,
+            passes: Vec::new(),
+        },
+    };
+    write_both(&chart, dir, stem)
+}
+
 /// Baseline (unstressed) records.
 fn baseline(results: &Results) -> impl Iterator<Item = &Record> {
     results.records.iter().filter(|r| r.stress.is_none())

@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod charts;
 pub mod config;
+pub mod hpr;
 pub mod metrics;
 pub mod report;
 pub mod results;

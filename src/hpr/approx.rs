@@ -197,12 +197,7 @@ impl Sectors {
 /// the bounding sphere's projection, for pixels `pixel_angle` radians wide at the image centre
 /// (2 / (|P₁₁| × height) for a projection P), at most `max`; `max` for the full-sphere
 /// partition. More sectors than pixels would keep points no pixel can show.
-pub fn sqrt_k_for_view(
-    (centre, r): (DVec3, f64),
-    eye: DVec3,
-    pixel_angle: f64,
-    max: u32,
-) -> u32 {
+pub fn sqrt_k_for_view((centre, r): (DVec3, f64), eye: DVec3, pixel_angle: f64, max: u32) -> u32 {
     let s = Sectors::new(centre, r, eye, 1);
     if s.full {
         return max;

@@ -17,6 +17,7 @@
 pub mod approx;
 pub mod hulls;
 pub mod truth;
+pub mod view;
 
 use std::collections::HashMap;
 

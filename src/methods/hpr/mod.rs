@@ -577,7 +577,7 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "rounds",
-        default: 64.0,
+        default: 32.0,
         min: 1.0,
         max: 1024.0,
         doc: "adaptive propagation: the most rounds (reported when reached)",
@@ -677,14 +677,14 @@ fn build_points(b: &mut BuildContext<'_>) -> Result<()> {
     let (hpr, _, _) = add_for_method(b)?;
     let projection = compute::project(
         b,
-        "hpr",
+        "hpr.points",
         ProjectOptions {
             skip: Some(hpr.hidden),
             ..Default::default()
         },
     )?;
     let resolve = compute::resolve_pipeline(b, "compute/resolve.comp", &[(0, 0)])?;
-    compute::add_resolve(b, "hpr.resolve", resolve, projection, false);
+    compute::add_resolve(b, "hpr.points.resolve", resolve, projection, false);
     Ok(())
 }
 

@@ -1,0 +1,627 @@
+//! The HPR study (`surfel hpr-study`, issue 10's report): visible points against k (003
+//! Fig. 5.1), precision, recall and F1 of the approximation against exact HPR and of both
+//! against true visibility (the mesh's depth buffer), per-pass GPU time against the number of
+//! points (sort-free and sorted), the R and noise sweeps, and the partial reconstruction at
+//! 900 x 900 (003 Table 5.3). Writes `report.md`, `results.json` and charts.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context as _, Result};
+use glam::{DVec3, Vec3};
+use serde::Serialize;
+
+use crate::gpu::layout::HprParams;
+use crate::gpu::Context;
+use crate::hpr::approx::{self, Params, Propagation};
+use crate::hpr::view::{mesh_visibility, render_once, HprView};
+use crate::hpr::{agreement, exact, spacing, Radius};
+use crate::methods::hpr::{evaluate, Settings};
+use crate::methods::MethodConfig;
+use crate::render::{upload, Extras, Renderer, View};
+use crate::scene::Cloud;
+
+/// What the study runs.
+#[derive(Clone, Debug)]
+pub struct StudyOptions {
+    /// Models: (name, path).
+    pub models: Vec<(String, PathBuf)>,
+    /// The mesh the point-count series samples.
+    pub sampled: PathBuf,
+    /// Point counts of the time series.
+    pub counts: Vec<usize>,
+    /// The view's size.
+    pub size: (u32, u32),
+    /// GPU frames timed per configuration (after two warm-up frames).
+    pub frames: u32,
+}
+
+/// One measured configuration.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Row {
+    pub model: String,
+    pub points: usize,
+    pub what: String,
+    pub sqrt_k: u32,
+    pub visible: usize,
+    pub rounds: u32,
+    /// Against exact HPR at the same R.
+    pub exact: (f64, f64, f64),
+    /// Against true visibility.
+    pub truth: Option<(f64, f64, f64)>,
+    /// CPU seconds (exact or the CPU reference), single run.
+    pub cpu_s: Option<f64>,
+    /// GPU milliseconds of the HPR passes (median over the timed frames) and per pass.
+    pub gpu_ms: Option<f64>,
+    pub passes: Vec<(String, f64)>,
+}
+
+/// The eye of the study's view of `cloud`: three bounding-sphere radii from the centre along
+/// (0.5, 0.3, 0.81) (the CPU report's pose).
+fn eye_of(cloud: &Cloud) -> Vec3 {
+    let (c, r) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
+    c + Vec3::new(0.5, 0.3, 0.81).normalize() * 3.0 * r
+}
+
+fn settings(sqrt_k: u32, radius: f64, propagation: Propagation, sort: bool) -> Settings {
+    Settings {
+        sqrt_k_max: sqrt_k,
+        params: HprParams {
+            sqrt_k,
+            radius: radius as f32,
+            max_rounds: match propagation {
+                Propagation::Adaptive { max_rounds } => max_rounds,
+                Propagation::Fixed(_) => 0,
+            },
+            max_edge: 10.0,
+            ..Default::default()
+        },
+        propagation,
+        sort,
+    }
+}
+
+fn label(p: Propagation) -> String {
+    match p {
+        Propagation::Adaptive { .. } => "adaptive".into(),
+        Propagation::Fixed(m) => format!("fixed {m}x{m}"),
+    }
+}
+
+/// The method configuration that runs `propagation` in the frame loop.
+fn method(sqrt_k: u32, radius_factor: f64, propagation: Propagation, sort: bool) -> String {
+    let (m, rounds) = match propagation {
+        Propagation::Adaptive { max_rounds } => (0, max_rounds),
+        Propagation::Fixed(m) => (m, 1),
+    };
+    format!(
+        "hpr:sectors={sqrt_k},max_sectors={sqrt_k},m={m},rounds={rounds},radius={radius_factor},sort={}",
+        u32::from(sort)
+    )
+}
+
+/// Median GPU milliseconds of the `hpr.*` passes (and each) of `config` rendering `cloud`.
+fn gpu_time(
+    ctx: &Arc<Context>,
+    cloud: &Cloud,
+    view: &HprView,
+    config: &str,
+    frames: u32,
+) -> Result<(f64, Vec<(String, f64)>)> {
+    let (scene, info) = upload(ctx, cloud)?;
+    let config = MethodConfig::parse(config)?;
+    let mut renderer = Renderer::new(
+        ctx,
+        &scene,
+        info,
+        &config,
+        view.width,
+        view.height,
+        // Readback keeps the passes (the graph culls passes whose results nothing uses).
+        Extras {
+            readback: true,
+            ..Extras::default()
+        },
+    )?;
+    let v = View {
+        camera: view.camera,
+        lights: vec![crate::scene::Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    for _ in 0..2 {
+        renderer.render(&v, false)?;
+    }
+    renderer.clear_timings();
+    for _ in 0..frames.max(1) {
+        renderer.render(&v, false)?;
+    }
+    renderer.finish()?;
+    let (passes, _) = renderer.timings();
+    // Adaptive rounds that ran no workgroups still cost their (empty) dispatch and barrier:
+    // every recorded round counts.
+    let hpr: Vec<(String, f64)> = passes
+        .iter()
+        .filter(|p| p.name.starts_with("hpr.") && !p.name.starts_with("hpr.points."))
+        .map(|p| (p.name.clone(), p.median_ms))
+        .collect();
+    Ok((hpr.iter().map(|p| p.1).sum(), hpr))
+}
+
+/// The radius factor (of the bounding sphere's diameter, as `hpr` takes it) equal to `r`.
+fn factor_of(cloud: &Cloud, r: f64) -> f64 {
+    let (_, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
+    r / (2.0 * f64::from(radius))
+}
+
+/// Runs the study; returns the rows and writes nothing.
+pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
+    let ctx = Arc::new(Context::new(&crate::gpu::ContextOptions::from_env())?);
+    let mut rows = Vec::new();
+    for (name, path) in &options.models {
+        let cloud = crate::scene::input::load_prepared(path, &Default::default())
+            .with_context(|| path.display().to_string())?;
+        let eye = eye_of(&cloud);
+        let view = HprView::new(&cloud, eye, None, options.size);
+        let radius = Radius::Density {
+            spacing: spacing(&cloud),
+        };
+        let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
+        let start = Instant::now();
+        let truth_exact = exact(&cloud.positions, eye, radius)?;
+        let exact_s = start.elapsed().as_secs_f64();
+        let seen = if cloud.faces.is_some() {
+            Some(mesh_visibility(&cloud, &view)?)
+        } else {
+            None
+        };
+        let score = |visible: &[u32]| {
+            (
+                agreement(visible, &truth_exact.visible),
+                seen.as_ref().map(|s| agreement(visible, s)),
+            )
+        };
+        let (e, t) = score(&truth_exact.visible);
+        rows.push(Row {
+            model: name.clone(),
+            points: cloud.len(),
+            what: "exact".into(),
+            visible: truth_exact.visible.len(),
+            exact: e,
+            truth: t,
+            cpu_s: Some(exact_s),
+            ..Default::default()
+        });
+        let points: Vec<DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
+        let sphere = approx::bounding_sphere(&points).context("no points")?;
+        let from_view = approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), 4096);
+        let (scene, _) = upload(&ctx, &cloud)?;
+        let order = crate::streams::morton_order(&cloud.positions);
+        let mut ks = vec![64, 128, 256, 512, 1024, 2048, from_view];
+        ks.sort_unstable();
+        ks.dedup();
+        for &sqrt_k in &ks {
+            for propagation in [
+                Propagation::Adaptive { max_rounds: 64 },
+                Propagation::Fixed(3),
+                Propagation::Fixed(5),
+            ] {
+                let start = Instant::now();
+                approx::approximate(
+                    &points,
+                    eye.as_dvec3(),
+                    Params {
+                        sqrt_k,
+                        radius: r,
+                        propagation,
+                    },
+                )
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+                let cpu_s = start.elapsed().as_secs_f64();
+                let s = settings(sqrt_k, r, propagation, false);
+                let gpu = evaluate(
+                    &ctx,
+                    &scene,
+                    (view.camera.view(), view.proj()),
+                    options.size,
+                    &s,
+                    false,
+                )?;
+                let mut visible: Vec<u32> =
+                    gpu.visible.iter().map(|&i| order[i as usize]).collect();
+                visible.sort_unstable();
+                let (e, t) = score(&visible);
+                let config = method(sqrt_k, factor_of(&cloud, r), propagation, false);
+                let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, options.frames)?;
+                let note = if sqrt_k == from_view { " (view)" } else { "" };
+                rows.push(Row {
+                    model: name.clone(),
+                    points: cloud.len(),
+                    what: format!("{}{note}", label(propagation)),
+                    sqrt_k,
+                    visible: visible.len(),
+                    rounds: gpu.state.rounds,
+                    exact: e,
+                    truth: t,
+                    cpu_s: Some(cpu_s),
+                    gpu_ms: Some(gpu_ms),
+                    passes,
+                });
+            }
+        }
+        // R sweep (factors of the diameter) with exact HPR and the view's approximation.
+        for f in [100.0, 1_000.0, 10_000.0, 30_000.0] {
+            let radius = Radius::Factor(f);
+            let rr = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
+            let ex = exact(&cloud.positions, eye, radius)?;
+            let ap = approx::approximate(
+                &points,
+                eye.as_dvec3(),
+                Params {
+                    sqrt_k: from_view,
+                    radius: rr,
+                    propagation: Propagation::Adaptive { max_rounds: 64 },
+                },
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            for (what, visible) in [
+                ("R sweep: exact", &ex.visible),
+                ("R sweep: adaptive", &ap.visible),
+            ] {
+                rows.push(Row {
+                    model: name.clone(),
+                    points: cloud.len(),
+                    what: format!("{what}, R = {f} x diameter"),
+                    sqrt_k: from_view,
+                    visible: visible.len(),
+                    exact: agreement(visible, &ex.visible),
+                    truth: seen.as_ref().map(|s| agreement(visible, s)),
+                    ..Default::default()
+                });
+            }
+        }
+        // Noise sweep: Gaussian offsets (σ in sample spacings) against the clean mesh's
+        // visibility, R from the density of the noisy cloud.
+        if let Some(seen) = &seen {
+            for sigma in [0.25, 0.5, 1.0, 2.0] {
+                let noisy = with_noise(&cloud, sigma * spacing(&cloud) as f32, 7);
+                let radius = Radius::Density {
+                    spacing: spacing(&cloud),
+                };
+                let rr = crate::hpr::flip_radius(&noisy.positions, eye, radius)?;
+                let ex = exact(&noisy.positions, eye, radius)?;
+                let np: Vec<DVec3> = noisy.positions.iter().map(|p| p.as_dvec3()).collect();
+                let ap = approx::approximate(
+                    &np,
+                    eye.as_dvec3(),
+                    Params {
+                        sqrt_k: from_view,
+                        radius: rr,
+                        propagation: Propagation::Adaptive { max_rounds: 64 },
+                    },
+                )
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+                for (what, visible) in [
+                    ("noise: exact", &ex.visible),
+                    ("noise: adaptive", &ap.visible),
+                ] {
+                    rows.push(Row {
+                        model: name.clone(),
+                        points: cloud.len(),
+                        what: format!("{what}, sigma = {sigma} spacing"),
+                        sqrt_k: from_view,
+                        visible: visible.len(),
+                        exact: agreement(visible, &ex.visible),
+                        truth: Some(agreement(visible, seen)),
+                        ..Default::default()
+                    });
+                }
+            }
+        }
+        // The partial reconstruction (003 Table 5.3 setting): hpr-mesh against the mesh.
+        if cloud.faces.is_some() {
+            let config = format!(
+                "hpr-mesh:sectors={from_view},max_sectors={from_view},radius={}",
+                factor_of(&cloud, r)
+            );
+            let recon = render_once(&cloud, &view, &config)?;
+            let mesh = render_once(&cloud, &view, "mesh:samples=1")?;
+            let (iou, depth) = coverage_agreement(&recon, &mesh);
+            let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, options.frames)?;
+            rows.push(Row {
+                model: name.clone(),
+                points: cloud.len(),
+                what: format!(
+                    "reconstruction: coverage IoU {iou:.4}, median relative depth error {depth:.5}"
+                ),
+                sqrt_k: from_view,
+                gpu_ms: Some(gpu_ms),
+                passes,
+                ..Default::default()
+            });
+        }
+    }
+    // Time against points: the sampled mesh at each count.
+    let mesh = crate::scene::load(&options.sampled)?;
+    for &n in &options.counts {
+        let mut cloud = crate::scene::sample::sample_mesh(&mesh, n, 1)?;
+        cloud.faces = None;
+        crate::scene::preprocess::preprocess(&mut cloud, &Default::default());
+        let eye = eye_of(&cloud);
+        let view = HprView::new(&cloud, eye, None, options.size);
+        let radius = Radius::Density {
+            spacing: spacing(&cloud),
+        };
+        let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
+        let start = Instant::now();
+        let ex = exact(&cloud.positions, eye, radius)?;
+        let exact_s = start.elapsed().as_secs_f64();
+        let points: Vec<DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
+        let sphere = approx::bounding_sphere(&points).context("no points")?;
+        let sqrt_k = approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), 4096);
+        rows.push(Row {
+            model: "sampled".into(),
+            points: n,
+            what: "exact".into(),
+            visible: ex.visible.len(),
+            exact: (1.0, 1.0, 1.0),
+            cpu_s: Some(exact_s),
+            ..Default::default()
+        });
+        for (propagation, sort) in [
+            (Propagation::Adaptive { max_rounds: 64 }, false),
+            (Propagation::Fixed(3), false),
+            (Propagation::Fixed(3), true),
+        ] {
+            // The CPU reference runs once per propagation (the sort changes only the GPU).
+            let start = Instant::now();
+            let cpu = approx::approximate(
+                &points,
+                eye.as_dvec3(),
+                Params {
+                    sqrt_k,
+                    radius: r,
+                    propagation,
+                },
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let cpu_s = (!sort).then(|| start.elapsed().as_secs_f64());
+            let config = method(sqrt_k, factor_of(&cloud, r), propagation, sort);
+            let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, options.frames)?;
+            let sorted = if sort { ", radix sort" } else { ", atomicMax" };
+            rows.push(Row {
+                model: "sampled".into(),
+                points: n,
+                what: format!("{}{sorted}", label(propagation)),
+                sqrt_k,
+                visible: cpu.visible.len(),
+                rounds: cpu.rounds,
+                exact: agreement(&cpu.visible, &ex.visible),
+                cpu_s,
+                gpu_ms: Some(gpu_ms),
+                passes,
+                ..Default::default()
+            });
+        }
+    }
+    if ctx.validation && ctx.validation_errors() > 0 {
+        anyhow::bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    Ok(rows)
+}
+
+/// `cloud` with every position moved by Gaussian noise of standard deviation `sigma` per axis
+/// (a fixed-seed generator: the same cloud every run).
+fn with_noise(cloud: &Cloud, sigma: f32, seed: u64) -> Cloud {
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 11) as f64 / (1u64 << 53) as f64).max(f64::MIN_POSITIVE)
+    };
+    let mut gauss = move || {
+        let (u, v) = (uniform(), uniform());
+        ((-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()) as f32
+    };
+    let mut out = cloud.clone();
+    for p in &mut out.positions {
+        *p += Vec3::new(gauss(), gauss(), gauss()) * sigma;
+    }
+    out
+}
+
+/// Intersection over union of the covered pixels of two frames, and the median relative depth
+/// difference where both are covered.
+fn coverage_agreement(a: &crate::frame::Frame, b: &crate::frame::Frame) -> (f64, f64) {
+    let (mut both, mut either) = (0usize, 0usize);
+    let mut errors = Vec::new();
+    for i in 0..a.pixels() {
+        let (ca, cb) = (a.covered(i), b.covered(i));
+        if ca || cb {
+            either += 1;
+        }
+        if ca && cb {
+            both += 1;
+            errors.push(((a.depth[i] - b.depth[i]).abs() / b.depth[i]) as f64);
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let median = errors.get(errors.len() / 2).copied().unwrap_or(0.0);
+    (both as f64 / either.max(1) as f64, median)
+}
+
+fn triple(t: (f64, f64, f64)) -> String {
+    format!("{:.3} | {:.3} | {:.3}", t.0, t.1, t.2)
+}
+
+/// Writes `report.md`, `results.json` and the charts of `rows` into `dir`.
+pub fn write_report(rows: &[Row], device: &str, (w, h): (u32, u32), dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(
+        dir.join("results.json"),
+        serde_json::to_string_pretty(rows)?,
+    )?;
+    let mut md = String::new();
+    writeln!(md, "# HPR: exact, CPU and GPU approximation (issue 10)\n")?;
+    writeln!(
+        md,
+        "Generated by `surfel hpr-study` on {device}. The eye is three bounding-sphere radii from \
+         the centre along (0.5, 0.3, 0.81), looking at the centre; R is chosen from the sampling \
+         density (`hpr::Radius::Density`, κ = {}) unless a row says otherwise. Precision, recall \
+         and F1 are against exact HPR at the same R (\"vs exact\") and against the vertices the \
+         mesh's depth buffer shows in the {w} × {h} view (\"vs truth\"). CPU times are single \
+         runs of one thread; GPU times are medians of the HPR passes' timestamps in the frame \
+         loop (adaptive propagation: up to 64 rounds are recorded, and the rounds after the \
+         last change still cost an empty indirect dispatch each).\n",
+        crate::hpr::DENSITY_KAPPA
+    )?;
+    let models: Vec<String> = {
+        let mut m: Vec<String> = rows.iter().map(|r| r.model.clone()).collect();
+        m.dedup();
+        m
+    };
+    for model in models.iter().filter(|m| *m != "sampled") {
+        let of: Vec<&Row> = rows.iter().filter(|r| &r.model == model).collect();
+        writeln!(md, "## {model} ({} points)\n", of[0].points)?;
+        writeln!(md, "| configuration | √k | visible | rounds | P vs exact | R vs exact | F1 vs exact | P vs truth | R vs truth | F1 vs truth | CPU s | GPU ms |")?;
+        writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+        for r in &of {
+            if r.what.starts_with("reconstruction") {
+                continue;
+            }
+            let truth = r.truth.map_or("– | – | –".into(), triple);
+            writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                r.what,
+                if r.sqrt_k > 0 {
+                    r.sqrt_k.to_string()
+                } else {
+                    "–".into()
+                },
+                r.visible,
+                r.rounds,
+                triple(r.exact),
+                truth,
+                r.cpu_s.map_or("–".into(), |s| format!("{s:.3}")),
+                r.gpu_ms.map_or("–".into(), |s| format!("{s:.2}")),
+            )?;
+        }
+        for r in of.iter().filter(|r| r.what.starts_with("reconstruction")) {
+            writeln!(
+                md,
+                "\nPartial reconstruction (`hpr-mesh`, √k = {}, {w} × {h}): {}; HPR passes \
+                 {:.2} ms GPU.",
+                r.sqrt_k,
+                &r.what["reconstruction: ".len()..],
+                r.gpu_ms.unwrap_or(0.0)
+            )?;
+            let passes: Vec<String> = r
+                .passes
+                .iter()
+                .filter(|p| !p.0.starts_with("hpr.round.") && !p.0.starts_with("hpr.advance."))
+                .map(|p| format!("{} {:.2}", p.0, p.1))
+                .collect();
+            writeln!(md, "Per pass (ms): {}.", passes.join(", "))?;
+        }
+        writeln!(md)?;
+        // Fig. 5.1: visible points against k, one line per propagation.
+        let mut series = Vec::new();
+        for what in ["adaptive", "fixed 3x3", "fixed 5x5"] {
+            let pts: Vec<(f64, f64)> = of
+                .iter()
+                .filter(|r| r.what.trim_end_matches(" (view)") == what)
+                .map(|r| (f64::from(r.sqrt_k * r.sqrt_k), r.visible as f64))
+                .collect();
+            series.push((what.to_string(), pts));
+        }
+        if let Some(e) = of.iter().find(|r| r.what == "exact") {
+            let xs: Vec<f64> = series[0].1.iter().map(|p| p.0).collect();
+            series.push((
+                "exact".into(),
+                xs.iter().map(|&x| (x, e.visible as f64)).collect(),
+            ));
+        }
+        let slug = model.to_lowercase().replace(' ', "-");
+        crate::eval::charts::write_line_chart(
+            dir,
+            &format!("visible-vs-k-{slug}"),
+            &format!("{model}: visible points against k (003 Fig. 5.1)"),
+            ("sectors k", "visible points"),
+            true,
+            series,
+        )?;
+        writeln!(md, "![visible vs k](visible-vs-k-{slug}.svg)\n")?;
+    }
+    let sampled: Vec<&Row> = rows.iter().filter(|r| r.model == "sampled").collect();
+    if !sampled.is_empty() {
+        writeln!(md, "## Time against points (the sampled dragon mesh)\n")?;
+        writeln!(md, "| points | configuration | √k | visible | F1 vs exact | CPU s | GPU ms (HPR passes) | GPU per pass (ms) |")?;
+        writeln!(md, "|---|---|---|---|---|---|---|---|")?;
+        for r in &sampled {
+            let passes: Vec<String> = r
+                .passes
+                .iter()
+                .filter(|p| !p.0.starts_with("hpr.round.") && !p.0.starts_with("hpr.advance."))
+                .map(|p| format!("{} {:.2}", p.0.trim_start_matches("hpr."), p.1))
+                .collect();
+            let rounds: f64 = r
+                .passes
+                .iter()
+                .filter(|p| p.0.starts_with("hpr.round.") || p.0.starts_with("hpr.advance."))
+                .map(|p| p.1)
+                .sum();
+            let rounds = if rounds > 0.0 {
+                format!(", rounds {rounds:.2}")
+            } else {
+                String::new()
+            };
+            writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.3} | {} | {} | {}{rounds} |",
+                r.points,
+                r.what,
+                if r.sqrt_k > 0 {
+                    r.sqrt_k.to_string()
+                } else {
+                    "–".into()
+                },
+                r.visible,
+                r.exact.2,
+                r.cpu_s.map_or("–".into(), |s| format!("{s:.3}")),
+                r.gpu_ms.map_or("–".into(), |s| format!("{s:.2}")),
+                passes.join(", "),
+            )?;
+        }
+        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        for r in &sampled {
+            let mut add = |name: String, ms: f64| match series.iter_mut().find(|s| s.0 == name) {
+                Some(s) => s.1.push((r.points as f64, ms)),
+                None => series.push((name, vec![(r.points as f64, ms)])),
+            };
+            if let Some(s) = r.cpu_s {
+                add(
+                    format!("CPU {}", r.what.split(',').next().unwrap_or("")),
+                    s * 1000.0,
+                );
+            }
+            if let Some(ms) = r.gpu_ms {
+                add(format!("GPU {}", r.what), ms);
+            }
+        }
+        crate::eval::charts::write_line_chart(
+            dir,
+            "time-vs-points",
+            "HPR time against points",
+            ("points", "milliseconds"),
+            true,
+            series,
+        )?;
+        writeln!(md, "\n![time vs points](time-vs-points.svg)\n")?;
+    }
+    std::fs::write(dir.join("report.md"), md)?;
+    Ok(())
+}
