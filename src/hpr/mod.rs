@@ -339,6 +339,17 @@ mod tests {
     }
 
     #[test]
+    fn from_inside_a_sphere_every_point_is_visible() {
+        // Seen from its centre (or anywhere inside), a sphere shows all of its points: the
+        // flipped points all lie on the hull, which encloses the viewpoint.
+        let points = sphere(2000);
+        for eye in [Vec3::ZERO, Vec3::new(0.3, -0.2, 0.1)] {
+            let v = exact(&points, eye, Radius::Factor(100.0)).unwrap();
+            assert_eq!(v.visible.len(), points.len(), "{eye}");
+        }
+    }
+
+    #[test]
     fn agreement_counts_common_indices() {
         assert_eq!(agreement(&[1, 2, 3, 4], &[2, 4, 6, 8]), (0.5, 0.5, 0.5));
         assert_eq!(agreement(&[], &[]), (1.0, 1.0, 1.0));

@@ -553,55 +553,71 @@ pub fn add_triangulation(
     Ok(indices)
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        name: "sectors",
-        default: 0.0,
-        min: 0.0,
-        max: 8192.0,
-        doc: "√k, sectors per angular direction; 0: one per pixel of the object's projection",
-    },
-    ParamSpec {
-        name: "max_sectors",
-        default: 1024.0,
-        min: 2.0,
-        max: 8192.0,
-        doc: "√k of the sector buffers (the largest grid a frame may use)",
-    },
-    ParamSpec {
-        name: "m",
-        default: 0.0,
-        min: 0.0,
-        max: 31.0,
-        doc: "0: adaptive propagation; odd m: one fixed m x m gather (003 4.3)",
-    },
-    ParamSpec {
-        name: "rounds",
-        default: 32.0,
-        min: 1.0,
-        max: 1024.0,
-        doc: "adaptive propagation: the most rounds (reported when reached)",
-    },
-    ParamSpec {
-        name: "radius",
-        default: 0.0,
-        min: 0.0,
-        max: 1e9,
-        doc: "R as a factor of the bounding sphere's diameter; 0: from the sampling density",
-    },
-    ParamSpec {
-        name: "sort",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "1: radix sort by sector and segmented maximum (the thesis); 0: 64-bit atomicMax",
-    },
+const SECTORS: ParamSpec = ParamSpec {
+    name: "sectors",
+    default: 0.0,
+    min: 0.0,
+    max: 8192.0,
+    doc: "√k, sectors per angular direction; 0: one per pixel of the object's projection",
+};
+const MAX_SECTORS: ParamSpec = ParamSpec {
+    name: "max_sectors",
+    default: 1024.0,
+    min: 2.0,
+    max: 8192.0,
+    doc: "√k of the sector buffers (the largest grid a frame may use)",
+};
+const M: ParamSpec = ParamSpec {
+    name: "m",
+    default: 0.0,
+    min: 0.0,
+    max: 31.0,
+    doc: "0: adaptive propagation; odd m: one fixed m x m gather (003 4.3)",
+};
+const ROUNDS: ParamSpec = ParamSpec {
+    name: "rounds",
+    default: 32.0,
+    min: 1.0,
+    max: 1024.0,
+    doc: "adaptive propagation: the most rounds (reported when reached)",
+};
+const RADIUS: ParamSpec = ParamSpec {
+    name: "radius",
+    default: 0.0,
+    min: 0.0,
+    max: 1e9,
+    doc: "R as a factor of the bounding sphere's diameter; 0: from the sampling density",
+};
+const SORT: ParamSpec = ParamSpec {
+    name: "sort",
+    default: 0.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "1: radix sort by sector and segmented maximum (the thesis); 0: 64-bit atomicMax",
+};
+
+const PARAMS: &[ParamSpec] = &[SECTORS, MAX_SECTORS, M, ROUNDS, RADIUS, SORT];
+
+const MESH_PARAMS: &[ParamSpec] = &[
+    SECTORS,
+    MAX_SECTORS,
+    M,
+    ROUNDS,
+    RADIUS,
+    SORT,
     ParamSpec {
         name: "max_edge",
         default: 8.0,
         min: 0.5,
         max: 4096.0,
-        doc: "hpr-mesh: the longest projected triangle edge kept, in pixels",
+        doc: "the longest projected triangle edge kept, in pixels",
+    },
+    ParamSpec {
+        name: "pyramid",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        doc: "1: the triangles and the visible points through the pyramid (000 5.2)",
     },
 ];
 
@@ -619,7 +635,7 @@ pub const INFO: MethodInfo = MethodInfo {
 pub const MESH_INFO: MethodInfo = MethodInfo {
     name: "hpr-mesh",
     summary: "HPR's partial surface reconstruction (003 4.4), drawn as triangles",
-    params: PARAMS,
+    params: MESH_PARAMS,
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
@@ -691,6 +707,10 @@ fn build_points(b: &mut BuildContext<'_>) -> Result<()> {
 fn build_mesh(b: &mut BuildContext<'_>) -> Result<()> {
     let (hpr, inputs, settings) = add_for_method(b)?;
     let indices = add_triangulation(b.graph, b.ctx, inputs, &hpr, &settings)?;
+    if b.config.get("pyramid") >= 0.5 {
+        let args = (hpr.state, draw_range().offset);
+        return super::pyramid::build_over_triangles(b, indices, args, hpr.hidden);
+    }
     super::mesh::add_mesh(
         b,
         "hpr-mesh",

@@ -44,7 +44,7 @@ use crate::gpu::layout::{
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{
-    Access, BufferId, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
+    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
@@ -381,26 +381,105 @@ impl Pyramid {
 }
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
-    build_with(b, false)
+    let settings = Settings::of(b.config);
+    build_with(b, settings, Level0::Points)
 }
 
 fn build_hybrid(b: &mut BuildContext<'_>) -> Result<()> {
-    build_with(b, true)
+    let settings = Settings::of(b.config);
+    build_with(b, settings, Level0::Hybrid)
 }
 
-fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
+/// The pyramid's parameters (`PARAMS`), read from a `pyramid` configuration or defaults.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    color: bool,
+    hardware: bool,
+    single: bool,
+    cull: bool,
+    show: f32,
+    radius: f32,
+    falloff: f32,
+}
+
+impl Settings {
+    fn of(config: &super::MethodConfig) -> Self {
+        Self {
+            color: config.get("color") >= 0.5,
+            hardware: config.get("projection") >= 0.5,
+            single: config.get("layout") >= 0.5,
+            cull: config.get("cull") >= 0.5,
+            show: config.get("show").round(),
+            radius: config.get("radius"),
+            falloff: config.get("falloff"),
+        }
+    }
+
+    /// Every parameter at its default.
+    pub fn defaults() -> Self {
+        Self::of(&super::MethodConfig {
+            method: &INFO,
+            params: Default::default(),
+        })
+    }
+}
+
+/// What level 0 is made of.
+enum Level0 {
+    /// Every point (`pyramid`).
+    Points,
+    /// The scene's faces and lines, then the points they do not use (`pyramid-hybrid`).
+    Hybrid,
+    /// Triangles an earlier pass appended to `indices` (drawn by the indexed indirect draw at
+    /// `args`), then the points not set in `skip` (`hpr-mesh:pyramid=1`: HPR's reconstruction
+    /// and its visible points).
+    Indirect {
+        indices: BufferId,
+        args: BufferId,
+        offset: u64,
+        skip: BufferId,
+    },
+}
+
+/// The pyramid over HPR's reconstruction (`hpr-mesh:pyramid=1`): the triangles at `indices`
+/// (indexed indirect draw at `args` + `offset`) rasterized into level 0, the points not set
+/// in `skip` (the hidden ones) projected beside them, then analysis, synthesis and shading
+/// with the pyramid's default parameters.
+pub(crate) fn build_over_triangles(
+    b: &mut BuildContext<'_>,
+    indices: BufferId,
+    (args, offset): (BufferId, u64),
+    skip: BufferId,
+) -> Result<()> {
+    build_with(
+        b,
+        Settings::defaults(),
+        Level0::Indirect {
+            indices,
+            args,
+            offset,
+            skip,
+        },
+    )
+}
+
+fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> Result<()> {
+    let hybrid = !matches!(level0, Level0::Points);
     // A tube's texel needs its primitive id, kept in the albedo group.
-    let color = b.config.get("color") >= 0.5 || (hybrid && b.scene.tubes.is_some());
-    let hardware = b.config.get("projection") >= 0.5;
-    let single = b.config.get("layout") >= 0.5;
-    let cull = b.config.get("cull") >= 0.5;
-    let show = b.config.get("show").round();
+    let color = settings.color || (hybrid && b.scene.tubes.is_some());
+    let Settings {
+        hardware,
+        single,
+        cull,
+        show,
+        ..
+    } = settings;
     let pyramid = Pyramid::new(b.graph, "pyramid", (b.width, b.height), color, single);
     let params = PyramidParams {
         level: 0,
         level_count: pyramid.levels,
-        radius_scale: b.config.get("radius"),
-        falloff: b.config.get("falloff"),
+        radius_scale: settings.radius,
+        falloff: settings.falloff,
     };
     // Hybrid scenes: faces and lines are drawn as such, the other points as points.
     let scene = b.scene;
@@ -409,8 +488,8 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
             .as_ref()
             .map(|(buffer, count)| (g.import_buffer(name, buffer.clone()), *count))
     };
-    let (mask, triangles, ribbons, tubes) = match (hybrid, &scene.face_vertices) {
-        (true, Some(mask)) => (
+    let (mask, triangles, ribbons, tubes) = match (&level0, &scene.face_vertices) {
+        (Level0::Hybrid, Some(mask)) => (
             Some(b.graph.import_buffer("face-vertices", mask.clone())),
             b.indices.map(|i| (i, scene.index_count)),
             import(b.graph, "ribbons", &scene.ribbons),
@@ -418,7 +497,20 @@ fn build_with(b: &mut BuildContext<'_>, hybrid: bool) -> Result<()> {
         ),
         _ => (None, None, None, None),
     };
+    let (mask, indirect) = match level0 {
+        Level0::Indirect {
+            indices,
+            args,
+            offset,
+            skip,
+        } => (
+            Some(skip),
+            Some(Primitives::IndirectTriangles(indices, args, offset)),
+        ),
+        _ => (mask, None),
+    };
     let drawn = [
+        indirect,
         triangles.map(|(i, n)| Primitives::Triangles(i, n)),
         ribbons.map(|(i, n)| Primitives::Ribbons(i, n)),
         tubes.map(|(i, n)| Primitives::Tubes(i, n)),
@@ -581,6 +673,9 @@ enum Primitives {
     Points(Option<BufferId>),
     /// The mesh's triangles: index buffer and count (radius 0: never expanded, 000 5.2).
     Triangles(BufferId, u32),
+    /// Triangles whose count an earlier pass wrote: index buffer, and the indexed indirect
+    /// draw's buffer and offset.
+    IndirectTriangles(BufferId, BufferId, u64),
     /// Ribbon segments: index buffer and count (000 5.1.1).
     Ribbons(BufferId, u32),
     /// Tube segments: index buffer and count (000 5.1.2).
@@ -604,7 +699,7 @@ fn rasterize(
             vk::PrimitiveTopology::POINT_LIST,
             "pyramid.project-hw",
         ),
-        Primitives::Triangles(..) => (
+        Primitives::Triangles(..) | Primitives::IndirectTriangles(..) => (
             "pyramid/triangles.vert",
             vk::PrimitiveTopology::TRIANGLE_LIST,
             "pyramid.triangles",
@@ -678,6 +773,13 @@ fn rasterize(
         Primitives::Triangles(indices, _)
         | Primitives::Ribbons(indices, _)
         | Primitives::Tubes(indices, _) => pass = pass.buffer(indices, Access::IndexRead),
+        Primitives::IndirectTriangles(indices, args, offset) => {
+            pass = pass.buffer(indices, Access::IndexRead).buffer_range(
+                args,
+                BufferRange::new(offset, 20),
+                Access::IndirectRead,
+            );
+        }
     }
     pass.color_mip(t.a, 0, load)
         .color_mip(t.b, 0, load)
@@ -698,6 +800,9 @@ fn rasterize(
                 Primitives::Triangles(indices, count)
                 | Primitives::Ribbons(indices, count)
                 | Primitives::Tubes(indices, count) => ctx.draw_indexed(indices, count),
+                Primitives::IndirectTriangles(indices, args, offset) => {
+                    ctx.draw_indexed_indirect(indices, args, offset, 1, 20)
+                }
             }
         });
     Ok(())
