@@ -858,11 +858,10 @@ pub fn evaluate(
         None => Vec::new(),
     };
     Ok(Evaluation {
-        centre: glam::Vec3::from_slice(
-            &sphere_words[..3]
-                .iter()
-                .map(|&b| f32::from_bits(b))
-                .collect::<Vec<_>>(),
+        centre: glam::Vec3::new(
+            f32::from_bits(sphere_words[0]),
+            f32::from_bits(sphere_words[1]),
+            f32::from_bits(sphere_words[2]),
         ),
         radius: f32::from_bits(sphere_words[3]),
         state,
