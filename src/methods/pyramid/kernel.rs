@@ -246,13 +246,7 @@ impl KernelPyramid {
             d.extend(source.descriptors(BINDING_PYRAMID_LEVEL, level));
             d.extend(self.accum.descriptors(BINDING_KERNEL_ACCUM, 0));
             let push = PyramidParams { level, ..params };
-            dispatch(
-                pass,
-                interpolate.clone(),
-                d,
-                push,
-                groups(width, height, 0),
-            );
+            dispatch(pass, interpolate.clone(), d, push, groups(width, height, 0));
         }
 
         let mut bindings = vec![storage(BINDING_FRAME)];

@@ -74,10 +74,11 @@ fn merged(child: &Level, p: IVec2, size: IVec2, level: u32, kernel: u32, top: u3
         .map(|c| (c, child.at(c)))
         .filter(|(_, t)| !t.is_empty() && kernel_level(t.radius, kernel, top) >= level)
         .collect();
-    let Some(front) = travelling
-        .iter()
-        .map(|(_, t)| *t)
-        .reduce(|f, t| if t.depth < f.depth { t } else { f })
+    let Some(front) =
+        travelling
+            .iter()
+            .map(|(_, t)| *t)
+            .reduce(|f, t| if t.depth < f.depth { t } else { f })
     else {
         return Texel::default();
     };
@@ -371,7 +372,8 @@ mod tests {
         let out = interpolate(&analysis(l0, 3), 3, SCALE);
         let t = out.at(IVec2::new(3, 3));
         assert!(close(t.depth, 2.0) && close(t.radius, 3.0), "{t:?}");
-        // Its disc of radius 3 about (3.5, 3.5): 21 pixel centres (integer offsets).
-        assert_eq!(out.texels.iter().filter(|t| !t.is_empty()).count(), 21);
+        // Its disc of radius 3 about (3.5, 3.5): 25 pixel centres (integer offsets u, v with
+        // u² + v² < 9).
+        assert_eq!(out.texels.iter().filter(|t| !t.is_empty()).count(), 25);
     }
 }
