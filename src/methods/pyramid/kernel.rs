@@ -13,7 +13,8 @@
 //! * `kernel.interpolate.L` (6.2), level 0 first: every level-0 pixel searches the k × k
 //!   texels around its own in level L and adds those stored there whose ellipse contains it
 //!   with w = 1 - d, into three RGBA32F accumulators (one pass per level plus one
-//!   accumulator read, as in the thesis).
+//!   accumulator read, as in the thesis; here read and written back only where a texel adds,
+//!   and an empty texel costs one load).
 //! * `kernel.resolve` turns the sums into a texel of level 0 and `kernel.shade` runs
 //!   `pyramid/shade.comp` on it.
 //!
