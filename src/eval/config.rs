@@ -1005,6 +1005,7 @@ values = [1.0, 0.1]
             "pyramid.toml",
             "pyramid-stress.toml",
             "plants.toml",
+            "kernel.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

@@ -145,6 +145,12 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // lines.vert draws tubes (true) or ribbons (false).
     ("PYRAMID_SPEC_TUBE", 3),
     ("BINDING_FACE_VERTICES", 15),
+    // The pyramid with search kernels (000 ch. 6, src/methods/pyramid/kernel.rs): the kernel
+    // size k (3, 5 or 7) as a specialization constant, and the per-pixel accumulators of the
+    // interpolation passes at three consecutive bindings (RGBA32F: sum of w n and of w; sums of
+    // w depth and w radius, the front-most contribution's depth and half range; sum of w albedo).
+    ("PYRAMID_SPEC_KERNEL", 4),
+    ("BINDING_KERNEL_ACCUM", 16),
     ("PRIMITIVE_POINT", 0),
     ("PRIMITIVE_RIBBON", 1),
     ("PRIMITIVE_TUBE", 2),

@@ -132,6 +132,9 @@ pub static METHODS: &[MethodInfo] = &[
     ewa::INFO,
     pyramid::INFO,
     pyramid::HYBRID_INFO,
+    pyramid::kernel::KERNEL3,
+    pyramid::kernel::KERNEL5,
+    pyramid::kernel::KERNEL7,
     hpr::INFO,
     hpr::MESH_INFO,
 ];

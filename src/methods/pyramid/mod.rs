@@ -27,7 +27,12 @@
 //! children. Deviation: the thesis gives no Gaussian width for the synthesis weights; here
 //! w = exp(-falloff d²) with d the elliptical distance (1 on the rim) and `falloff` = 2 by
 //! default, the splatting family's kernel.
+//!
+//! `kernel` is ch. 6's variant (`kernel3`, `kernel5`, `kernel7`): the same level 0, texels and
+//! shading, with each splat stored in one level and a k × k search in place of synthesis.
 
+pub mod kernel;
+pub mod kernel_reference;
 pub mod reference;
 
 use std::sync::Arc;
@@ -185,6 +190,14 @@ fn dispatch(
     });
 }
 
+/// Workgroups covering level `level` of a `width` x `height` pyramid.
+fn groups(width: u32, height: u32, level: u32) -> (u32, u32) {
+    (
+        (width >> level).max(1).div_ceil(PYRAMID_GROUP),
+        (height >> level).max(1).div_ceil(PYRAMID_GROUP),
+    )
+}
+
 fn group_bindings(base: u32) -> [Binding; 3] {
     [
         storage_image(base),
@@ -200,6 +213,13 @@ pub fn specialization(color: bool, cull: bool, hybrid: bool) -> [(u32, u32); 3] 
         (PYRAMID_SPEC_CULL, u32::from(cull)),
         (PYRAMID_SPEC_HYBRID, u32::from(hybrid)),
     ]
+}
+
+/// A compute shader, its specialization constants and the prefix of its passes' names.
+struct Passes<'a> {
+    shader: &'a str,
+    spec: &'a [(u32, u32)],
+    prefix: &'a str,
 }
 
 /// A pyramid's images and the passes that reconstruct its level 0; usable on any graph (the
@@ -224,6 +244,18 @@ impl Pyramid {
         single: bool,
     ) -> Self {
         let levels = level_count(width, height);
+        Self::with_levels(graph, name, (width, height), color, single, levels)
+    }
+
+    /// `new` with only the first `levels` levels (the kernel pyramid's searched levels).
+    pub fn with_levels(
+        graph: &mut GraphBuilder,
+        name: &str,
+        (width, height): (u32, u32),
+        color: bool,
+        single: bool,
+        levels: u32,
+    ) -> Self {
         // Usage flags follow from the declared accesses.
         let desc = |format| ImageDesc {
             format,
@@ -255,10 +287,7 @@ impl Pyramid {
     }
 
     fn groups(&self, level: u32) -> (u32, u32) {
-        (
-            (self.width >> level).max(1).div_ceil(PYRAMID_GROUP),
-            (self.height >> level).max(1).div_ceil(PYRAMID_GROUP),
-        )
+        groups(self.width, self.height, level)
     }
 
     /// Declares the analysis passes of levels 1..=`top`, bottom-up.
@@ -270,20 +299,40 @@ impl Pyramid {
         params: PyramidParams,
         top: u32,
     ) -> Result<()> {
+        let spec = specialization(self.color, false, false);
+        let analysis = Passes {
+            shader: "pyramid/analysis.comp",
+            spec: &spec,
+            prefix: "pyramid",
+        };
+        self.add_analysis_with(ctx, graph, frame, params, top, analysis)
+    }
+
+    /// The analysis passes `{prefix}.analysis.L` of levels 1..=`top`.
+    fn add_analysis_with(
+        &self,
+        ctx: &Arc<Context>,
+        graph: &mut GraphBuilder,
+        frame: BufferId,
+        params: PyramidParams,
+        top: u32,
+        passes: Passes<'_>,
+    ) -> Result<()> {
         let compute = Stages::Compute;
         let mut bindings = vec![storage(BINDING_FRAME)];
         bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
         bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
         let analysis = Arc::new(Pipeline::compute_specialized(
             ctx,
-            "pyramid/analysis.comp",
+            passes.shader,
             &bindings,
-            &specialization(self.color, false, false),
+            passes.spec,
         )?);
+        let prefix = passes.prefix;
         for level in 1..=top.min(self.levels - 1) {
             let (src, dst) = (self.holder(level - 1), self.holder(level));
             let mut pass = graph
-                .pass(&format!("pyramid.analysis.{level}"))
+                .pass(&format!("{prefix}.analysis.{level}"))
                 .buffer(frame, Access::UniformRead(compute));
             for image in src.images() {
                 pass = pass.image_mips(image, level - 1, 1, Access::StorageRead(compute));
@@ -516,10 +565,8 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         tubes.map(|(i, n)| Primitives::Tubes(i, n)),
     ];
     let spec = specialization(color, cull, mask.is_some());
-    let compute = Stages::Compute;
     let frame = b.frame;
     let first = pyramid.holder(0);
-    let (gx, gy) = pyramid.groups(0);
 
     // Level 0: triangles and lines first (hybrid), then the points where they are nearer.
     let rasterized = drawn.iter().any(Option::is_some);
@@ -539,48 +586,12 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
             !rasterized,
         )?;
     } else {
-        let projection = project(
-            b,
-            "pyramid",
-            ProjectOptions {
-                cull,
-                skip: mask,
-                ..Default::default()
-            },
-        )?;
-        let mut bindings = vec![
-            storage(BINDING_FRAME),
-            storage(BINDING_SEGMENTS),
-            storage(BINDING_VISIBILITY),
-        ];
-        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
-        let pipeline = Arc::new(Pipeline::compute_specialized(
-            b.ctx,
-            "pyramid/level0.comp",
-            &bindings,
-            &spec,
-        )?);
-        let (segments, visibility) = (b.segments, projection.visibility);
-        let mut pass = b
-            .graph
-            .pass("pyramid.level0")
-            .buffer(frame, Access::UniformRead(compute))
-            .buffer(segments, Access::StorageRead(compute))
-            .buffer(visibility, Access::StorageRead(compute));
-        // Level 0 is read (with triangles or lines they are there; without, the shader's
-        // statically present read is dead code) and written in place.
-        for image in first.images() {
-            pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
-        }
-        let mut d = vec![
-            Descriptor::Buffer(BINDING_FRAME, frame),
-            Descriptor::Buffer(BINDING_SEGMENTS, segments),
-            Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-        ];
-        d.extend(first.descriptors(BINDING_PYRAMID_LEVEL, 0));
-        d.extend(first.descriptors(BINDING_PYRAMID_OUT, 0));
-        dispatch(pass, pipeline, d, params, (gx, gy));
+        let options = ProjectOptions {
+            cull,
+            skip: mask,
+            ..Default::default()
+        };
+        add_level0(b, "pyramid", first, &spec, params, options)?;
     }
 
     // Analysis and synthesis, or the level shown without synthesis.
@@ -591,8 +602,68 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         Some(level) => (pyramid.holder(level), level),
         None => (pyramid.add_synthesis(b.ctx, b.graph, frame, params)?, 0),
     };
+    add_shade(b, "pyramid", (source, level), &spec, params)
+}
 
-    // Deferred shading into the standard targets.
+/// Level 0 from the compute projection (000 4.2.1): `compute::project` with `options`, then
+/// `{prefix}.level0` writing the winners' texels into level 0 of `first` (over what a raster
+/// pass drew there, in hybrid scenes).
+fn add_level0(
+    b: &mut BuildContext<'_>,
+    prefix: &str,
+    first: Group,
+    spec: &[(u32, u32)],
+    params: PyramidParams,
+    options: ProjectOptions,
+) -> Result<()> {
+    let compute = Stages::Compute;
+    let projection = project(b, prefix, options)?;
+    let mut bindings = vec![
+        storage(BINDING_FRAME),
+        storage(BINDING_SEGMENTS),
+        storage(BINDING_VISIBILITY),
+    ];
+    bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
+    bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+    let pipeline = Arc::new(Pipeline::compute_specialized(
+        b.ctx,
+        "pyramid/level0.comp",
+        &bindings,
+        spec,
+    )?);
+    let (frame, segments, visibility) = (b.frame, b.segments, projection.visibility);
+    let mut pass = b
+        .graph
+        .pass(&format!("{prefix}.level0"))
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(segments, Access::StorageRead(compute))
+        .buffer(visibility, Access::StorageRead(compute));
+    // Level 0 is read (with triangles or lines they are there; without, the shader's
+    // statically present read is dead code) and written in place.
+    for image in first.images() {
+        pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
+    }
+    let mut d = vec![
+        Descriptor::Buffer(BINDING_FRAME, frame),
+        Descriptor::Buffer(BINDING_SEGMENTS, segments),
+        Descriptor::Buffer(BINDING_VISIBILITY, visibility),
+    ];
+    d.extend(first.descriptors(BINDING_PYRAMID_LEVEL, 0));
+    d.extend(first.descriptors(BINDING_PYRAMID_OUT, 0));
+    dispatch(pass, pipeline, d, params, groups(b.width, b.height, 0));
+    Ok(())
+}
+
+/// `{prefix}.shade`: deferred shading (000 4.2.3) of level `level` of `source` (magnified
+/// when above 0) into the standard targets.
+fn add_shade(
+    b: &mut BuildContext<'_>,
+    prefix: &str,
+    (source, level): (Group, u32),
+    spec: &[(u32, u32)],
+    params: PyramidParams,
+) -> Result<()> {
+    let compute = Stages::Compute;
     let mut bindings = vec![storage(BINDING_FRAME)];
     bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
     bindings.extend(group_bindings(BINDING_OUTPUT0));
@@ -600,12 +671,12 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         b.ctx,
         "pyramid/shade.comp",
         &bindings,
-        &spec,
+        spec,
     )?);
-    let t = b.targets;
+    let (t, frame) = (b.targets, b.frame);
     let mut pass = b
         .graph
-        .pass("pyramid.shade")
+        .pass(&format!("{prefix}.shade"))
         .buffer(frame, Access::UniformRead(compute));
     for image in source.images() {
         pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
@@ -622,7 +693,8 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
         Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
     ]);
-    dispatch(pass, shade, d, PyramidParams { level, ..params }, (gx, gy));
+    let push = PyramidParams { level, ..params };
+    dispatch(pass, shade, d, push, groups(b.width, b.height, 0));
     Ok(())
 }
 

@@ -49,7 +49,7 @@ impl Texel {
         }
     }
 
-    fn overlaps(&self, other: &Texel) -> bool {
+    pub(super) fn overlaps(&self, other: &Texel) -> bool {
         (self.depth - other.depth).abs() <= self.half_range + other.half_range
     }
 }
@@ -75,25 +75,25 @@ impl Level {
         self.texels[(q.y as u32 * self.width + q.x as u32) as usize]
     }
 
-    fn set(&mut self, q: IVec2, t: Texel) {
+    pub(super) fn set(&mut self, q: IVec2, t: Texel) {
         self.texels[(q.y as u32 * self.width + q.x as u32) as usize] = t.stored();
     }
 
-    fn size(&self) -> IVec2 {
+    pub(super) fn size(&self) -> IVec2 {
         IVec2::new(self.width as i32, self.height as i32)
     }
 }
 
 /// Weighted sums of texels and their ellipse centres (see `Blend` in pyramid.glsl).
 #[derive(Default)]
-struct Blend {
+pub(super) struct Blend {
     sum: Texel,
     centres: Vec2,
     weight: f32,
 }
 
 impl Blend {
-    fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
+    pub(super) fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
         self.sum.n += w * t.n;
         self.sum.radius += w * t.radius;
         self.sum.depth += w * t.depth;
@@ -105,7 +105,7 @@ impl Blend {
 
     /// The blended texel at pixel centre `x`, with the primitive id (and the fallback normal)
     /// of `front`.
-    fn finish(&self, front: &Texel, x: Vec2) -> Texel {
+    pub(super) fn finish(&self, front: &Texel, x: Vec2) -> Texel {
         let (s, w) = (&self.sum, self.weight);
         let len = s.n.length();
         Texel {
