@@ -629,6 +629,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
+    needs_lod: false,
     build: build_points,
 };
 
@@ -639,6 +640,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
+    needs_lod: false,
     build: build_mesh,
 };
 
