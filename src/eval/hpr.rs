@@ -144,7 +144,10 @@ fn gpu_time(
     // every recorded round counts.
     let hpr: Vec<(String, f64)> = passes
         .iter()
-        .filter(|p| p.name.starts_with("hpr.") && !p.name.starts_with("hpr.points."))
+        .filter(|p| {
+            (p.name.starts_with("hpr.") && !p.name.starts_with("hpr.points."))
+                || p.name.starts_with("sort.")
+        })
         .map(|p| (p.name.clone(), p.median_ms))
         .collect();
     Ok((hpr.iter().map(|p| p.1).sum(), hpr))
