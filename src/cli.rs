@@ -961,21 +961,9 @@ fn gpu_visible_points(
     let (scene, _) = crate::render::upload(&ctx, cloud)?;
     // Stream order is the Morton order of the positions.
     let order = crate::streams::morton_order(&cloud.positions);
-    let settings = crate::methods::hpr::Settings {
-        sqrt_k_max: sqrt_k,
-        params: crate::gpu::layout::HprParams {
-            sqrt_k,
-            radius: radius as f32,
-            max_rounds: match propagation {
-                Propagation::Adaptive { max_rounds } => max_rounds,
-                Propagation::Fixed(_) => 0,
-            },
-            max_edge: options.max_edge,
-            ..Default::default()
-        },
-        propagation,
-        sort: options.sort,
-    };
+    let mut settings =
+        crate::methods::hpr::Settings::grid(sqrt_k, radius, propagation, options.sort);
+    settings.params.max_edge = options.max_edge;
     let found = crate::methods::hpr::evaluate(
         &ctx,
         &scene,

@@ -6,7 +6,6 @@ mod common;
 use std::sync::Arc;
 
 use glam::{DVec3, Mat4, Vec3};
-use surfel::gpu::layout::HprParams;
 use surfel::gpu::Context;
 use surfel::hpr::approx::{self, Params, Propagation, Sectors};
 use surfel::methods::hpr::{self as gpu_hpr, Evaluation, Settings};
@@ -85,21 +84,8 @@ fn run_gpu(
     sort: bool,
 ) -> Evaluation {
     let (scene, _) = surfel::render::upload(ctx, &cloud_of(points)).expect("upload");
-    let settings = Settings {
-        sqrt_k_max: sqrt_k,
-        params: HprParams {
-            sqrt_k,
-            radius,
-            max_rounds: match propagation {
-                Propagation::Adaptive { max_rounds } => max_rounds,
-                Propagation::Fixed(_) => 0,
-            },
-            max_edge: 4.0,
-            ..Default::default()
-        },
-        propagation,
-        sort,
-    };
+    let mut settings = Settings::grid(sqrt_k, f64::from(radius), propagation, sort);
+    settings.params.max_edge = 4.0;
     let view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
     let proj = Mat4::perspective_rh(0.8, 1.0, 0.1, 100.0);
     gpu_hpr::evaluate(ctx, &scene, (view, proj), (64, 64), &settings, true).expect("evaluate")

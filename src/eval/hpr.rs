@@ -13,7 +13,6 @@ use anyhow::{Context as _, Result};
 use glam::{DVec3, Vec3};
 use serde::Serialize;
 
-use crate::gpu::layout::HprParams;
 use crate::gpu::Context;
 use crate::hpr::approx::{self, Params, Propagation};
 use crate::hpr::view::{mesh_visibility, render_once, HprView};
@@ -22,6 +21,9 @@ use crate::methods::hpr::{evaluate, Settings};
 use crate::methods::MethodConfig;
 use crate::render::{upload, Extras, Renderer, View};
 use crate::scene::Cloud;
+
+/// Adaptive propagation as the study runs it: at most 64 rounds.
+const ADAPTIVE: Propagation = Propagation::Adaptive { max_rounds: 64 };
 
 /// What the study runs.
 #[derive(Clone, Debug)]
@@ -63,24 +65,6 @@ pub struct Row {
 fn eye_of(cloud: &Cloud) -> Vec3 {
     let (c, r) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
     c + Vec3::new(0.5, 0.3, 0.81).normalize() * 3.0 * r
-}
-
-fn settings(sqrt_k: u32, radius: f64, propagation: Propagation, sort: bool) -> Settings {
-    Settings {
-        sqrt_k_max: sqrt_k,
-        params: HprParams {
-            sqrt_k,
-            radius: radius as f32,
-            max_rounds: match propagation {
-                Propagation::Adaptive { max_rounds } => max_rounds,
-                Propagation::Fixed(_) => 0,
-            },
-            max_edge: 10.0,
-            ..Default::default()
-        },
-        propagation,
-        sort,
-    }
 }
 
 fn label(p: Propagation) -> String {
@@ -153,6 +137,26 @@ fn gpu_time(
     Ok((hpr.iter().map(|p| p.1).sum(), hpr))
 }
 
+/// The CPU reference of the approximation (`approx::approximate`) with errors as `anyhow`.
+fn approximate(
+    points: &[DVec3],
+    eye: Vec3,
+    sqrt_k: u32,
+    radius: f64,
+    propagation: Propagation,
+) -> Result<approx::Approx> {
+    approx::approximate(
+        points,
+        eye.as_dvec3(),
+        Params {
+            sqrt_k,
+            radius,
+            propagation,
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))
+}
+
 /// The radius factor (of the bounding sphere's diameter, as `hpr` takes it) equal to `r`.
 fn factor_of(cloud: &Cloud, r: f64) -> f64 {
     let (_, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
@@ -206,24 +210,11 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         ks.sort_unstable();
         ks.dedup();
         for &sqrt_k in &ks {
-            for propagation in [
-                Propagation::Adaptive { max_rounds: 64 },
-                Propagation::Fixed(3),
-                Propagation::Fixed(5),
-            ] {
+            for propagation in [ADAPTIVE, Propagation::Fixed(3), Propagation::Fixed(5)] {
                 let start = Instant::now();
-                approx::approximate(
-                    &points,
-                    eye.as_dvec3(),
-                    Params {
-                        sqrt_k,
-                        radius: r,
-                        propagation,
-                    },
-                )
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
+                approximate(&points, eye, sqrt_k, r, propagation)?;
                 let cpu_s = start.elapsed().as_secs_f64();
-                let s = settings(sqrt_k, r, propagation, false);
+                let s = Settings::grid(sqrt_k, r, propagation, false);
                 let gpu = evaluate(
                     &ctx,
                     &scene,
@@ -259,16 +250,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
             let radius = Radius::Factor(f);
             let rr = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
             let ex = exact(&cloud.positions, eye, radius)?;
-            let ap = approx::approximate(
-                &points,
-                eye.as_dvec3(),
-                Params {
-                    sqrt_k: from_view,
-                    radius: rr,
-                    propagation: Propagation::Adaptive { max_rounds: 64 },
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let ap = approximate(&points, eye, from_view, rr, ADAPTIVE)?;
             for (what, visible) in [
                 ("R sweep: exact", &ex.visible),
                 ("R sweep: adaptive", &ap.visible),
@@ -296,16 +278,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
                 let rr = crate::hpr::flip_radius(&noisy.positions, eye, radius)?;
                 let ex = exact(&noisy.positions, eye, radius)?;
                 let np: Vec<DVec3> = noisy.positions.iter().map(|p| p.as_dvec3()).collect();
-                let ap = approx::approximate(
-                    &np,
-                    eye.as_dvec3(),
-                    Params {
-                        sqrt_k: from_view,
-                        radius: rr,
-                        propagation: Propagation::Adaptive { max_rounds: 64 },
-                    },
-                )
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
+                let ap = approximate(&np, eye, from_view, rr, ADAPTIVE)?;
                 for (what, visible) in [
                     ("noise: exact", &ex.visible),
                     ("noise: adaptive", &ap.visible),
@@ -374,22 +347,13 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
             ..Default::default()
         });
         for (propagation, sort) in [
-            (Propagation::Adaptive { max_rounds: 64 }, false),
+            (ADAPTIVE, false),
             (Propagation::Fixed(3), false),
             (Propagation::Fixed(3), true),
         ] {
             // The CPU reference runs once per propagation (the sort changes only the GPU).
             let start = Instant::now();
-            let cpu = approx::approximate(
-                &points,
-                eye.as_dvec3(),
-                Params {
-                    sqrt_k,
-                    radius: r,
-                    propagation,
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let cpu = approximate(&points, eye, sqrt_k, r, propagation)?;
             let cpu_s = (!sort).then(|| start.elapsed().as_secs_f64());
             let config = method(sqrt_k, factor_of(&cloud, r), propagation, sort);
             let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, options.frames)?;

@@ -195,10 +195,11 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             b.lights,
         ))
     });
-    let mut passes: Vec<&str> = Vec::new();
+    let mut passes: Vec<String> = Vec::new();
     for p in rows.iter().flat_map(|r| &r.passes) {
-        if !passes.contains(&p.name.as_str()) {
-            passes.push(&p.name);
+        let column = pass_column(&p.name);
+        if !passes.contains(&column) {
+            passes.push(column);
         }
     }
     let mut header = vec![
@@ -236,9 +237,14 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             r.lights.to_string(),
             format!("{:.3} ({:.3})", r.frame_ms_median, r.frame_ms_spread),
         ];
-        row.extend(passes.iter().map(|name| {
-            let p = r.passes.iter().find(|p| p.name == *name);
-            fmt_opt(p.map(|p| p.median_ms), 3, 1.0)
+        row.extend(passes.iter().map(|column| {
+            let mut of = r.passes.iter().filter(|p| pass_column(&p.name) == *column);
+            let first = of.next().map(|p| p.median_ms);
+            fmt_opt(
+                first.map(|ms| ms + of.map(|p| p.median_ms).sum::<f64>()),
+                3,
+                1.0,
+            )
         }));
         let s = &r.scores;
         row.extend([
@@ -254,6 +260,21 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
         let _ = writeln!(md, "| {} |", row.join(" | "));
     }
     let _ = writeln!(md);
+}
+
+/// The table column of pass `name`: the numbered rounds of an iteration (`X.round.N`,
+/// `X.advance.N`: HPR's adaptive propagation records up to hundreds) share one column,
+/// `X.rounds`, with their sum; any other pass has its own.
+fn pass_column(name: &str) -> String {
+    let mut parts = name.rsplitn(3, '.');
+    match (parts.next(), parts.next(), parts.next()) {
+        (Some(n), Some("round" | "advance"), Some(prefix))
+            if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) =>
+        {
+            format!("{prefix}.rounds")
+        }
+        _ => name.to_string(),
+    }
 }
 
 fn pareto_section(md: &mut String, results: &Results, model: &str) {
@@ -431,6 +452,16 @@ fn stability_section(md: &mut String, results: &Results) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbered_rounds_share_one_column() {
+        assert_eq!(pass_column("hpr.round.0"), "hpr.rounds");
+        assert_eq!(pass_column("hpr.advance.31"), "hpr.rounds");
+        assert_eq!(pass_column("hpr.round.x"), "hpr.round.x");
+        assert_eq!(pass_column("pyramid.analysis.3"), "pyramid.analysis.3");
+        assert_eq!(pass_column("round.1"), "round.1");
+        assert_eq!(pass_column("frame"), "frame");
+    }
 
     #[test]
     fn relative_links_and_cells() {

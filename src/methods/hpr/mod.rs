@@ -66,6 +66,28 @@ pub struct Settings {
     pub sort: bool,
 }
 
+impl Settings {
+    /// A fixed √k × √k grid (buffers of exactly that size), the flipping radius `radius` in
+    /// scene units, and `propagation` (its round cap for adaptive propagation).
+    pub fn grid(sqrt_k: u32, radius: f64, propagation: Propagation, sort: bool) -> Self {
+        Self {
+            sqrt_k_max: sqrt_k,
+            params: HprParams {
+                sqrt_k,
+                radius: radius as f32,
+                max_rounds: match propagation {
+                    Propagation::Adaptive { max_rounds } => max_rounds,
+                    Propagation::Fixed(_) => 0,
+                },
+                max_edge: 10.0,
+                ..Default::default()
+            },
+            propagation,
+            sort,
+        }
+    }
+}
+
 /// The graph resources of one HPR evaluation.
 #[derive(Clone, Copy, Debug)]
 pub struct Hpr {
