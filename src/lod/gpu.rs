@@ -21,11 +21,13 @@ use ash::vk;
 use super::ObjectTexture;
 use crate::gpu::layout::{
     LodParams, BINDING_FRAME, BINDING_LOD_COUNTERS, BINDING_LOD_LIST, BINDING_LOD_PATCHES,
-    BINDING_LOD_VERTICES, LOD_GROUP, LOD_MAX_LEVELS, LOD_SPEC_COLOR_LEVELS, LOD_SPEC_RECORD,
-    LOD_PATCH_VERTICES, LOD_TASK_GROUP,
+    BINDING_LOD_VERTICES, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES, LOD_SPEC_COLOR_LEVELS,
+    LOD_SPEC_RECORD, LOD_TASK_GROUP,
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, Pipeline};
-use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, Stages};
+use crate::graph::{
+    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, Stages,
+};
 use crate::methods::compute::storage;
 use crate::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 

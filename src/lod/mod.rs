@@ -131,7 +131,10 @@ impl Hierarchy {
     /// Builds the hierarchy of `levels` levels (`LEVELS`) over points with unit normals and
     /// radii.
     pub fn build(positions: &[Vec3], normals: &[Vec3], radii: &[f32], levels: u32) -> Hierarchy {
-        assert!(LEVELS.contains(&levels), "levels {levels} outside {LEVELS:?}");
+        assert!(
+            LEVELS.contains(&levels),
+            "levels {levels} outside {LEVELS:?}"
+        );
         assert!(normals.len() == positions.len() && radii.len() == positions.len());
         let patch_cap = 4usize.pow(levels - 1);
         let mut h = Hierarchy {
@@ -149,7 +152,14 @@ impl Hierarchy {
             if range.len() <= patch_cap {
                 let before: Vec<u32> = h.levels.iter().map(|l| l.len() as u32).collect();
                 let leaves = &mut ids[range];
-                h.node(positions, normals, radii, leaves, levels as usize - 1, depth);
+                h.node(
+                    positions,
+                    normals,
+                    radii,
+                    leaves,
+                    levels as usize - 1,
+                    depth,
+                );
                 h.patch_nodes.push(
                     h.levels
                         .iter()
@@ -336,8 +346,8 @@ impl ObjectTexture {
                 errors[l] = errors[l - 1].max(worst);
             }
             patches.push(Patch {
-                representative: h.levels[levels as usize - 1][ranges[levels as usize - 1].start
-                    as usize]
+                representative: h.levels[levels as usize - 1]
+                    [ranges[levels as usize - 1].start as usize]
                     .splat,
                 offset,
                 counts: ranges.iter().map(|r| r.end - r.start).collect(),
@@ -430,7 +440,7 @@ impl ObjectTexture {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use crate::rng::SplitMix64;
 
     /// A grid of `n` × `n` points on z = f(x, y) with normals and radii (spacing 1 / n).
     fn surface(n: usize, f: impl Fn(f32, f32) -> (f32, Vec3)) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
@@ -464,12 +474,21 @@ mod tests {
     }
 
     fn random_cloud(n: usize, seed: u64) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
-        let mut rng = Rng::new(seed);
+        let mut rng = SplitMix64::new(seed);
         let p: Vec<Vec3> = (0..n)
-            .map(|_| Vec3::new(rng.next_f64() as f32, rng.next_f64() as f32, rng.next_f64() as f32) * 2.0 - 1.0)
+            .map(|_| {
+                Vec3::new(
+                    rng.next_f64() as f32,
+                    rng.next_f64() as f32,
+                    rng.next_f64() as f32,
+                ) * 2.0
+                    - 1.0
+            })
             .collect();
         let nrm = p.iter().map(|q| q.normalize_or(Vec3::Z)).collect();
-        let r = (0..n).map(|_| 0.01 + 0.02 * rng.next_f64() as f32).collect();
+        let r = (0..n)
+            .map(|_| 0.01 + 0.02 * rng.next_f64() as f32)
+            .collect();
         (p, nrm, r)
     }
 
@@ -514,7 +533,10 @@ mod tests {
         let (p, n, r) = random_cloud(20_000, 3);
         let h = Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS);
         let t = ObjectTexture::new(&h);
-        assert_eq!(t.vertices.len(), h.levels.iter().map(Vec::len).sum::<usize>());
+        assert_eq!(
+            t.vertices.len(),
+            h.levels.iter().map(Vec::len).sum::<usize>()
+        );
         assert_eq!(t.patches.len(), h.levels[3].len());
         let mut next = 0;
         for patch in &t.patches {
@@ -531,7 +553,10 @@ mod tests {
                     assert_eq!(v.level, l);
                 }
             }
-            assert_eq!(t.vertices[patch.offset as usize].splat, patch.representative);
+            assert_eq!(
+                t.vertices[patch.offset as usize].splat,
+                patch.representative
+            );
             assert!(patch.errors.windows(2).all(|w| w[0] <= w[1]));
             next += patch.counts.iter().sum::<u32>();
         }
@@ -692,7 +717,10 @@ mod tests {
         let ranges = t.select(&view);
         let hist = t.histogram(&view);
         assert_eq!(
-            ranges.iter().map(|r| u64::from(r.end - r.start)).sum::<u64>(),
+            ranges
+                .iter()
+                .map(|r| u64::from(r.end - r.start))
+                .sum::<u64>(),
             hist.iter().sum::<u64>()
         );
         for (patch, range) in t.patches.iter().zip(&ranges) {
