@@ -40,7 +40,8 @@ uint lod_level_offset(GpuLodPatch rep, uint level) {
 }
 // What every draw path emits for one object-texture vertex: a point covering the splat's
 // projected diameter (at most `max_size` pixels), colored by level (thesis Fig. 7.4) or with
-// the base color, shaded by splat/points.frag.
+// the base color, shaded by splat/points.frag. (The thesis projects the vertices into its
+// pyramid renderer; these paths draw them as screen-aligned squares.)
 struct LodPoint {
     vec4 position;
     float size;

@@ -40,7 +40,6 @@ pub struct GpuLod {
     pub patches: Arc<Buffer>,
     pub vertices: Arc<Buffer>,
     pub patch_count: u32,
-    pub vertex_count: u32,
     /// The longest list a view selects (`ObjectTexture::max_selected`).
     pub max_selected: u32,
 }
@@ -64,7 +63,6 @@ impl GpuLod {
                 usage,
             )?),
             patch_count: patches.len() as u32,
-            vertex_count: vertices.len() as u32,
             max_selected: texture.max_selected(),
         })
     }

@@ -37,7 +37,8 @@ pub struct Splat {
 impl Splat {
     /// The splat replacing `children` (each with the number of input points below it): centre
     /// of mass of the points, their mean normal, and the smallest radius about that centre
-    /// whose disc covers every child's.
+    /// whose disc covers every child's (the thesis combines the children without saying how;
+    /// this is the construction of Sequential Point Trees).
     pub fn parent(children: &[(Splat, u32)]) -> Splat {
         let points: f32 = children.iter().map(|&(_, w)| w as f32).sum();
         let position = children

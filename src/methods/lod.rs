@@ -5,7 +5,6 @@
 //!   the list (`crate::lod::gpu::add_compute`).
 //! * `lod-mesh`: a task shader chooses the levels, one mesh workgroup per patch emits the
 //!   chosen level's vertices (`crate::lod::gpu::add_mesh`).
-//!
 //! * `lod-geometry`: the thesis' path (§7.2): one vertex per patch, the geometry shader chooses
 //!   the level and emits its vertices (`crate::lod::gpu::add_geometry`).
 //!
@@ -24,7 +23,7 @@ const PARAMS: &[ParamSpec] = &[
         default: 1.0,
         min: 0.0,
         max: 64.0,
-        doc: "threshold ε of the projected perpendicular error, in pixels (0: the input points)",
+        doc: "threshold ε of the projected perpendicular error, in pixels (0: no error allowed)",
     },
     ParamSpec {
         name: "levels",
