@@ -11,7 +11,7 @@ use crate::color::{self, Coloring};
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
 use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
-use crate::render::{upload_colored, Extras, Renderer, View};
+use crate::render::{upload_for, Extras, Renderer, View};
 use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::compose::{self, SceneInput};
 use crate::scene::preprocess;
@@ -591,7 +591,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let load_s = since();
     let ctx = context(a.validation)?;
     let device_s = since();
-    let (scene, info) = upload_colored(&ctx, &cloud, coloring)?;
+    let (scene, info) = upload_for(&ctx, &cloud, coloring, config.method.needs_lod)?;
     let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,

@@ -8,6 +8,7 @@ pub mod frame;
 pub mod gpu;
 pub mod graph;
 pub mod hpr;
+pub mod lod;
 pub mod methods;
 pub mod overlay;
 pub mod post;

@@ -15,6 +15,8 @@ use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
+use crate::lod::gpu::GpuLod;
+use crate::lod::{self, Hierarchy, ObjectTexture};
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
@@ -53,8 +55,20 @@ pub fn upload_colored(
     cloud: &Cloud,
     coloring: Coloring,
 ) -> Result<(GpuScene, SceneInfo)> {
+    upload_for(ctx, cloud, coloring, false)
+}
+
+/// `upload_colored`, with the object texture of level of detail when `lod` (a method with
+/// `needs_lod` will draw it).
+pub fn upload_for(
+    ctx: &Arc<Context>,
+    cloud: &Cloud,
+    coloring: Coloring,
+    lod: bool,
+) -> Result<(GpuScene, SceneInfo)> {
     let options = UploadOptions {
         scalar: coloring.scalar,
+        lod,
         ..UploadOptions::default()
     };
     let (scene, mut info) = upload_with(ctx, cloud, options)?;
@@ -122,6 +136,11 @@ pub fn upload_with(
     };
     let (indices, index_count) = faces.map_or((None, 0), |(b, n)| (Some(b), n));
     let point_count = streams.point_count;
+    let lod = if options.lod {
+        Some(Arc::new(upload_lod(ctx, cloud)?))
+    } else {
+        None
+    };
     Ok((
         GpuScene {
             streams,
@@ -132,6 +151,7 @@ pub fn upload_with(
             point_count,
             index_count,
             hpr_density: (crate::hpr::DENSITY_KAPPA / crate::hpr::spacing(cloud)) as f32,
+            lod,
         },
         SceneInfo {
             centre,
@@ -143,6 +163,15 @@ pub fn upload_with(
             coloring: Coloring::default_for(cloud.colors.is_some()),
         },
     ))
+}
+
+/// Builds the object texture of `cloud` (`lod::DEFAULT_LEVELS` levels) and uploads it.
+fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
+    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
+        bail!("level of detail needs a cloud with normals and radii");
+    };
+    let hierarchy = Hierarchy::build(&cloud.positions, normals, radii, lod::DEFAULT_LEVELS);
+    GpuLod::upload(ctx, &ObjectTexture::new(&hierarchy))
 }
 
 /// Per-frame settings.
@@ -248,6 +277,12 @@ impl Renderer {
         }
         if let Some(why) = config.method.unsupported(&ctx.caps) {
             bail!(why);
+        }
+        if config.method.needs_lod && scene.lod.is_none() {
+            bail!(
+                "method '{}' needs the object texture of level of detail (upload with lod)",
+                config.method.name
+            );
         }
         if config.method.needs_faces && scene.indices.is_none() {
             bail!(

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use surfel::eval::Frame;
 use surfel::methods::{MethodConfig, METHODS};
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{upload, Extras, Renderer, View};
+use surfel::render::{upload_with, Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light};
 
 /// Counts the allocations (`alloc`, `alloc_zeroed`, `realloc`) made by threads that opted in.
@@ -110,7 +110,11 @@ fn renderer_sized(
     post: PostOptions,
     size: u32,
 ) -> (Renderer, View) {
-    let (scene, info) = upload(ctx, cloud).expect("upload");
+    let options = surfel::streams::UploadOptions {
+        lod: config.method.needs_lod,
+        ..Default::default()
+    };
+    let (scene, info) = upload_with(ctx, cloud, options).expect("upload");
     let r = Renderer::new(
         ctx,
         &scene,

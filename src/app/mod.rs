@@ -29,7 +29,7 @@ use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{upload_colored, Extras, Renderer, SceneInfo, View};
+use crate::render::{upload_for, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
@@ -321,7 +321,9 @@ impl Viewer {
                 validation: self.opts.validation,
                 surface_extensions: exts,
             })?);
-            self.scene = Some(upload_colored(&ctx, &self.cloud, self.opts.coloring)?);
+            // The object texture only when the viewer starts on a method drawing it.
+            let lod = METHODS[self.method].needs_lod;
+            self.scene = Some(upload_for(&ctx, &self.cloud, self.opts.coloring, lod)?);
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -397,12 +399,13 @@ impl Viewer {
             .scene
             .as_ref()
             .is_some_and(|(s, _)| s.indices.is_some());
+        let has_lod = self.scene.as_ref().is_some_and(|(s, _)| s.lod.is_some());
         let caps = self.ctx.as_ref().map(|c| c.caps.clone());
         for _ in 0..METHODS.len() {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
             let m = &METHODS[self.method];
             let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
-            if supported && (!m.needs_faces || has_faces) {
+            if supported && (!m.needs_faces || has_faces) && (!m.needs_lod || has_lod) {
                 break;
             }
         }

@@ -24,8 +24,9 @@ use super::stress;
 use super::Frame;
 use crate::gpu::Context;
 use crate::methods::{GpuScene, MethodConfig};
-use crate::render::{upload, Extras, Renderer, SceneInfo, View};
+use crate::render::{upload_with, Extras, Renderer, SceneInfo, View};
 use crate::scene::{lights, load_prepared, sample, Camera, Cloud, LoadOptions, Pose};
+use crate::streams::UploadOptions;
 
 /// Shortest warm-up per job, in seconds of wall time (at most [`WARMUP_MAX_FRAMES`] frames).
 pub const WARMUP_MIN_SECONDS: f64 = 0.5;
@@ -45,8 +46,14 @@ struct Loaded {
     info: SceneInfo,
 }
 
-fn load_gpu(ctx: &Arc<Context>, cloud: Cloud) -> Result<Loaded> {
-    let (gpu, info) = upload(ctx, &cloud)?;
+/// Uploads `cloud`, with the object texture of level of detail when `lod` (a job's method
+/// draws it).
+fn load_gpu(ctx: &Arc<Context>, cloud: Cloud, lod: bool) -> Result<Loaded> {
+    let options = UploadOptions {
+        lod,
+        ..UploadOptions::default()
+    };
+    let (gpu, info) = upload_with(ctx, &cloud, options)?;
     Ok(Loaded { cloud, gpu, info })
 }
 
@@ -231,6 +238,9 @@ pub fn run(
     let mut variants: HashMap<(PathBuf, String), Loaded> = HashMap::new();
     let mut truths: HashMap<String, Vec<Frame>> = HashMap::new();
     let jobs = config.jobs();
+    let lod = jobs
+        .iter()
+        .any(|j| crate::methods::find(&j.method).is_ok_and(|m| m.needs_lod));
     let use_color = config.color;
     for (i, job) in jobs.iter().enumerate() {
         let truth_path = job.model.truth.as_ref().unwrap_or(&job.model.path).clone();
@@ -238,7 +248,7 @@ pub fn run(
             if let Entry::Vacant(slot) = models.entry(path.clone()) {
                 let cloud = load_prepared(path, &LoadOptions::default())
                     .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
-                slot.insert(load_gpu(ctx, cloud)?);
+                slot.insert(load_gpu(ctx, cloud, lod)?);
             }
         }
         let original = &models[&job.model.path];
@@ -262,7 +272,7 @@ pub fn run(
                         stressed(&original.cloud, kind, v)?
                     }
                 };
-                slot.insert(load_gpu(ctx, cloud)?);
+                slot.insert(load_gpu(ctx, cloud, lod)?);
             }
         }
         let scene = match &variant_key {

@@ -47,6 +47,9 @@ pub struct Capabilities {
     pub api_version: String,
     pub device_type: String,
     pub geometry_shader: bool,
+    /// `shaderTessellationAndGeometryPointSize` and `vertexPipelineStoresAndAtomics`:
+    /// geometry shaders that emit sized points and write storage buffers.
+    pub geometry_points: bool,
     pub mesh_shader: bool,
     pub task_shader: bool,
     /// shaderInt64 and shaderBufferInt64Atomics.
@@ -88,6 +91,7 @@ impl fmt::Display for Capabilities {
         writeln!(f, "driver            {}", self.driver)?;
         writeln!(f, "vulkan            {}", self.api_version)?;
         writeln!(f, "geometry shader   {}", yes(self.geometry_shader))?;
+        writeln!(f, "geometry points   {}", yes(self.geometry_points))?;
         writeln!(
             f,
             "mesh/task shader  {}/{}",
@@ -305,6 +309,9 @@ impl Context {
 
         let core = vk::PhysicalDeviceFeatures::default()
             .geometry_shader(core_q.geometry_shader != 0)
+            .shader_tessellation_and_geometry_point_size(
+                core_q.shader_tessellation_and_geometry_point_size != 0,
+            )
             .large_points(core_q.large_points != 0)
             .shader_int64(core_q.shader_int64 != 0)
             .fragment_stores_and_atomics(core_q.fragment_stores_and_atomics != 0)
@@ -635,6 +642,9 @@ unsafe fn capabilities(
         ),
         device_type: format!("{:?}", props.device_type),
         geometry_shader: core.geometry_shader != 0,
+        geometry_points: core.geometry_shader != 0
+            && core.shader_tessellation_and_geometry_point_size != 0
+            && core.vertex_pipeline_stores_and_atomics != 0,
         mesh_shader: mesh.is_some_and(|m| m.mesh_shader != 0),
         task_shader: mesh.is_some_and(|m| m.task_shader != 0),
         buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0 && core.shader_int64 != 0,

@@ -136,6 +136,38 @@ pub struct HprParams {
     pub max_edge: f32,
 }
 
+/// One patch of the object texture (`GpuLodPatch` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLodPatch {
+    pub sphere: Vec4,
+    pub normal: Vec4,
+    pub errors: Vec4,
+    pub counts: [u32; 4],
+    pub offset: u32,
+    pub levels: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+}
+
+/// One vertex of the object texture (`GpuLodVertex` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLodVertex {
+    pub sphere: Vec4,
+    pub normal: Vec4,
+}
+
+/// Push constants of the LOD selection (`LodParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct LodParams {
+    pub epsilon: f32,
+    pub patch_count: u32,
+    pub max_point_size: f32,
+    pub pad0: u32,
+}
+
 /// The per-frame HPR state (`HprFrame` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -292,6 +324,23 @@ pub fn mirrors() -> Vec<Mirror> {
             level_count,
             radius_scale,
             falloff
+        }),
+        mirror!(GpuLodPatch {
+            sphere,
+            normal,
+            errors,
+            counts,
+            offset,
+            levels,
+            pad0,
+            pad1
+        }),
+        mirror!(GpuLodVertex { sphere, normal }),
+        mirror!(LodParams {
+            epsilon,
+            patch_count,
+            max_point_size,
+            pad0
         }),
         mirror!(HprParams {
             sqrt_k_max,

@@ -208,6 +208,32 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("SEGMAX_GROUP", 256),
     // Specialization constant id of the scatter's subgroups per workgroup.
     ("SORT_SPEC_SUBGROUPS", 0),
+    // Level of detail from object textures (000 ch. 7, src/lod): the patches (GpuLodPatch),
+    // the object texture's vertices (GpuLodVertex), the list of selected vertex indices and
+    // its counters (a VkDrawIndirectCommand, then the vertices selected per level). The
+    // selection runs one thread per patch in groups of LOD_GROUP; LOD_MAX_LEVELS levels at
+    // most (a patch's per-level counts and errors are one uvec4 and one vec4).
+    ("BINDING_LOD_PATCHES", 52),
+    ("BINDING_LOD_VERTICES", 53),
+    ("BINDING_LOD_LIST", 54),
+    ("BINDING_LOD_COUNTERS", 55),
+    ("LOD_GROUP", 64),
+    ("LOD_MAX_LEVELS", 4),
+    // Splats colored by level (thesis Fig. 7.4: grey, yellow, blue, red for levels 0-3), sRGB.
+    ("LOD_COLOR_0", 0x9e9e9e),
+    ("LOD_COLOR_1", 0xf0c81e),
+    ("LOD_COLOR_2", 0x3c64e6),
+    ("LOD_COLOR_3", 0xe63c3c),
+    // Specialization constant ids of the LOD draws: color by level (1) or the base color (0);
+    // the mesh and geometry paths also append what they emit to the list (tests).
+    ("LOD_SPEC_COLOR_LEVELS", 0),
+    ("LOD_SPEC_RECORD", 1),
+    // The mesh path: a task workgroup chooses the levels of LOD_TASK_GROUP patches and
+    // launches one mesh workgroup per patch, of LOD_PATCH_VERTICES threads (the most vertices
+    // a level of a patch holds: 4^(LOD_MAX_LEVELS - 1)); the geometry path emits at most
+    // LOD_PATCH_VERTICES points per patch.
+    ("LOD_TASK_GROUP", 32),
+    ("LOD_PATCH_VERTICES", 64),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -422,6 +448,49 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "pad2"),
             f("uint", "pad3"),
             f("uint", "pad4"),
+        ],
+    },
+    // One patch of the object texture (000 7.1): the representative splat, the per-level
+    // errors and vertex counts, and where its vertices start. 80 bytes.
+    StructSpec {
+        name: "GpuLodPatch",
+        fields: &[
+            // xyz: the representative's centre, w: its radius.
+            f("vec4", "sphere"),
+            // xyz: the representative's unit normal, w: unused.
+            f("vec4", "normal"),
+            // The perpendicular error of each level (levels 1..l, so nondecreasing; 0 at
+            // level 0); unused levels repeat the last.
+            f("vec4", "errors"),
+            // Vertices of each level (the representative's level holds 1; unused levels 0).
+            f("uvec4", "counts"),
+            // First vertex of the patch (the representative), coarsest level first.
+            f("uint", "offset"),
+            f("uint", "levels"),
+            f("uint", "pad0"),
+            f("uint", "pad1"),
+        ],
+    },
+    // One vertex of the object texture. 32 bytes.
+    StructSpec {
+        name: "GpuLodVertex",
+        fields: &[
+            // xyz: centre, w: radius.
+            f("vec4", "sphere"),
+            // xyz: unit normal, w: the level.
+            f("vec4", "normal"),
+        ],
+    },
+    // Push constants of the LOD selection (src/lod/gpu.rs).
+    StructSpec {
+        name: "LodParams",
+        fields: &[
+            // The threshold ε of the projected error, in pixels.
+            f("float", "epsilon"),
+            f("uint", "patch_count"),
+            // The draw's largest point size in pixels.
+            f("float", "max_point_size"),
+            f("uint", "pad0"),
         ],
     },
 ];

@@ -27,6 +27,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: true,
     features: &[],
     culls_batches: false,
+    needs_lod: false,
     build,
 };
 

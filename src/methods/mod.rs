@@ -5,6 +5,7 @@
 pub mod compute;
 mod ewa;
 pub mod hpr;
+mod lod;
 mod mesh;
 mod points;
 pub mod pyramid;
@@ -51,6 +52,8 @@ pub struct MethodInfo {
     /// Projects only the points of batches inside the view frustum (`streams::batch_visible`);
     /// otherwise every point goes through projection each frame.
     pub culls_batches: bool,
+    /// Draws the scene's object texture (`GpuScene::lod`, level of detail of 000 ch. 7).
+    pub needs_lod: bool,
     pub build: fn(&mut BuildContext<'_>) -> Result<()>,
 }
 
@@ -64,6 +67,9 @@ pub enum Feature {
     MeshShader,
     /// Geometry shaders.
     GeometryShader,
+    /// Geometry shaders that emit sized points and write storage buffers
+    /// (`shaderTessellationAndGeometryPointSize`, `vertexPipelineStoresAndAtomics`).
+    GeometryPoints,
 }
 
 impl Feature {
@@ -73,6 +79,7 @@ impl Feature {
             Feature::Int64Atomics => caps.buffer_int64_atomics,
             Feature::MeshShader => caps.mesh_shader && caps.task_shader,
             Feature::GeometryShader => caps.geometry_shader,
+            Feature::GeometryPoints => caps.geometry_points,
         }
     }
 
@@ -83,6 +90,10 @@ impl Feature {
             }
             Feature::MeshShader => "mesh and task shaders (VK_EXT_mesh_shader)",
             Feature::GeometryShader => "geometry shaders",
+            Feature::GeometryPoints => {
+                "geometry shaders writing point sizes and storage buffers \
+                 (shaderTessellationAndGeometryPointSize, vertexPipelineStoresAndAtomics)"
+            }
         }
     }
 }
@@ -137,6 +148,9 @@ pub static METHODS: &[MethodInfo] = &[
     pyramid::kernel::KERNEL7,
     hpr::INFO,
     hpr::MESH_INFO,
+    lod::COMPUTE_INFO,
+    lod::MESH_INFO,
+    lod::GEOMETRY_INFO,
 ];
 
 /// Looks a method up by name.
@@ -245,6 +259,9 @@ pub struct GpuScene {
     /// R / D² of hidden point removal's flipping radius from the sampling density
     /// (`hpr::Radius::Density`: κ / the sample spacing).
     pub hpr_density: f32,
+    /// The object texture of level of detail (000 ch. 7), when uploaded
+    /// (`UploadOptions::lod`).
+    pub lod: Option<Arc<crate::lod::gpu::GpuLod>>,
 }
 
 /// The standard outputs every method writes.

@@ -26,6 +26,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[],
     culls_batches: false,
+    needs_lod: false,
     build,
 };
 

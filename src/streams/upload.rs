@@ -23,6 +23,9 @@ pub struct UploadOptions {
     /// The scalar field (index into `Cloud::scalars`) to upload: the one the frame is colored
     /// by. Only that one reaches the GPU.
     pub scalar: Option<usize>,
+    /// Also build and upload the object texture of level of detail (`crate::lod`, for the
+    /// methods with `needs_lod`; the cloud needs normals and radii).
+    pub lod: bool,
 }
 
 impl Default for UploadOptions {
@@ -31,6 +34,7 @@ impl Default for UploadOptions {
             segment_points: None,
             chunk_bytes: 32 << 20,
             scalar: None,
+            lod: false,
         }
     }
 }

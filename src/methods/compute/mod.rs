@@ -38,6 +38,7 @@ pub const COMPUTE: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
+    needs_lod: false,
     build: build_nearest,
 };
 
@@ -57,6 +58,7 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
+    needs_lod: false,
     build: build_high_quality,
 };
 

@@ -79,6 +79,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
+    needs_lod: false,
     build,
 };
 

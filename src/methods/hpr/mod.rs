@@ -651,6 +651,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
+    needs_lod: false,
     build: build_points,
 };
 
@@ -661,6 +662,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: false,
+    needs_lod: false,
     build: build_mesh,
 };
 

@@ -130,6 +130,7 @@ pub const INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
+    needs_lod: false,
     build,
 };
 
@@ -141,6 +142,7 @@ pub const HYBRID_INFO: MethodInfo = MethodInfo {
     needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
+    needs_lod: false,
     build: build_hybrid,
 };
 

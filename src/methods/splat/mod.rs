@@ -75,6 +75,7 @@ const fn info(
         needs_faces: false,
         features: &[],
         culls_batches: false,
+        needs_lod: false,
         build,
     }
 }

@@ -1,0 +1,54 @@
+#version 460
+// The geometry expansion's draw (000 7.2): the geometry shader chooses the patch's level and
+// emits that level's vertices, fetched from the object texture, as points (at most
+// LOD_PATCH_VERTICES, within every device's maxGeometryOutputVertices and total output
+// components). It adds its count to the counters; under RECORD it also appends the emitted
+// vertex indices to the list (tests).
+#include "lod.glsl"
+
+layout(points) in;
+layout(points, max_vertices = LOD_PATCH_VERTICES) out;
+
+layout(constant_id = LOD_SPEC_COLOR_LEVELS) const bool COLOR_LEVELS = false;
+layout(constant_id = LOD_SPEC_RECORD) const bool RECORD = false;
+
+layout(std430, set = 0, binding = BINDING_LOD_PATCHES) readonly buffer Patches {
+    GpuLodPatch patches[];
+};
+layout(std430, set = 0, binding = BINDING_LOD_VERTICES) readonly buffer Vertices {
+    GpuLodVertex vertices[];
+};
+layout(std430, set = 0, binding = BINDING_LOD_LIST) writeonly buffer List { uint list[]; };
+layout(std430, set = 0, binding = BINDING_LOD_COUNTERS) buffer Counters {
+    uint draw[4];
+    uint per_level[LOD_MAX_LEVELS];
+};
+
+layout(push_constant) uniform Push { LodParams pc; };
+
+layout(location = 0) flat in uint v_patch[];
+
+layout(location = 0) out vec3 v_albedo;
+layout(location = 1) out vec3 v_normal;
+layout(location = 2) out vec3 v_view_pos;
+
+void main() {
+    GpuLodPatch rep = patches[v_patch[0]];
+    uint level = lod_level(rep, pc.epsilon);
+    uint count = rep.counts[level];
+    uint first = lod_level_offset(rep, level);
+    atomicAdd(per_level[level], count);
+    uint base = RECORD ? atomicAdd(draw[0], count) : 0u;
+    for (uint k = 0u; k < count; ++k) {
+        if (RECORD) {
+            list[base + k] = first + k;
+        }
+        LodPoint o = lod_point(vertices[first + k], pc.max_point_size, COLOR_LEVELS);
+        gl_Position = o.position;
+        gl_PointSize = o.size;
+        v_albedo = o.albedo;
+        v_normal = o.normal;
+        v_view_pos = o.view_pos;
+        EmitVertex();
+    }
+}

@@ -1,0 +1,68 @@
+// Level of detail from object textures (000 ch. 7, src/lod): the per-patch level choice every
+// expansion path shares.
+#ifndef SURFEL_LOD_GLSL
+#define SURFEL_LOD_GLSL
+#include "common.glsl"
+
+// The eye in world space (the view matrix is rigid).
+vec3 lod_eye() {
+    return -(transpose(mat3(frame.u.view)) * frame.u.view[3].xyz);
+}
+
+// Pixels per unit of tan(angle) at distance 1: viewport height / (2 tan(fov_y / 2)).
+float lod_focal() {
+    return abs(frame.u.proj[1][1]) * frame.u.viewport.y * 0.5;
+}
+
+// The coarsest level whose perpendicular error, projected as e_p sin(alpha) / |v| (alpha the
+// angle between the view vector v and the representative's normal) and scaled to pixels, is
+// at most epsilon (000 7.1.2); `ObjectTexture::choose` is the CPU reference.
+uint lod_level(GpuLodPatch rep, float epsilon) {
+    vec3 v = rep.sphere.xyz - lod_eye();
+    float dist = max(length(v), 1.17549435e-38);
+    float c = clamp(dot(v, rep.normal.xyz) / dist, -1.0, 1.0);
+    float scale = sqrt(1.0 - c * c) / dist * lod_focal();
+    for (uint l = rep.levels - 1u; l > 0u; --l) {
+        if (rep.errors[l] * scale <= epsilon) {
+            return l;
+        }
+    }
+    return 0u;
+}
+
+// First vertex of `level` in the object texture: the patch's levels are stored coarsest first.
+uint lod_level_offset(GpuLodPatch rep, uint level) {
+    uint first = rep.offset;
+    for (uint l = rep.levels - 1u; l > level; --l) {
+        first += rep.counts[l];
+    }
+    return first;
+}
+// What every draw path emits for one object-texture vertex: a point covering the splat's
+// projected diameter (at most `max_size` pixels), colored by level (thesis Fig. 7.4) or with
+// the base color, shaded by splat/points.frag. (The thesis projects the vertices into its
+// pyramid renderer; these paths draw them as screen-aligned squares.)
+struct LodPoint {
+    vec4 position;
+    float size;
+    vec3 albedo;
+    vec3 normal;
+    vec3 view_pos;
+};
+
+LodPoint lod_point(GpuLodVertex v, float max_size, bool color_levels) {
+    LodPoint o;
+    vec4 view_pos = frame.u.view * vec4(v.sphere.xyz, 1.0);
+    o.position = frame.u.proj * view_pos;
+    float depth = max(-view_pos.z, 1e-6);
+    o.size = clamp(2.0 * v.sphere.w * lod_focal() / depth, 1.0, max_size);
+    const uint colors[4] = uint[](LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3);
+    uint c = colors[min(uint(v.normal.w), 3u)];
+    o.albedo = color_levels
+        ? srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0)
+        : frame.u.base_color.rgb;
+    o.normal = mat3(frame.u.view) * v.normal.xyz;
+    o.view_pos = view_pos.xyz;
+    return o;
+}
+#endif

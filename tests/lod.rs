@@ -1,0 +1,290 @@
+//! Level of detail from object textures (000 ch. 7) on lavapipe under validation: every
+//! expansion path (compute, mesh) emits, for fixed cameras, exactly the vertices the CPU
+//! reference (`ObjectTexture::select`) chooses and counts them per level; the methods render.
+
+mod common;
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{Mat4, Vec3, Vec4};
+use surfel::gpu::layout::FrameBlock;
+use surfel::gpu::{Buffer, Context, FrameRing, ImageDesc};
+use surfel::graph::{Access, BufferId, GraphBuilder};
+use surfel::lod::gpu::{
+    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, GpuLod, LodInputs, COUNTER_BYTES,
+};
+use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
+use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use surfel::scene::Cloud;
+use surfel::streams::UploadOptions;
+
+const SIZE: f32 = 512.0;
+
+/// A unit sphere of `n` points (Fibonacci spiral) with outward normals.
+fn sphere(n: usize) -> (Vec<Vec3>, Vec<f32>) {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let p = (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let s = (1.0 - y * y).sqrt();
+            let a = golden * i as f32;
+            Vec3::new(s * a.cos(), y, s * a.sin())
+        })
+        .collect();
+    (p, vec![(4.0 / n as f32).sqrt(); n])
+}
+
+/// Copies the first `size` bytes of `src` into a new host-visible buffer `name` after the
+/// passes declared so far.
+fn readback(
+    ctx: &Arc<Context>,
+    g: &mut GraphBuilder,
+    name: &str,
+    src: BufferId,
+    size: u64,
+) -> Arc<Buffer> {
+    let host = Arc::new(Buffer::readback(ctx, name, size).expect("readback"));
+    let id = g.import_buffer(name, host.clone());
+    let region = [vk::BufferCopy {
+        src_offset: 0,
+        dst_offset: 0,
+        size,
+    }];
+    g.copy_buffer(&format!("{name}.download"), src, id, &region);
+    g.pass(&format!("{name}.host"))
+        .buffer(id, Access::HostRead)
+        .record(|_| {});
+    host
+}
+
+fn words(buffer: &Buffer) -> Vec<u32> {
+    bytemuck::cast_slice(buffer.mapped().expect("mapped")).to_vec()
+}
+
+/// An expansion path under test.
+#[derive(Clone, Copy, Debug)]
+enum Path {
+    Compute,
+    Mesh,
+    Geometry,
+}
+
+/// Draws the object texture once with `path` for the camera `view`, `proj` into a small
+/// target; returns the emitted vertex indices (sorted) and the counts per level.
+fn emitted(
+    ctx: &Arc<Context>,
+    lod: &GpuLod,
+    path: Path,
+    view: Mat4,
+    proj: Mat4,
+    epsilon: f32,
+) -> (Vec<u32>, Vec<u32>) {
+    let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
+    block.u.view = view;
+    block.u.proj = proj;
+    block.u.view_proj = proj * view;
+    block.u.viewport = Vec4::new(SIZE, SIZE, 1.0 / SIZE, 1.0 / SIZE);
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let frame_buffer = Arc::new(
+        Buffer::with_data(ctx, "frame", bytemuck::bytes_of(&block), usage).expect("frame"),
+    );
+    let mut g = GraphBuilder::new();
+    let frame = g.import_buffer_with("frame", frame_buffer, Access::TransferDst);
+    let inputs = LodInputs::import(&mut g, frame, lod);
+    let image = |g: &mut GraphBuilder, name: &str, format, usage| {
+        g.image(
+            name,
+            ImageDesc {
+                format,
+                width: 64,
+                height: 64,
+                mip_levels: 1,
+                usage,
+            },
+        )
+    };
+    let color = vk::ImageUsageFlags::COLOR_ATTACHMENT;
+    let targets = DrawTargets {
+        color: image(&mut g, "color", COLOR_FORMAT, color),
+        depth: image(&mut g, "depth", DEPTH_FORMAT, color),
+        normal: image(&mut g, "normal", NORMAL_FORMAT, color),
+        zbuffer: image(
+            &mut g,
+            "zbuffer",
+            ZBUFFER_FORMAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+        ),
+    };
+    let options = DrawOptions {
+        epsilon,
+        color_levels: false,
+        max_point_size: 4.0,
+        record: true,
+    };
+    let add = match path {
+        Path::Compute => add_compute,
+        Path::Mesh => add_mesh,
+        Path::Geometry => add_geometry,
+    };
+    let selection = add(ctx, &mut g, "lod", lod, inputs, options, targets).expect("path");
+    let list_bytes = u64::from(lod.max_selected) * 4;
+    let list = readback(ctx, &mut g, "list", selection.list, list_bytes);
+    let counters = readback(ctx, &mut g, "counts", selection.counters, COUNTER_BYTES);
+    let mut graph = g.compile(ctx).expect("compile");
+    let mut frames = FrameRing::new(ctx, 1, false).expect("frame ring");
+    let slot = frames.advance().expect("wait");
+    let cmd = frames.begin().expect("begin");
+    graph.record(cmd, slot, false);
+    frames.end().expect("end");
+    frames.submit(None, None).expect("submit");
+    frames.wait(slot).expect("wait");
+    let counters = words(&counters);
+    let mut list = words(&list);
+    list.truncate(counters[0] as usize);
+    list.sort_unstable();
+    (list, counters[4..].to_vec())
+}
+
+/// The paths the device can run (lavapipe has mesh and geometry shaders).
+fn paths(ctx: &Context) -> Vec<Path> {
+    let mut paths = vec![Path::Compute];
+    if ctx.caps.mesh_shader && ctx.caps.task_shader {
+        paths.push(Path::Mesh);
+    } else {
+        eprintln!("skipping the mesh path: the device has no mesh shaders");
+    }
+    if ctx.caps.geometry_points {
+        paths.push(Path::Geometry);
+    } else {
+        eprintln!("skipping the geometry path: the device cannot emit sized points");
+    }
+    paths
+}
+
+#[test]
+fn every_path_emits_the_cpu_reference_sample_set() {
+    let ctx = common::context();
+    let (p, r) = sphere(30_000);
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let lod = GpuLod::upload(&ctx, &texture).expect("upload");
+    let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
+    let mut totals = Vec::new();
+    for (eye, epsilon) in [
+        (1.5, 0.5),
+        (3.0, 0.5),
+        (3.0, 2.0),
+        (30.0, 0.5),
+        (300.0, 0.5),
+    ] {
+        let view = Mat4::look_at_rh(Vec3::new(0.3, 0.2, eye), Vec3::ZERO, Vec3::Y);
+        let reference = LodView::from_camera(view, proj, SIZE, epsilon);
+        let mut expected: Vec<u32> = texture.select(&reference).into_iter().flatten().collect();
+        expected.sort_unstable();
+        let per_level: Vec<u32> = texture
+            .histogram(&reference)
+            .iter()
+            .map(|&c| c as u32)
+            .collect();
+        for path in paths(&ctx) {
+            let (list, counts) = emitted(&ctx, &lod, path, view, proj, epsilon);
+            assert_eq!(counts, per_level, "{path:?}: eye at {eye}, ε {epsilon}");
+            assert!(
+                list == expected,
+                "{path:?}: eye at {eye}, ε {epsilon}: lists differ"
+            );
+        }
+        totals.push(expected.len());
+    }
+    // Nearer and stricter views select more.
+    assert!(totals[0] > totals[1] && totals[1] > totals[2], "{totals:?}");
+    assert!(
+        totals[1] > totals[3] && totals[3] >= totals[4],
+        "{totals:?}"
+    );
+    assert_eq!(
+        totals[4],
+        texture.patches.len(),
+        "far: only representatives"
+    );
+    drop(lod);
+    common::assert_clean(&ctx);
+}
+
+fn sphere_cloud(n: usize) -> Cloud {
+    let (positions, radii) = sphere(n);
+    Cloud {
+        normals: Some(positions.clone()),
+        radii: Some(radii),
+        positions,
+        ..Default::default()
+    }
+}
+
+fn with_lod() -> UploadOptions {
+    UploadOptions {
+        lod: true,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn lod_methods_cover_the_sphere_at_every_threshold_and_agree() {
+    let cloud = sphere_cloud(20_000);
+    let others: Vec<&str> = {
+        let ctx = common::context();
+        let mut others = Vec::new();
+        if ctx.caps.mesh_shader && ctx.caps.task_shader {
+            others.push("lod-mesh");
+        }
+        if ctx.caps.geometry_points {
+            others.push("lod-geometry");
+        }
+        others
+    };
+    let compute = common::render_with(&cloud, "lod-compute:epsilon=0", 128, with_lod());
+    let coarse = common::render_with(&cloud, "lod-compute:epsilon=8", 128, with_lod());
+    let (a, b) = (common::coverage(&compute), common::coverage(&coarse));
+    // The framed sphere's disc covers about a quarter of the image.
+    assert!(a > 0.2, "coverage {a}");
+    // Coarser levels draw fewer, larger splats (their radii cover the children's discs, drawn
+    // as squares): no holes open, the silhouette grows.
+    assert!(b >= 0.95 * a, "coverage {a} vs {b}");
+    for epsilon in [0, 8] {
+        let method = |m: &str| format!("{m}:epsilon={epsilon}");
+        let c = common::render_with(&cloud, &method("lod-compute"), 128, with_lod());
+        for other in &others {
+            let m = common::render_with(&cloud, &method(other), 128, with_lod());
+            // The same points in another order: only depth ties may differ.
+            let same = c.color.iter().zip(&m.color).filter(|(x, y)| x == y).count();
+            assert!(
+                same * 100 >= 99 * c.color.len(),
+                "{other}, ε {epsilon}: {same} pixels agree"
+            );
+        }
+    }
+}
+
+#[test]
+fn lod_compute_colors_coarse_levels_when_asked() {
+    let cloud = sphere_cloud(20_000);
+    let frame = common::render_with(&cloud, "lod-compute:epsilon=64,levels=1", 128, with_lod());
+    // Level 3 (red, 0xe63c3c) dominates a framed sphere at a loose threshold: red over green.
+    let pixels: Vec<&[u8; 4]> = frame.color.iter().filter(|p| p[3] > 0).collect();
+    let red = pixels.iter().filter(|p| p[0] > 2 * p[1].max(p[2])).count();
+    assert!(red * 2 > pixels.len(), "{red} of {}", pixels.len());
+}
+
+#[test]
+fn lod_methods_need_the_object_texture() {
+    let ctx = common::context();
+    let (scene, info) = surfel::render::upload(&ctx, &sphere_cloud(100)).expect("upload");
+    let config = surfel::methods::MethodConfig::parse("lod-compute").expect("method");
+    let err =
+        surfel::render::Renderer::new(&ctx, &scene, info, &config, 16, 16, Default::default())
+            .err()
+            .expect("refused");
+    assert!(err.to_string().contains("object texture"), "{err}");
+    drop(scene);
+    common::assert_clean(&ctx);
+}
