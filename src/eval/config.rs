@@ -1006,6 +1006,8 @@ values = [1.0, 0.1]
             "pyramid-stress.toml",
             "plants.toml",
             "kernel.toml",
+            "hpr.toml",
+            "lod.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

@@ -94,6 +94,7 @@ pub const KERNEL3: MethodInfo = MethodInfo {
               kernel spans it, every pixel searching every level (000 ch. 6)",
     params: PARAMS,
     needs_faces: false,
+    needs_lod: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     build: build3,
