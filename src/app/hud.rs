@@ -62,6 +62,17 @@ impl FrameRate {
     }
 }
 
+/// What a method projects of the cloud.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Projected {
+    /// Every point.
+    All,
+    /// The points of the batches in view (counted on the host).
+    InView(u64),
+    /// Samples its level of detail selects on the GPU (not read back).
+    LevelOfDetail,
+}
+
 /// The figures the statistics panel shows.
 pub struct Stats<'a> {
     pub method: &'a str,
@@ -69,8 +80,8 @@ pub struct Stats<'a> {
     /// Per-pass GPU milliseconds of the newest completed frame.
     pub passes: &'a [(String, f64)],
     pub points: u64,
-    /// Points the method projects this frame when it culls batches; `None`: all of them.
-    pub projected: Option<u64>,
+    /// What the method projects this frame.
+    pub projected: Projected,
     pub width: u32,
     pub height: u32,
     pub fps: Option<f64>,
@@ -132,12 +143,16 @@ impl Hud {
         // on the host with the shader's own test); the others project every point.
         stats.push(HudLine::new(
             match s.projected {
-                Some(n) => format!(
+                Projected::InView(n) => format!(
                     "points {}, {} projected (batches in view)",
                     thousands(s.points),
                     thousands(n)
                 ),
-                None => format!("points {}, all projected", thousands(s.points)),
+                Projected::All => format!("points {}, all projected", thousands(s.points)),
+                Projected::LevelOfDetail => format!(
+                    "points {}, level of detail selects the samples",
+                    thousands(s.points)
+                ),
             },
             HudLine::TEXT,
         ));
@@ -213,7 +228,7 @@ mod tests {
             file: "autzen.las",
             passes,
             points: 110_000,
-            projected: Some(54_321),
+            projected: Projected::InView(54_321),
             width: 800,
             height: 600,
             fps: Some(59.94),
@@ -254,7 +269,7 @@ mod tests {
     #[test]
     fn methods_without_batch_culling_project_every_point() {
         let s = Stats {
-            projected: None,
+            projected: Projected::All,
             ..stats(&[])
         };
         let hud = Hud::new(&s, false);
@@ -262,6 +277,15 @@ mod tests {
             .stats
             .iter()
             .any(|l| l.text == "points 110,000, all projected"));
+        let s = Stats {
+            projected: Projected::LevelOfDetail,
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        assert!(hud
+            .stats
+            .iter()
+            .any(|l| l.text == "points 110,000, level of detail selects the samples"));
     }
 
     #[test]

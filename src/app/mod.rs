@@ -557,16 +557,17 @@ impl Viewer {
             .collect();
         let label = gpu.renderer.config.label();
         let projected = match &self.scene {
+            _ if gpu.renderer.config.method.needs_lod => hud::Projected::LevelOfDetail,
             Some((scene, _)) if gpu.renderer.config.method.culls_batches => {
                 let camera = self.orbit.camera();
                 let aspect = gpu.renderer.width as f32 / gpu.renderer.height.max(1) as f32;
                 let view_proj = camera.projection(aspect) * camera.view();
-                Some(crate::streams::projected_points(
+                hud::Projected::InView(crate::streams::projected_points(
                     view_proj,
                     &scene.streams.host_batches,
                 ))
             }
-            _ => None,
+            _ => hud::Projected::All,
         };
         let hud = Hud::new(
             &Stats {
