@@ -20,7 +20,7 @@ use surfel::methods::pyramid::kernel_reference::{self, searched_levels};
 use surfel::methods::pyramid::reference::{Level, Texel};
 use surfel::scene::{Camera, Cloud};
 
-use common::render_view;
+use common::{assert_levels_match, render_view};
 
 /// (proj[0][0] width, proj[1][1] height) of the synthetic frames (see tests/pyramid.rs).
 const SCALE: Vec2 = Vec2::new(40.0, -40.0);
@@ -217,44 +217,6 @@ fn random_level(w: u32, h: u32, seed: u64) -> Level {
         .stored();
     }
     level
-}
-
-/// Texels of `gpu` and `cpu` agree: same validity, values within half-precision tolerance.
-fn assert_levels_match(gpu: &[Level], cpu: &[Level], what: &str) {
-    assert_eq!(gpu.len(), cpu.len(), "{what}: levels");
-    for (l, (g, c)) in gpu.iter().zip(cpu).enumerate() {
-        assert_eq!(
-            (g.width, g.height),
-            (c.width, c.height),
-            "{what}: level {l} size"
-        );
-        for (i, (a, b)) in g.texels.iter().zip(&c.texels).enumerate() {
-            let at = format!("{what}: level {l} texel {i}");
-            assert_eq!(a.is_empty(), b.is_empty(), "{at}: {a:?} vs {b:?}");
-            if a.is_empty() {
-                continue;
-            }
-            let near = |x: f32, y: f32, tol: f32| (x - y).abs() <= tol * y.abs().max(1.0);
-            assert!((a.n - b.n).length() < 4e-3, "{at}: normal {a:?} vs {b:?}");
-            assert!(
-                near(a.radius, b.radius, 2e-3),
-                "{at}: radius {a:?} vs {b:?}"
-            );
-            assert!(near(a.depth, b.depth, 1e-5), "{at}: depth {a:?} vs {b:?}");
-            assert!(
-                near(a.half_range, b.half_range, 1e-5),
-                "{at}: range {a:?} vs {b:?}"
-            );
-            assert!(
-                (a.disp - b.disp).length() < 4e-3 * (1 << l) as f32,
-                "{at}: disp {a:?} vs {b:?}"
-            );
-            assert!(
-                (a.color - b.color).length() < 4e-3,
-                "{at}: color {a:?} vs {b:?}"
-            );
-        }
-    }
 }
 
 #[test]

@@ -19,7 +19,7 @@ use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
 use surfel::scene::{Camera, Cloud};
 
-use common::render_view;
+use common::{assert_levels_match, render_view};
 
 /// (proj[0][0] width, proj[1][1] height) of the synthetic frames: the pixel-space scale of
 /// view directions (the sign of y flips the image rows, as the renderer's projection does).
@@ -235,44 +235,6 @@ fn random_level(w: u32, h: u32, seed: u64) -> Level {
         .stored();
     }
     level
-}
-
-/// Texels of `gpu` and `cpu` agree: same validity, values within half-precision tolerance.
-fn assert_levels_match(gpu: &[Level], cpu: &[Level], what: &str) {
-    assert_eq!(gpu.len(), cpu.len(), "{what}: levels");
-    for (l, (g, c)) in gpu.iter().zip(cpu).enumerate() {
-        assert_eq!(
-            (g.width, g.height),
-            (c.width, c.height),
-            "{what}: level {l} size"
-        );
-        for (i, (a, b)) in g.texels.iter().zip(&c.texels).enumerate() {
-            let at = format!("{what}: level {l} texel {i}");
-            assert_eq!(a.is_empty(), b.is_empty(), "{at}: {a:?} vs {b:?}");
-            if a.is_empty() {
-                continue;
-            }
-            let near = |x: f32, y: f32, tol: f32| (x - y).abs() <= tol * y.abs().max(1.0);
-            assert!((a.n - b.n).length() < 4e-3, "{at}: normal {a:?} vs {b:?}");
-            assert!(
-                near(a.radius, b.radius, 2e-3),
-                "{at}: radius {a:?} vs {b:?}"
-            );
-            assert!(near(a.depth, b.depth, 1e-5), "{at}: depth {a:?} vs {b:?}");
-            assert!(
-                near(a.half_range, b.half_range, 1e-5),
-                "{at}: range {a:?} vs {b:?}"
-            );
-            assert!(
-                (a.disp - b.disp).length() < 4e-3 * (1 << l) as f32,
-                "{at}: disp {a:?} vs {b:?}"
-            );
-            assert!(
-                (a.color - b.color).length() < 4e-3,
-                "{at}: color {a:?} vs {b:?}"
-            );
-        }
-    }
 }
 
 #[test]

@@ -163,3 +163,45 @@ pub fn layer(n: usize, color: [u8; 4], z: f32, keep: impl Fn(f32) -> bool) -> Cl
         ..Default::default()
     }
 }
+
+/// Texels of `gpu` and `cpu` agree: same validity, values within half-precision tolerance.
+pub fn assert_levels_match(
+    gpu: &[surfel::methods::pyramid::reference::Level],
+    cpu: &[surfel::methods::pyramid::reference::Level],
+    what: &str,
+) {
+    assert_eq!(gpu.len(), cpu.len(), "{what}: levels");
+    for (l, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+        assert_eq!(
+            (g.width, g.height),
+            (c.width, c.height),
+            "{what}: level {l} size"
+        );
+        for (i, (a, b)) in g.texels.iter().zip(&c.texels).enumerate() {
+            let at = format!("{what}: level {l} texel {i}");
+            assert_eq!(a.is_empty(), b.is_empty(), "{at}: {a:?} vs {b:?}");
+            if a.is_empty() {
+                continue;
+            }
+            let near = |x: f32, y: f32, tol: f32| (x - y).abs() <= tol * y.abs().max(1.0);
+            assert!((a.n - b.n).length() < 4e-3, "{at}: normal {a:?} vs {b:?}");
+            assert!(
+                near(a.radius, b.radius, 2e-3),
+                "{at}: radius {a:?} vs {b:?}"
+            );
+            assert!(near(a.depth, b.depth, 1e-5), "{at}: depth {a:?} vs {b:?}");
+            assert!(
+                near(a.half_range, b.half_range, 1e-5),
+                "{at}: range {a:?} vs {b:?}"
+            );
+            assert!(
+                (a.disp - b.disp).length() < 4e-3 * (1 << l) as f32,
+                "{at}: disp {a:?} vs {b:?}"
+            );
+            assert!(
+                (a.color - b.color).length() < 4e-3,
+                "{at}: color {a:?} vs {b:?}"
+            );
+        }
+    }
+}
