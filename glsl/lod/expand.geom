@@ -34,6 +34,9 @@ layout(location = 2) out vec3 v_view_pos;
 
 void main() {
     GpuLodPatch rep = patches[v_patch[0]];
+    if (!lod_in_view(rep)) {
+        return;
+    }
     uint level = lod_level(rep, pc.epsilon);
     uint count = rep.counts[level];
     uint first = lod_level_offset(rep, level);

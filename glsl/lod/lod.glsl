@@ -30,6 +30,24 @@ uint lod_level(GpuLodPatch rep, float epsilon) {
     return 0u;
 }
 
+// Whether the patch's bounding sphere (the representative's disc covers its descendants')
+// reaches into the view: inside the four side planes and in front of the eye's plane
+// (`ObjectTexture::in_view` is the CPU reference). Culled patches emit nothing.
+bool lod_in_view(GpuLodPatch rep) {
+    mat4 m = frame.u.view_proj;
+    vec4 x = vec4(m[0][0], m[1][0], m[2][0], m[3][0]);
+    vec4 y = vec4(m[0][1], m[1][1], m[2][1], m[3][1]);
+    vec4 w = vec4(m[0][3], m[1][3], m[2][3], m[3][3]);
+    vec4 planes[5] = vec4[](w + x, w - x, w + y, w - y, w);
+    vec4 c = vec4(rep.sphere.xyz, 1.0);
+    for (int i = 0; i < 5; ++i) {
+        if (dot(planes[i], c) < -rep.sphere.w * length(planes[i].xyz)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 // First vertex of `level` in the object texture: the patch's levels are stored coarsest first.
 uint lod_level_offset(GpuLodPatch rep, uint level) {
     uint first = rep.offset;

@@ -24,6 +24,9 @@ void main() {
         return;
     }
     GpuLodPatch rep = patches[p];
+    if (!lod_in_view(rep)) {
+        return;
+    }
     uint level = lod_level(rep, pc.epsilon);
     uint count = rep.counts[level];
     uint first = lod_level_offset(rep, level);

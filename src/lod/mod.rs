@@ -305,6 +305,8 @@ pub struct LodView {
     pub focal_pixels: f32,
     /// The threshold ε in pixels.
     pub epsilon: f32,
+    /// Projection × view: patches outside its frustum are culled.
+    pub view_proj: Mat4,
 }
 
 impl LodView {
@@ -317,6 +319,7 @@ impl LodView {
             eye: -(glam::Mat3::from_mat4(view).transpose() * view.w_axis.truncate()),
             focal_pixels: proj.y_axis.y.abs() * height * 0.5,
             epsilon,
+            view_proj: proj * view,
         }
     }
 }
@@ -377,11 +380,28 @@ impl ObjectTexture {
             .unwrap_or(0)
     }
 
-    /// The vertices `view` draws: per patch, the chosen level's range.
+    /// Whether `patch`'s bounding sphere (the representative's, which covers its
+    /// descendants) reaches into `view`'s frustum: inside the four side planes and in front of
+    /// the eye's plane, as `lod_in_view` in `glsl/lod/lod.glsl` tests it.
+    pub fn in_view(&self, patch: &Patch, view: &LodView) -> bool {
+        let m = view.view_proj;
+        let (x, y, w) = (m.row(0), m.row(1), m.row(3));
+        let c = patch.representative.position.extend(1.0);
+        let r = patch.representative.radius;
+        [w + x, w - x, w + y, w - y, w]
+            .iter()
+            .all(|p| p.dot(c) >= -r * p.truncate().length())
+    }
+
+    /// The vertices `view` draws: per patch, the chosen level's range (empty for a patch
+    /// outside the view).
     pub fn select(&self, view: &LodView) -> Vec<std::ops::Range<u32>> {
         self.patches
             .iter()
             .map(|p| {
+                if !self.in_view(p, view) {
+                    return p.offset..p.offset;
+                }
                 let l = self.choose(p, view);
                 let first = p.level_offset(l);
                 first..first + p.counts[l as usize]
@@ -430,7 +450,7 @@ impl ObjectTexture {
     /// Vertices drawn per level for `view`.
     pub fn histogram(&self, view: &LodView) -> Vec<u64> {
         let mut h = vec![0u64; self.levels as usize];
-        for p in &self.patches {
+        for p in self.patches.iter().filter(|p| self.in_view(p, view)) {
             let l = self.choose(p, view);
             h[l as usize] += u64::from(p.counts[l as usize]);
         }
@@ -442,6 +462,40 @@ impl ObjectTexture {
 mod tests {
     use super::*;
     use crate::rng::SplitMix64;
+
+    /// A view from `eye` towards the origin whose frustum (150°) holds the whole unit sphere,
+    /// with the level choice's focal length and ε given separately.
+    fn wide_view(eye: Vec3, focal_pixels: f32, epsilon: f32) -> LodView {
+        let view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
+        let proj = Mat4::perspective_infinite_reverse_rh(150f32.to_radians(), 1.0, 0.01);
+        LodView {
+            focal_pixels,
+            ..LodView::from_camera(view, proj, 1.0, epsilon)
+        }
+    }
+
+    #[test]
+    fn patches_outside_the_view_are_culled() {
+        let (p, n, r) = sphere(10_000);
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let proj = Mat4::perspective_infinite_reverse_rh(40f32.to_radians(), 1.0, 0.01);
+        let at = |eye: Vec3, target: Vec3| {
+            LodView::from_camera(Mat4::look_at_rh(eye, target, Vec3::Y), proj, 512.0, 1.0)
+        };
+        let seen = |v: &LodView| t.patches.iter().filter(|p| t.in_view(p, v)).count();
+        // Framing the sphere: every patch; looking away: none, and nothing is selected;
+        // close up (the sphere fills more than the frustum): some.
+        assert_eq!(
+            seen(&at(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO)),
+            t.patches.len()
+        );
+        let away = at(Vec3::new(0.0, 0.0, 4.0), Vec3::new(0.0, 0.0, 8.0));
+        assert_eq!(seen(&away), 0);
+        assert!(t.select(&away).iter().all(|r| r.is_empty()));
+        assert_eq!(t.histogram(&away).iter().sum::<u64>(), 0);
+        let close = seen(&at(Vec3::new(0.0, 0.0, 1.6), Vec3::ZERO));
+        assert!(close > 0 && close < t.patches.len(), "{close}");
+    }
 
     /// A grid of `n` × `n` points on z = f(x, y) with normals and radii (spacing 1 / n).
     fn surface(n: usize, f: impl Fn(f32, f32) -> (f32, Vec3)) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
@@ -649,11 +703,7 @@ mod tests {
     fn lod_far_cameras_choose_coarse_levels_and_near_ones_fine() {
         let (p, n, r) = sphere(40_000);
         let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
-        let view = |d: f32| LodView {
-            eye: Vec3::new(0.0, 0.0, d),
-            focal_pixels: 1000.0,
-            epsilon: 0.5,
-        };
+        let view = |d: f32| wide_view(Vec3::new(0.0, 0.0, d), 1000.0, 0.5);
         let levels: Vec<f32> = [1.5, 3.0, 10.0, 100.0, 1000.0]
             .iter()
             .map(|&d| mean_level(&t, &view(d)))
@@ -678,11 +728,7 @@ mod tests {
     fn lod_silhouettes_get_finer_levels() {
         let (p, n, r) = sphere(40_000);
         let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
-        let view = LodView {
-            eye: Vec3::new(0.0, 0.0, 6.0),
-            focal_pixels: 1000.0,
-            epsilon: 0.5,
-        };
+        let view = wide_view(Vec3::new(0.0, 0.0, 6.0), 1000.0, 0.5);
         // Patches facing the eye (normal within 30° of the view axis) vs on the silhouette
         // (within 15° of perpendicular).
         let (mut front, mut rim) = (Vec::new(), Vec::new());
@@ -710,11 +756,7 @@ mod tests {
     fn lod_selection_ranges_hold_one_level_per_patch() {
         let (p, n, r) = sphere(10_000);
         let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
-        let view = LodView {
-            eye: Vec3::new(0.0, 0.0, 4.0),
-            focal_pixels: 800.0,
-            epsilon: 1.0,
-        };
+        let view = wide_view(Vec3::new(0.0, 0.0, 4.0), 800.0, 1.0);
         let ranges = t.select(&view);
         let hist = t.histogram(&view);
         assert_eq!(
