@@ -246,55 +246,28 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
             }
         }
         // R sweep (factors of the diameter) with exact HPR and the view's approximation.
+        let sweep = |positions: &[Vec3], radius: Radius, what: &str| -> Result<Vec<Row>> {
+            sweep_rows(positions, eye, radius, from_view, seen.as_deref(), what)
+        };
         for f in [100.0, 1_000.0, 10_000.0, 30_000.0] {
-            let radius = Radius::Factor(f);
-            let rr = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
-            let ex = exact(&cloud.positions, eye, radius)?;
-            let ap = approximate(&points, eye, from_view, rr, ADAPTIVE)?;
-            for (what, visible) in [
-                ("R sweep: exact", &ex.visible),
-                ("R sweep: adaptive", &ap.visible),
-            ] {
-                rows.push(Row {
-                    model: name.clone(),
-                    points: cloud.len(),
-                    what: format!("{what}, R = {f} x diameter"),
-                    sqrt_k: from_view,
-                    visible: visible.len(),
-                    exact: agreement(visible, &ex.visible),
-                    truth: seen.as_ref().map(|s| agreement(visible, s)),
-                    ..Default::default()
-                });
-            }
+            let what = format!("R sweep: {{}}, R = {f} x diameter");
+            rows.extend(sweep(&cloud.positions, Radius::Factor(f), &what)?);
         }
         // Noise sweep: Gaussian offsets (σ in sample spacings) against the clean mesh's
-        // visibility, R from the density of the noisy cloud.
-        if let Some(seen) = &seen {
+        // visibility, R from the density of the clean cloud.
+        if seen.is_some() {
+            let radius = Radius::Density {
+                spacing: spacing(&cloud),
+            };
             for sigma in [0.25, 0.5, 1.0, 2.0] {
                 let noisy = with_noise(&cloud, sigma * spacing(&cloud) as f32, 7);
-                let radius = Radius::Density {
-                    spacing: spacing(&cloud),
-                };
-                let rr = crate::hpr::flip_radius(&noisy.positions, eye, radius)?;
-                let ex = exact(&noisy.positions, eye, radius)?;
-                let np: Vec<DVec3> = noisy.positions.iter().map(|p| p.as_dvec3()).collect();
-                let ap = approximate(&np, eye, from_view, rr, ADAPTIVE)?;
-                for (what, visible) in [
-                    ("noise: exact", &ex.visible),
-                    ("noise: adaptive", &ap.visible),
-                ] {
-                    rows.push(Row {
-                        model: name.clone(),
-                        points: cloud.len(),
-                        what: format!("{what}, sigma = {sigma} spacing"),
-                        sqrt_k: from_view,
-                        visible: visible.len(),
-                        exact: agreement(visible, &ex.visible),
-                        truth: Some(agreement(visible, seen)),
-                        ..Default::default()
-                    });
-                }
+                let what = format!("noise: {{}}, sigma = {sigma} spacing");
+                rows.extend(sweep(&noisy.positions, radius, &what)?);
             }
+        }
+        for r in rows.iter_mut().filter(|r| r.model.is_empty()) {
+            r.model = name.clone();
+            r.points = cloud.len();
         }
         // The partial reconstruction (003 Table 5.3 setting): hpr-mesh against the mesh.
         if cloud.faces.is_some() {
@@ -377,6 +350,34 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         anyhow::bail!("{} Vulkan validation errors", ctx.validation_errors());
     }
     Ok(rows)
+}
+
+/// Exact HPR and the adaptive approximation at √k `sqrt_k` of `positions` from `eye`, as two
+/// rows named by `what` (`{}` replaced by "exact" and "adaptive"), scored against exact HPR
+/// and against `seen` when given (the model and point count are left for the caller).
+fn sweep_rows(
+    positions: &[Vec3],
+    eye: Vec3,
+    radius: Radius,
+    sqrt_k: u32,
+    seen: Option<&[u32]>,
+    what: &str,
+) -> Result<Vec<Row>> {
+    let r = crate::hpr::flip_radius(positions, eye, radius)?;
+    let ex = exact(positions, eye, radius)?;
+    let points: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
+    let ap = approximate(&points, eye, sqrt_k, r, ADAPTIVE)?;
+    Ok([("exact", &ex.visible), ("adaptive", &ap.visible)]
+        .into_iter()
+        .map(|(kind, visible)| Row {
+            what: what.replace("{}", kind),
+            sqrt_k,
+            visible: visible.len(),
+            exact: agreement(visible, &ex.visible),
+            truth: seen.map(|s| agreement(visible, s)),
+            ..Default::default()
+        })
+        .collect())
 }
 
 /// `cloud` with every position moved by Gaussian noise of standard deviation `sigma` per axis

@@ -41,8 +41,7 @@ use ash::vk;
 
 use super::kernel_reference::searched_levels;
 use super::{
-    add_level0, add_shade, dispatch, group_bindings, groups, specialization, Group, Passes,
-    Pyramid, RADIUS_SCALE,
+    add_level0, add_shade, dispatch, group_bindings, groups, specialization, Group, Passes, Pyramid,
 };
 use crate::gpu::layout::{
     PyramidParams, BINDING_FRAME, BINDING_KERNEL_ACCUM, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
@@ -57,27 +56,9 @@ use crate::methods::{BuildContext, Feature, MethodConfig, MethodInfo, ParamSpec}
 const FORMAT_ACCUM: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
 const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        name: "radius",
-        default: RADIUS_SCALE,
-        min: 0.05,
-        max: 20.0,
-        doc: "scale of the per-point radii (default: the pyramid's, the thesis' r_k for k = 10)",
-    },
-    ParamSpec {
-        name: "color",
-        default: 1.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
-    },
-    ParamSpec {
-        name: "cull",
-        default: 1.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "back-face culling by normal in the projection",
-    },
+    super::RADIUS,
+    super::COLOR,
+    super::CULL,
     ParamSpec {
         name: "show",
         default: -1.0,

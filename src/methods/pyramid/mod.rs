@@ -66,15 +66,32 @@ pub const FORMAT_B: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 /// Group C: linear albedo, primitive id.
 pub const FORMAT_C: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 
+/// Parameters the pyramid methods and the kernel pyramid (`kernel.rs`) share.
+pub(super) const RADIUS: ParamSpec = ParamSpec {
+    name: "radius",
+    default: RADIUS_SCALE,
+    min: 0.05,
+    max: 20.0,
+    doc: "scale of the per-point radii (default: the thesis' r_k for k = 10)",
+};
+pub(super) const COLOR: ParamSpec = ParamSpec {
+    name: "color",
+    default: 1.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
+};
+pub(super) const CULL: ParamSpec = ParamSpec {
+    name: "cull",
+    default: 1.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "back-face culling by normal in the projection",
+};
+
 /// The parameters of `pyramid` and `pyramid-hybrid`.
 const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        name: "radius",
-        default: RADIUS_SCALE,
-        min: 0.05,
-        max: 20.0,
-        doc: "scale of the per-point radii (default: the thesis' r_k for k = 10)",
-    },
+    RADIUS,
     ParamSpec {
         name: "projection",
         default: 0.0,
@@ -91,20 +108,8 @@ const PARAMS: &[ParamSpec] = &[
         doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per \
               group with per-mip barriers",
     },
-    ParamSpec {
-        name: "color",
-        default: 1.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
-    },
-    ParamSpec {
-        name: "cull",
-        default: 1.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "back-face culling by normal in the projection",
-    },
+    COLOR,
+    CULL,
     ParamSpec {
         name: "falloff",
         default: 2.0,
