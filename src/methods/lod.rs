@@ -19,7 +19,7 @@ use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs};
 
 /// The default ε: the largest measured value that costs the full dragon less than 0.5 dB of
 /// PSNR against ε = 0 at every distance (`benches/sweeps/lod.toml` on lavapipe: 0.01 dB near,
-/// 0.15 default framing, 0.28 far, where it draws 40 % faster; ε = 1 lost 8.5 dB). Denser
+/// 0.15 default framing, 0.28 far, where it draws a third faster; ε = 1 lost 8.5 dB). Denser
 /// clouds seen from near need less (5 M points: 2.5 dB at 0.05).
 const DEFAULT_EPSILON: f32 = 0.05;
 
