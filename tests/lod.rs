@@ -12,7 +12,8 @@ use surfel::gpu::layout::FrameBlock;
 use surfel::gpu::{Buffer, Context, FrameRing, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::lod::gpu::{
-    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, GpuLod, LodInputs, COUNTER_BYTES,
+    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, GpuLod, LodInputs,
+    COUNTER_BYTES, PER_LEVEL_OFFSET, THRESHOLD_OFFSET,
 };
 use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
 use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
@@ -70,16 +71,25 @@ enum Path {
     Geometry,
 }
 
+/// What one path emitted for a view.
+struct Emitted {
+    /// The emitted vertex indices, sorted.
+    list: Vec<u32>,
+    /// Vertices per level.
+    per_level: Vec<u32>,
+    /// The threshold the levels were chosen with.
+    threshold: f32,
+}
+
 /// Draws the object texture once with `path` for the camera `view`, `proj` into a small
-/// target; returns the emitted vertex indices (sorted) and the counts per level.
+/// target with `options` (recording on); returns what it emitted.
 fn emitted(
     ctx: &Arc<Context>,
     lod: &GpuLod,
     path: Path,
-    view: Mat4,
-    proj: Mat4,
-    epsilon: f32,
-) -> (Vec<u32>, Vec<u32>) {
+    (view, proj): (Mat4, Mat4),
+    options: DrawOptions,
+) -> anyhow::Result<Emitted> {
     let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
     block.u.view = view;
     block.u.proj = proj;
@@ -117,17 +127,16 @@ fn emitted(
         ),
     };
     let options = DrawOptions {
-        epsilon,
-        color_levels: false,
         max_point_size: 4.0,
         record: true,
+        ..options
     };
     let add = match path {
         Path::Compute => add_compute,
         Path::Mesh => add_mesh,
         Path::Geometry => add_geometry,
     };
-    let selection = add(ctx, &mut g, "lod", lod, inputs, options, targets).expect("path");
+    let selection = add(ctx, &mut g, "lod", lod, inputs, options, targets)?;
     let list_bytes = u64::from(lod.max_selected) * 4;
     let list = readback(ctx, &mut g, "list", selection.list, list_bytes);
     let counters = readback(ctx, &mut g, "counts", selection.counters, COUNTER_BYTES);
@@ -143,7 +152,12 @@ fn emitted(
     let mut list = words(&list);
     list.truncate(counters[0] as usize);
     list.sort_unstable();
-    (list, counters[4..].to_vec())
+    let at = |offset: u64| offset as usize / 4;
+    Ok(Emitted {
+        list,
+        per_level: counters[at(PER_LEVEL_OFFSET)..at(THRESHOLD_OFFSET)].to_vec(),
+        threshold: f32::from_bits(counters[at(THRESHOLD_OFFSET)]),
+    })
 }
 
 /// The paths the device can run (lavapipe has mesh and geometry shaders).
@@ -194,10 +208,15 @@ fn every_path_emits_the_cpu_reference_sample_set() {
             .map(|&c| c as u32)
             .collect();
         for path in paths(&ctx) {
-            let (list, counts) = emitted(&ctx, &lod, path, view, proj, epsilon);
-            assert_eq!(counts, per_level, "{path:?}: eye at {eye}, ε {epsilon}");
+            let e =
+                emitted(&ctx, &lod, path, (view, proj), DrawOptions::new(epsilon)).expect("path");
+            assert_eq!(
+                e.per_level, per_level,
+                "{path:?}: eye at {eye}, ε {epsilon}"
+            );
+            assert_eq!(e.threshold, epsilon);
             assert!(
-                list == expected,
+                e.list == expected,
                 "{path:?}: eye at {eye}, ε {epsilon}: lists differ"
             );
         }
@@ -214,6 +233,106 @@ fn every_path_emits_the_cpu_reference_sample_set() {
         texture.patches.len(),
         "far: only representatives"
     );
+    drop(lod);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn every_path_fills_the_point_budget_as_the_cpu_reference() {
+    let ctx = common::context();
+    let (p, r) = sphere(30_000);
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let lod = GpuLod::upload(&ctx, &texture).expect("upload");
+    let patches = texture.patches.len() as u32;
+    let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
+    // Near (patches culled) and framed; budgets from the patch count (every patch at its
+    // coarsest level) to above what ε demands (the budget does not bind).
+    for (eye, epsilon, budget) in [
+        (1.5, 0.05, 12_000),
+        (3.0, 0.05, 5_000),
+        (3.0, 0.5, patches),
+        (3.0, 0.0, 29_999),
+        (3.0, 2.0, 20_000),
+    ] {
+        let view = Mat4::look_at_rh(Vec3::new(0.3, 0.2, eye), Vec3::ZERO, Vec3::Y);
+        let unbounded = LodView::from_camera(view, proj, SIZE, epsilon);
+        let threshold = texture.budget_threshold(&unbounded, budget);
+        let reference = LodView {
+            epsilon: threshold,
+            ..unbounded
+        };
+        let mut expected: Vec<u32> = texture.select(&reference).into_iter().flatten().collect();
+        expected.sort_unstable();
+        let demanded: u64 = texture.histogram(&unbounded).iter().sum();
+        let what = format!("eye at {eye}, ε {epsilon}, budget {budget}");
+        assert!(expected.len() as u64 <= u64::from(budget), "{what}");
+        assert_eq!(
+            threshold == epsilon,
+            demanded <= u64::from(budget),
+            "{what}"
+        );
+        for path in paths(&ctx) {
+            let options = DrawOptions {
+                budget,
+                geometry_chunk: 16,
+                ..DrawOptions::new(epsilon)
+            };
+            let e = emitted(&ctx, &lod, path, (view, proj), options).expect("path");
+            assert_eq!(e.threshold, threshold, "{path:?}: {what}");
+            assert!(e.list == expected, "{path:?}: {what}: lists differ");
+        }
+    }
+    // Below the patch count no threshold can fit: refused, with the figures.
+    let view = Mat4::look_at_rh(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y);
+    let options = DrawOptions {
+        budget: patches - 1,
+        ..DrawOptions::new(0.5)
+    };
+    let err = emitted(&ctx, &lod, Path::Compute, (view, proj), options)
+        .err()
+        .expect("refused");
+    let message = err.to_string();
+    assert!(
+        message.contains(&format!("budget of {}", patches - 1))
+            && message.contains(&format!("{patches} patches")),
+        "{message}"
+    );
+    drop(lod);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn geometry_invocations_split_a_patch_without_changing_the_samples() {
+    let ctx = common::context();
+    if !ctx.caps.geometry_points {
+        eprintln!("skipping: the device cannot emit sized points from geometry shaders");
+        return;
+    }
+    let (p, r) = sphere(20_000);
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let lod = GpuLod::upload(&ctx, &texture).expect("upload");
+    let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
+    let view = Mat4::look_at_rh(Vec3::new(0.3, 0.2, 2.5), Vec3::ZERO, Vec3::Y);
+    // ε 0: patches at their finest level (up to 64 vertices) need every invocation.
+    let reference = LodView::from_camera(view, proj, SIZE, 0.0);
+    let mut expected: Vec<u32> = texture.select(&reference).into_iter().flatten().collect();
+    expected.sort_unstable();
+    for chunk in [2, 8, 32, 64] {
+        let options = DrawOptions {
+            geometry_chunk: chunk,
+            ..DrawOptions::new(0.0)
+        };
+        let e = emitted(&ctx, &lod, Path::Geometry, (view, proj), options).expect("path");
+        assert!(e.list == expected, "chunk {chunk}: lists differ");
+    }
+    let options = DrawOptions {
+        geometry_chunk: 24,
+        ..DrawOptions::new(0.0)
+    };
+    let err = emitted(&ctx, &lod, Path::Geometry, (view, proj), options)
+        .err()
+        .expect("refused");
+    assert!(err.to_string().contains("power of two"), "{err}");
     drop(lod);
     common::assert_clean(&ctx);
 }

@@ -14,21 +14,44 @@ float lod_focal() {
     return abs(frame.u.proj[1][1]) * frame.u.viewport.y * 0.5;
 }
 
-// The coarsest level whose perpendicular error, projected as e_p sin(alpha) / |v| (alpha the
-// angle between the view vector v and the representative's normal) and scaled to pixels, is
-// at most epsilon (000 7.1.2); `ObjectTexture::choose` is the CPU reference.
-uint lod_level(GpuLodPatch rep, float epsilon) {
+// The factor projecting a patch's perpendicular errors to pixels (000 7.1.2): sin(alpha) /
+// |v| times the focal length, alpha the angle between the view vector v and the
+// representative's normal (`ObjectTexture::projected_scale` is the CPU reference).
+float lod_scale(GpuLodPatch rep) {
     vec3 v = rep.sphere.xyz - lod_eye();
     float dist = max(length(v), 1.17549435e-38);
     float c = clamp(dot(v, rep.normal.xyz) / dist, -1.0, 1.0);
-    float scale = sqrt(1.0 - c * c) / dist * lod_focal();
+    return sqrt(1.0 - c * c) / dist * lod_focal();
+}
+
+// The coarsest level whose projected perpendicular error e_p sin(alpha) / |v|, in pixels, is
+// at most `limit` (000 7.1.2); `ObjectTexture::choose` is the CPU reference.
+uint lod_level(GpuLodPatch rep, float limit) {
+    float scale = lod_scale(rep);
     for (uint l = rep.levels - 1u; l > 0u; --l) {
-        if (rep.errors[l] * scale <= epsilon) {
+        if (rep.errors[l] * scale <= limit) {
             return l;
         }
     }
     return 0u;
 }
+
+// The point budget's bin of a projected error `e` > 0 (see LOD_BUDGET_BINS).
+uint lod_budget_bin(float e) {
+    int b = int(floatBitsToUint(e) >> 20) - LOD_BUDGET_BIN_BASE;
+    return uint(clamp(b, 0, LOD_BUDGET_BINS - 1));
+}
+
+// The members of the counters buffer every path binds at BINDING_LOD_COUNTERS (byte offsets
+// in src/lod/gpu.rs): the list's VkDrawIndirectCommand, the samples emitted per level, the
+// threshold the levels are chosen with, and the point budget's coarsest samples and bins.
+#define LOD_COUNTERS_MEMBERS \
+    uint draw[4]; \
+    uint per_level[LOD_MAX_LEVELS]; \
+    float threshold; \
+    uint budget_base; \
+    uint budget_pad[2]; \
+    uint bins[LOD_BUDGET_BINS];
 
 // Whether the patch's bounding sphere (the representative's disc covers its descendants')
 // reaches into the view: inside the four side planes and in front of the eye's plane

@@ -12,8 +12,7 @@ layout(std430, set = 0, binding = BINDING_LOD_PATCHES) readonly buffer Patches {
 layout(std430, set = 0, binding = BINDING_LOD_LIST) writeonly buffer List { uint list[]; };
 // draw: a VkDrawIndirectCommand (vertex count, instance count 1, 0, 0).
 layout(std430, set = 0, binding = BINDING_LOD_COUNTERS) buffer Counters {
-    uint draw[4];
-    uint per_level[LOD_MAX_LEVELS];
+    LOD_COUNTERS_MEMBERS
 };
 
 layout(push_constant) uniform Push { LodParams pc; };
@@ -27,7 +26,7 @@ void main() {
     if (!lod_in_view(rep)) {
         return;
     }
-    uint level = lod_level(rep, pc.epsilon);
+    uint level = lod_level(rep, threshold);
     uint count = rep.counts[level];
     uint first = lod_level_offset(rep, level);
     uint base = atomicAdd(draw[0], count);

@@ -78,6 +78,8 @@ pub struct Capabilities {
     pub subgroup_ballot_compute: bool,
     pub max_mesh_output_vertices: u32,
     pub max_geometry_output_vertices: u32,
+    /// `maxGeometryShaderInvocations`: instances of a geometry shader per primitive.
+    pub max_geometry_shader_invocations: u32,
 }
 
 impl fmt::Display for Capabilities {
@@ -673,5 +675,6 @@ unsafe fn capabilities(
             0
         },
         max_geometry_output_vertices: limits.max_geometry_output_vertices,
+        max_geometry_shader_invocations: limits.max_geometry_shader_invocations,
     }
 }

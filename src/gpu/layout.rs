@@ -165,7 +165,7 @@ pub struct LodParams {
     pub epsilon: f32,
     pub patch_count: u32,
     pub max_point_size: f32,
-    pub pad0: u32,
+    pub budget: u32,
 }
 
 /// The per-frame HPR state (`HprFrame` in GLSL).
@@ -340,7 +340,7 @@ pub fn mirrors() -> Vec<Mirror> {
             epsilon,
             patch_count,
             max_point_size,
-            pad0
+            budget
         }),
         mirror!(HprParams {
             sqrt_k_max,

@@ -234,6 +234,18 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // LOD_PATCH_VERTICES points per patch.
     ("LOD_TASK_GROUP", 32),
     ("LOD_PATCH_VERTICES", 64),
+    // The point budget (issue 11): after the per-level counts the counters hold the threshold
+    // the paths choose levels with (ε, or raised until the budget holds), the samples the
+    // visible patches' coarsest levels draw, two pads, then LOD_BUDGET_BINS bins of the
+    // samples each refinement adds, by the projected error demanding it: bin b holds errors
+    // whose f32 bits >> 20 are LOD_BUDGET_BIN_BASE + b (8 bins per octave from 2^-16 pixels,
+    // clamped at both ends). The threshold pass runs one workgroup of LOD_BUDGET_BINS threads.
+    ("LOD_BUDGET_BINS", 256),
+    ("LOD_BUDGET_BIN_BASE", 888),
+    // Specialization constant id of the geometry path's vertices per invocation (its
+    // declared output limit; the patch's level is split over LOD_PATCH_VERTICES / it
+    // invocations).
+    ("LOD_SPEC_GEOMETRY_CHUNK", 2),
 ];
 
 /// Structs shared between GLSL and Rust.
@@ -490,7 +502,8 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "patch_count"),
             // The draw's largest point size in pixels.
             f("float", "max_point_size"),
-            f("uint", "pad0"),
+            // The point budget: the most samples a frame projects (0: none).
+            f("uint", "budget"),
         ],
     },
 ];

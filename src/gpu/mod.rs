@@ -13,6 +13,6 @@ pub mod upload;
 pub use context::{Capabilities, Context, ContextOptions};
 pub use frames::FrameRing;
 pub use memory::{Buffer, Image, ImageDesc};
-pub use pipeline::{Binding, Blend, GraphicsDesc, Pipeline};
+pub use pipeline::{Binding, Blend, GeometryOutput, GraphicsDesc, Pipeline};
 pub use profiler::{Profiler, SampleWindow, ScopeStats};
 pub mod swapchain;

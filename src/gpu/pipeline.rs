@@ -24,6 +24,42 @@ pub fn spirv(path: &str) -> Result<Vec<u32>> {
         .with_context(|| format!("bad SPIR-V in {path}"))
 }
 
+/// SPIR-V's `OpExecutionMode` and the execution modes `geometry_output` rewrites.
+const OP_EXECUTION_MODE: u32 = 16;
+const MODE_INVOCATIONS: u32 = 0;
+const MODE_OUTPUT_VERTICES: u32 = 26;
+
+/// Sets the literal of execution mode `mode` (one operand, e.g. `OutputVertices`) in `code`,
+/// a SPIR-V module: no specialization constant can set a geometry shader's declared output
+/// limit or invocation count, both literals of `OpExecutionMode`. Errors when the module does
+/// not declare the mode.
+pub fn set_execution_mode(code: &mut [u32], mode: u32, value: u32) -> Result<()> {
+    // Header: magic, version, generator, bound, schema; then instructions, each led by
+    // (word count << 16) | opcode.
+    let mut at = 5;
+    while at < code.len() {
+        let (count, opcode) = ((code[at] >> 16) as usize, code[at] & 0xffff);
+        if count == 0 || at + count > code.len() {
+            return Err(anyhow!("malformed SPIR-V instruction at word {at}"));
+        }
+        if opcode == OP_EXECUTION_MODE && count == 4 && code[at + 2] == mode {
+            code[at + 3] = value;
+            return Ok(());
+        }
+        at += count;
+    }
+    Err(anyhow!("the module declares no execution mode {mode}"))
+}
+
+/// A geometry shader's declared limits, rewritten in its SPIR-V (`set_execution_mode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GeometryOutput {
+    /// `max_vertices`: the most vertices one invocation emits.
+    pub vertices: u32,
+    /// `invocations`: geometry shader instances per input primitive.
+    pub invocations: u32,
+}
+
 /// One binding of the push-descriptor set 0.
 #[derive(Clone, Copy, Debug)]
 pub struct Binding {
@@ -111,13 +147,24 @@ struct Modules<'a> {
 }
 
 impl<'a> Modules<'a> {
-    fn load(ctx: &'a Context, paths: &[&str]) -> Result<Self> {
+    fn load(
+        ctx: &'a Context,
+        paths: &[&str],
+        geometry_output: Option<GeometryOutput>,
+    ) -> Result<Self> {
         let mut modules = Modules {
             ctx,
             modules: Vec::new(),
         };
         for p in paths {
-            let code = spirv(p)?;
+            let mut code = spirv(p)?;
+            if let (Some(limits), vk::ShaderStageFlags::GEOMETRY) = (geometry_output, stage_of(p)?)
+            {
+                set_execution_mode(&mut code, MODE_OUTPUT_VERTICES, limits.vertices)
+                    .with_context(|| format!("{p}: output vertices"))?;
+                set_execution_mode(&mut code, MODE_INVOCATIONS, limits.invocations)
+                    .with_context(|| format!("{p}: invocations"))?;
+            }
             // SAFETY: code is valid SPIR-V produced by build.rs.
             let m = unsafe {
                 ctx.device.create_shader_module(
@@ -214,6 +261,8 @@ pub struct GraphicsDesc<'a> {
     /// Specialization constants `(constant_id, value)` for every stage (GLSL
     /// `layout(constant_id = N) const uint X = default;`); ids a stage lacks are ignored.
     pub specialization: &'a [(u32, u32)],
+    /// The geometry stage's declared output vertices and invocations, when not its own.
+    pub geometry_output: Option<GeometryOutput>,
 }
 
 impl Default for GraphicsDesc<'_> {
@@ -231,6 +280,7 @@ impl Default for GraphicsDesc<'_> {
             topology: vk::PrimitiveTopology::TRIANGLE_LIST,
             cull: vk::CullModeFlags::NONE,
             specialization: &[],
+            geometry_output: None,
         }
     }
 }
@@ -243,7 +293,7 @@ impl Pipeline {
             stages |= stage_of(p)?;
         }
         let (set_layout, layout) = layouts(ctx, desc.bindings, stages)?;
-        let modules = Modules::load(ctx, desc.shaders)?;
+        let modules = Modules::load(ctx, desc.shaders, desc.geometry_output)?;
         let specialization = Specialization::new(desc.specialization);
         let spec_info = specialization.info();
         let stage_infos = desc
@@ -355,7 +405,7 @@ impl Pipeline {
     ) -> Result<Self> {
         let stages = vk::ShaderStageFlags::COMPUTE;
         let (set_layout, layout) = layouts(ctx, bindings, stages)?;
-        let modules = Modules::load(ctx, &[shader])?;
+        let modules = Modules::load(ctx, &[shader], None)?;
         let specialization = Specialization::new(specialization);
         let spec_info = specialization.info();
         let stage = vk::PipelineShaderStageCreateInfo::default()
@@ -380,5 +430,42 @@ impl Pipeline {
             bind_point: vk::PipelineBindPoint::COMPUTE,
             stages,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The literal of `mode` in `code`, if declared.
+    fn mode_value(code: &[u32], mode: u32) -> Option<u32> {
+        let mut at = 5;
+        while at < code.len() {
+            let count = (code[at] >> 16) as usize;
+            if code[at] & 0xffff == OP_EXECUTION_MODE && count == 4 && code[at + 2] == mode {
+                return Some(code[at + 3]);
+            }
+            at += count;
+        }
+        None
+    }
+
+    #[test]
+    fn geometry_limits_are_rewritten_in_the_spirv() {
+        let mut code = spirv("lod/expand.geom").expect("embedded");
+        assert_eq!(mode_value(&code, MODE_OUTPUT_VERTICES), Some(64));
+        assert_eq!(mode_value(&code, MODE_INVOCATIONS), Some(1));
+        set_execution_mode(&mut code, MODE_OUTPUT_VERTICES, 16).expect("output vertices");
+        set_execution_mode(&mut code, MODE_INVOCATIONS, 4).expect("invocations");
+        assert_eq!(mode_value(&code, MODE_OUTPUT_VERTICES), Some(16));
+        assert_eq!(mode_value(&code, MODE_INVOCATIONS), Some(4));
+        // A vertex shader declares neither; a truncated module is reported, not read past.
+        let mut vert = spirv("lod/points.vert").expect("embedded");
+        let err = set_execution_mode(&mut vert, MODE_OUTPUT_VERTICES, 16).unwrap_err();
+        assert!(err.to_string().contains("no execution mode 26"), "{err}");
+        let mut truncated = code[..code.len() / 2].to_vec();
+        truncated[5] |= 0xffff << 16;
+        let err = set_execution_mode(&mut truncated, MODE_OUTPUT_VERTICES, 16).unwrap_err();
+        assert!(err.to_string().contains("malformed SPIR-V"), "{err}");
     }
 }

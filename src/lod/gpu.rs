@@ -11,7 +11,9 @@
 //!   chooses the level and emits its vertices.
 //!
 //! Every path draws points covering each splat's projected diameter into the standard targets
-//! and counts the vertices it emits per level.
+//! and counts the vertices it emits per level. With a point budget (`DrawOptions::budget`,
+//! `add_budget`) two passes before the path raise the threshold the levels are chosen with
+//! until the frame's samples fit.
 
 use std::sync::Arc;
 
@@ -21,19 +23,27 @@ use ash::vk;
 use super::ObjectTexture;
 use crate::gpu::layout::{
     LodParams, BINDING_FRAME, BINDING_LOD_COUNTERS, BINDING_LOD_LIST, BINDING_LOD_PATCHES,
-    BINDING_LOD_VERTICES, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES, LOD_SPEC_COLOR_LEVELS,
-    LOD_SPEC_RECORD, LOD_TASK_GROUP,
+    BINDING_LOD_VERTICES, LOD_BUDGET_BINS, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES,
+    LOD_SPEC_COLOR_LEVELS, LOD_SPEC_GEOMETRY_CHUNK, LOD_SPEC_RECORD, LOD_TASK_GROUP,
 };
-use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, Pipeline};
+use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, Pipeline};
 use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, Stages,
 };
 use crate::methods::compute::storage;
 use crate::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 
-/// Bytes of the selection's counters: a `VkDrawIndirectCommand`, then the vertices selected
-/// per level.
-pub const COUNTER_BYTES: u64 = 16 + 4 * LOD_MAX_LEVELS as u64;
+/// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
+/// after the list's `VkDrawIndirectCommand`.
+pub const PER_LEVEL_OFFSET: u64 = 16;
+
+/// Byte offset in the counters of the threshold (f32) the paths choose levels with: ε, or
+/// what the point budget raised it to. Then the budget's coarsest samples (u32), two pads and
+/// `LOD_BUDGET_BINS` bins (u32; `LOD_COUNTERS_MEMBERS` in `glsl/lod/lod.glsl`).
+pub const THRESHOLD_OFFSET: u64 = PER_LEVEL_OFFSET + 4 * LOD_MAX_LEVELS as u64;
+
+/// Bytes of the selection's counters.
+pub const COUNTER_BYTES: u64 = THRESHOLD_OFFSET + 16 + 4 * LOD_BUDGET_BINS as u64;
 
 /// An object texture uploaded: its patches (`GpuLodPatch`) and vertices (`GpuLodVertex`).
 pub struct GpuLod {
@@ -108,6 +118,28 @@ pub struct DrawOptions {
     pub max_point_size: f32,
     /// Mesh and geometry paths: also append every emitted vertex index to the list (tests).
     pub record: bool,
+    /// The most samples a frame projects (0: no budget), filled by error priority
+    /// (`add_budget`).
+    pub budget: u32,
+    /// Geometry path: the vertices one geometry invocation emits, its declared output limit
+    /// (a power of two up to `LOD_PATCH_VERTICES`; the patch's level is split over
+    /// `LOD_PATCH_VERTICES / geometry_chunk` invocations).
+    pub geometry_chunk: u32,
+}
+
+impl DrawOptions {
+    /// Threshold `epsilon`, the base color, no budget, points up to 16 pixels, one geometry
+    /// invocation per patch.
+    pub fn new(epsilon: f32) -> DrawOptions {
+        DrawOptions {
+            epsilon,
+            color_levels: false,
+            max_point_size: 16.0,
+            record: false,
+            budget: 0,
+            geometry_chunk: LOD_PATCH_VERTICES,
+        }
+    }
 }
 
 /// Where a path draws: the standard targets and a reversed-Z depth buffer, all cleared.
@@ -119,9 +151,15 @@ pub struct DrawTargets {
     pub zbuffer: ImageId,
 }
 
-/// The counters of a path, reset by the pass `{prefix}.reset` (instance count 1, the rest 0),
-/// and a list of `list_entries` indices (none: the list is the counters buffer again).
-fn new_selection(graph: &mut GraphBuilder, prefix: &str, list_entries: Option<u32>) -> Selection {
+/// The counters of a path, reset by the pass `{prefix}.reset` (instance count 1, threshold
+/// `epsilon`, the rest 0), and a list of `list_entries` indices (none: the list is the counters
+/// buffer again).
+fn new_selection(
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    list_entries: Option<u32>,
+    epsilon: f32,
+) -> Selection {
     let usage = vk::BufferUsageFlags::empty();
     let counters = graph.buffer(&format!("{prefix}.counters"), COUNTER_BYTES, usage);
     let list = list_entries.map_or(counters, |n| {
@@ -129,6 +167,7 @@ fn new_selection(graph: &mut GraphBuilder, prefix: &str, list_entries: Option<u3
     });
     let mut reset = [0u32; COUNTER_BYTES as usize / 4];
     reset[1] = 1;
+    reset[THRESHOLD_OFFSET as usize / 4] = epsilon.to_bits();
     graph.update_buffer(
         &format!("{prefix}.reset"),
         counters,
@@ -143,12 +182,103 @@ fn draw_params(lod: &GpuLod, options: &DrawOptions) -> LodParams {
         epsilon: options.epsilon,
         patch_count: lod.patch_count,
         max_point_size: options.max_point_size,
-        ..Default::default()
+        budget: options.budget,
     }
 }
 
-/// Declares the reset of the counters and the selection pass over `patches` (the graph's id
-/// of `lod.patches`) for the camera in `frame` and the threshold `epsilon` in pixels.
+/// Workgroups of one thread per patch, folded into 2D past the 65,535 groups every device
+/// allows.
+fn patch_groups(lod: &GpuLod) -> (u32, u32) {
+    let groups = lod.patch_count.div_ceil(LOD_GROUP);
+    (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1))
+}
+
+/// The point budget (issue 11): declares `{prefix}.budget.bins`, which sorts the samples every
+/// refinement of a visible patch adds into bins of the projected error demanding it, and
+/// `{prefix}.budget.threshold`, which admits refinements by decreasing error until `budget`
+/// samples are reached and writes the threshold the path then chooses levels with (the CPU
+/// reference is `ObjectTexture::budget_threshold`). Nothing with `budget` 0. A budget below
+/// the patch count is refused: every patch in view draws at least its representative. Nothing
+/// either when the budget holds every patch's finest level.
+pub fn add_budget(
+    ctx: &Arc<Context>,
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    inputs: (BufferId, BufferId, BufferId),
+    lod: &GpuLod,
+    epsilon: f32,
+    budget: u32,
+) -> Result<()> {
+    // A budget the finest levels of every patch fit cannot bind: no passes.
+    if budget == 0 || budget >= lod.max_selected {
+        return Ok(());
+    }
+    if budget < lod.patch_count {
+        bail!(
+            "a point budget of {budget} samples is below the object texture's {} patches \
+             (each in view draws at least its representative): raise it to at least {0}, or \
+             0 for no budget",
+            lod.patch_count
+        );
+    }
+    let (frame, patches, counters) = inputs;
+    let params = LodParams {
+        epsilon,
+        patch_count: lod.patch_count,
+        budget,
+        ..Default::default()
+    };
+    let bins = Arc::new(Pipeline::compute(
+        ctx,
+        "lod/budget_bins.comp",
+        &[
+            storage(BINDING_FRAME),
+            storage(BINDING_LOD_PATCHES),
+            storage(BINDING_LOD_COUNTERS),
+        ],
+    )?);
+    let (gx, gy) = patch_groups(lod);
+    let compute = Stages::Compute;
+    graph
+        .pass(&format!("{prefix}.budget.bins"))
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(patches, Access::StorageRead(compute))
+        .buffer(counters, Access::StorageReadWrite(compute))
+        .record(move |ctx| {
+            ctx.bind(
+                &bins,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
+                    Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
+                ],
+            );
+            ctx.push(&bins, bytemuck::bytes_of(&params));
+            ctx.dispatch(gx, gy, 1);
+        });
+    let threshold = Arc::new(Pipeline::compute(
+        ctx,
+        "lod/budget_threshold.comp",
+        &[storage(BINDING_LOD_COUNTERS)],
+    )?);
+    graph
+        .pass(&format!("{prefix}.budget.threshold"))
+        .buffer(counters, Access::StorageReadWrite(compute))
+        .record(move |ctx| {
+            ctx.bind(
+                &threshold,
+                &[Descriptor::Buffer(BINDING_LOD_COUNTERS, counters)],
+            );
+            ctx.push(&threshold, bytemuck::bytes_of(&params));
+            ctx.dispatch(1, 1, 1);
+        });
+    Ok(())
+}
+
+/// Declares the reset of the counters, the point budget's passes (`add_budget`) and the
+/// selection pass over `patches` (the graph's id of `lod.patches`) for the camera in `frame`,
+/// the threshold `epsilon` in pixels and `budget` samples (0: none).
+#[allow(clippy::too_many_arguments)]
 pub fn add_select(
     ctx: &Arc<Context>,
     graph: &mut GraphBuilder,
@@ -157,9 +287,19 @@ pub fn add_select(
     patches: BufferId,
     lod: &GpuLod,
     epsilon: f32,
+    budget: u32,
 ) -> Result<Selection> {
-    let selection = new_selection(graph, prefix, Some(lod.max_selected));
+    let selection = new_selection(graph, prefix, Some(lod.max_selected), epsilon);
     let Selection { list, counters } = selection;
+    add_budget(
+        ctx,
+        graph,
+        prefix,
+        (frame, patches, counters),
+        lod,
+        epsilon,
+        budget,
+    )?;
     let pipeline = Arc::new(Pipeline::compute(
         ctx,
         "lod/select.comp",
@@ -175,9 +315,7 @@ pub fn add_select(
         patch_count: lod.patch_count,
         ..Default::default()
     };
-    // One thread per patch, folded into 2D past the 65,535 groups every device allows.
-    let groups = lod.patch_count.div_ceil(LOD_GROUP);
-    let (gx, gy) = (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1));
+    let (gx, gy) = patch_groups(lod);
     let compute = Stages::Compute;
     graph
         .pass(&format!("{prefix}.select"))
@@ -225,7 +363,15 @@ fn draw_pipeline(
             specialization: &[
                 (LOD_SPEC_COLOR_LEVELS, u32::from(options.color_levels)),
                 (LOD_SPEC_RECORD, u32::from(options.record)),
+                (LOD_SPEC_GEOMETRY_CHUNK, options.geometry_chunk),
             ],
+            geometry_output: shaders
+                .iter()
+                .any(|s| s.ends_with(".geom"))
+                .then(|| GeometryOutput {
+                    vertices: options.geometry_chunk,
+                    invocations: LOD_PATCH_VERTICES / options.geometry_chunk,
+                }),
         },
     )?))
 }
@@ -249,7 +395,16 @@ pub fn add_compute(
         patches,
         vertices,
     } = inputs;
-    let selection = add_select(ctx, graph, prefix, frame, patches, lod, options.epsilon)?;
+    let selection = add_select(
+        ctx,
+        graph,
+        prefix,
+        frame,
+        patches,
+        lod,
+        options.epsilon,
+        options.budget,
+    )?;
     let Selection { list, counters } = selection;
     let vertex = vk::ShaderStageFlags::VERTEX;
     let pipeline = draw_pipeline(
@@ -307,8 +462,22 @@ pub fn add_mesh(
         patches,
         vertices,
     } = inputs;
-    let selection = new_selection(graph, prefix, options.record.then_some(lod.max_selected));
+    let selection = new_selection(
+        graph,
+        prefix,
+        options.record.then_some(lod.max_selected),
+        options.epsilon,
+    );
     let Selection { list, counters } = selection;
+    add_budget(
+        ctx,
+        graph,
+        prefix,
+        (frame, patches, counters),
+        lod,
+        options.epsilon,
+        options.budget,
+    )?;
     let task = vk::ShaderStageFlags::TASK_EXT;
     let mesh = vk::ShaderStageFlags::MESH_EXT;
     let pipeline = draw_pipeline(
@@ -319,7 +488,7 @@ pub fn add_mesh(
             binding(BINDING_LOD_PATCHES, task),
             binding(BINDING_LOD_VERTICES, mesh),
             binding(BINDING_LOD_LIST, mesh),
-            binding(BINDING_LOD_COUNTERS, mesh),
+            binding(BINDING_LOD_COUNTERS, task | mesh),
         ],
         &options,
     )?;
@@ -358,7 +527,8 @@ pub fn add_mesh(
 }
 
 /// The geometry path: one vertex per patch; the geometry shader chooses the level and emits
-/// its vertices (at most `LOD_PATCH_VERTICES`), drawing into `targets`. The counters and the
+/// its vertices (at most `LOD_PATCH_VERTICES`, `options.geometry_chunk` per invocation),
+/// drawing into `targets`. The counters and the
 /// list are as `add_mesh`'s.
 pub fn add_geometry(
     ctx: &Arc<Context>,
@@ -381,8 +551,37 @@ pub fn add_geometry(
         patches,
         vertices,
     } = inputs;
-    let selection = new_selection(graph, prefix, options.record.then_some(lod.max_selected));
+    let chunk = options.geometry_chunk;
+    if !chunk.is_power_of_two() || chunk > LOD_PATCH_VERTICES {
+        bail!(
+            "the geometry path's vertices per invocation must be a power of two up to \
+             {LOD_PATCH_VERTICES}, not {chunk}"
+        );
+    }
+    let invocations = LOD_PATCH_VERTICES / chunk;
+    if invocations > ctx.caps.max_geometry_shader_invocations {
+        bail!(
+            "{chunk} vertices per invocation need {invocations} geometry invocations per \
+             patch; the device allows {}",
+            ctx.caps.max_geometry_shader_invocations
+        );
+    }
+    let selection = new_selection(
+        graph,
+        prefix,
+        options.record.then_some(lod.max_selected),
+        options.epsilon,
+    );
     let Selection { list, counters } = selection;
+    add_budget(
+        ctx,
+        graph,
+        prefix,
+        (frame, patches, counters),
+        lod,
+        options.epsilon,
+        options.budget,
+    )?;
     let geometry = vk::ShaderStageFlags::GEOMETRY;
     let pipeline = draw_pipeline(
         ctx,

@@ -15,7 +15,9 @@
 
 use glam::{Mat4, Vec3, Vec4};
 
-use crate::gpu::layout::{GpuLodPatch, GpuLodVertex, LOD_MAX_LEVELS};
+use crate::gpu::layout::{
+    GpuLodPatch, GpuLodVertex, LOD_BUDGET_BINS, LOD_BUDGET_BIN_BASE, LOD_MAX_LEVELS,
+};
 
 pub mod gpu;
 
@@ -25,6 +27,19 @@ pub const DEFAULT_LEVELS: u32 = 4;
 /// Every level count the hierarchy accepts: a patch of 4^(levels − 1) points and a patch's
 /// per-level counts fit the GPU's `uvec4` (`GpuLodPatch`).
 pub const LEVELS: std::ops::RangeInclusive<u32> = 2..=LOD_MAX_LEVELS;
+
+/// The point budget's bin of a projected error `e` > 0: its f32 bits >> 20 (exponent and three
+/// mantissa bits, so eight bins per octave) from 2^-16 pixels, clamped to the bins
+/// (`lod_budget_bin` in `glsl/lod/lod.glsl`).
+pub fn budget_bin(e: f32) -> usize {
+    let b = i64::from(e.to_bits() >> 20) - i64::from(LOD_BUDGET_BIN_BASE);
+    b.clamp(0, i64::from(LOD_BUDGET_BINS) - 1) as usize
+}
+
+/// The smallest error of bin `k` ≥ 1 (exact: the f32 with bits (k + base) << 20).
+pub fn budget_edge(k: usize) -> f32 {
+    f32::from_bits((k as u32 + LOD_BUDGET_BIN_BASE) << 20)
+}
 
 /// A surface splat: centre, unit normal, radius.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -370,14 +385,60 @@ impl ObjectTexture {
     /// representative's normal) and scaled to pixels, is at most ε. Silhouettes (α near 90°)
     /// and near patches get finer levels.
     pub fn choose(&self, patch: &Patch, view: &LodView) -> u32 {
-        let v = patch.representative.position - view.eye;
-        let distance = v.length().max(f32::MIN_POSITIVE);
-        let cos = (v.dot(patch.representative.normal) / distance).clamp(-1.0, 1.0);
-        let scale = (1.0 - cos * cos).sqrt() / distance * view.focal_pixels;
+        let scale = Self::projected_scale(patch, view);
         (0..self.levels)
             .rev()
             .find(|&l| patch.errors[l as usize] * scale <= view.epsilon)
             .unwrap_or(0)
+    }
+
+    /// The factor projecting `patch`'s perpendicular errors to pixels: sin α / |v| times the
+    /// focal length (`lod_scale` in `glsl/lod/lod.glsl`).
+    pub fn projected_scale(patch: &Patch, view: &LodView) -> f32 {
+        let v = patch.representative.position - view.eye;
+        let distance = v.length().max(f32::MIN_POSITIVE);
+        let cos = (v.dot(patch.representative.normal) / distance).clamp(-1.0, 1.0);
+        (1.0 - cos * cos).sqrt() / distance * view.focal_pixels
+    }
+
+    /// The point budget (issue 11), the CPU reference of `glsl/lod/budget_*.comp`: the
+    /// threshold that fills at most `budget` samples by error priority. Refining a visible
+    /// patch from level l to l − 1 adds counts[l − 1] − counts[l] samples and is demanded by
+    /// the projected error e_l; refinements are admitted by decreasing e_l, in bins of an
+    /// eighth of an octave (`budget_bin`), until the budget is full. Returns `view.epsilon`
+    /// when everything it demands fits, else the smallest bin edge whose admitted refinements
+    /// fit, else infinity (every patch at its coarsest level). Drawn with the returned
+    /// threshold, the view's samples (`histogram`) never exceed the budget when it is at least
+    /// the patch count.
+    pub fn budget_threshold(&self, view: &LodView, budget: u32) -> f32 {
+        let mut base = 0u64;
+        let mut bins = [0u64; LOD_BUDGET_BINS as usize];
+        for p in self.patches.iter().filter(|p| self.in_view(p, view)) {
+            let top = self.levels as usize - 1;
+            base += u64::from(p.counts[top]);
+            let scale = Self::projected_scale(p, view);
+            for l in (1..=top).rev() {
+                let e = p.errors[l] * scale;
+                if e > view.epsilon {
+                    bins[budget_bin(e)] += u64::from(p.counts[l - 1] - p.counts[l]);
+                }
+            }
+        }
+        let budget = u64::from(budget);
+        let mut suffix = 0;
+        // The smallest k whose refinements (bins k and above) fit; the sums fall with k.
+        let mut first_fit = LOD_BUDGET_BINS as usize;
+        for k in (0..bins.len()).rev() {
+            suffix += bins[k];
+            if base + suffix <= budget {
+                first_fit = k;
+            }
+        }
+        match first_fit {
+            0 => view.epsilon,
+            k if k == bins.len() => f32::INFINITY,
+            k => budget_edge(k),
+        }
     }
 
     /// Whether `patch`'s bounding sphere (the representative's, which covers its
@@ -750,6 +811,62 @@ mod tests {
             mean(&rim),
             mean(&front)
         );
+    }
+
+    #[test]
+    fn budget_bins_are_an_eighth_of_an_octave_with_exact_edges() {
+        for k in 1..LOD_BUDGET_BINS as usize {
+            let edge = budget_edge(k);
+            assert_eq!(budget_bin(edge), k);
+            assert_eq!(budget_bin(f32::from_bits(edge.to_bits() - 1)), k - 1);
+        }
+        assert_eq!(budget_edge(8), 2f32.powi(-15));
+        assert_eq!(budget_edge(128), 1.0);
+        assert_eq!(budget_bin(1e-30), 0);
+        assert_eq!(budget_bin(1e30), LOD_BUDGET_BINS as usize - 1);
+        assert_eq!(budget_bin(f32::INFINITY), LOD_BUDGET_BINS as usize - 1);
+    }
+
+    #[test]
+    fn lod_budget_admits_the_largest_errors_first_and_never_overflows() {
+        let (p, n, r) = sphere(40_000);
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let view = wide_view(Vec3::new(0.0, 0.0, 2.0), 1000.0, 0.05);
+        let total =
+            |epsilon: f32| -> u64 { t.histogram(&LodView { epsilon, ..view }).iter().sum() };
+        let demanded = total(view.epsilon);
+        let patches = t.patches.len() as u64;
+        assert!(demanded > 4 * patches, "{demanded}");
+        let mut last = (f32::INFINITY, 0);
+        for budget in [
+            patches,
+            demanded / 4,
+            demanded / 2,
+            demanded - 1,
+            demanded,
+            2 * demanded,
+        ] {
+            let threshold = t.budget_threshold(&view, budget as u32);
+            let drawn = total(threshold);
+            assert!(drawn <= budget, "budget {budget}: {drawn} drawn");
+            // A larger budget lowers the threshold and draws more.
+            assert!(threshold <= last.0 && drawn >= last.1, "budget {budget}");
+            last = (threshold, drawn);
+            if budget >= demanded {
+                assert_eq!(threshold, view.epsilon);
+                assert_eq!(drawn, demanded);
+            } else {
+                assert!(threshold > view.epsilon, "budget {budget}");
+                // The next lower bin edge would overflow: the threshold is the smallest that
+                // fits.
+                if threshold.is_finite() {
+                    let lower = f32::from_bits(threshold.to_bits() - (1 << 20));
+                    assert!(total(lower.max(view.epsilon)) > budget, "budget {budget}");
+                }
+                // Well under the budget only where a bin's refinements are coarse.
+                assert!(drawn * 10 >= budget * 7, "budget {budget}: {drawn} drawn");
+            }
+        }
     }
 
     #[test]

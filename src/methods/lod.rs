@@ -14,6 +14,7 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+use crate::gpu::layout::LOD_PATCH_VERTICES;
 use crate::gpu::ImageDesc;
 use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs};
 
@@ -23,29 +24,55 @@ use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs};
 /// clouds seen from near need less (5 M points: 2.5 dB at 0.05).
 const DEFAULT_EPSILON: f32 = 0.05;
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec {
-        name: "epsilon",
-        default: DEFAULT_EPSILON,
-        min: 0.0,
-        max: 64.0,
-        doc: "threshold ε of the projected perpendicular error, in pixels (0: no error allowed)",
-    },
-    ParamSpec {
-        name: "levels",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "1: color splats by level (thesis Fig. 7.4: grey, yellow, blue, red for 0-3)",
-    },
-    ParamSpec {
-        name: "max_size",
-        default: 16.0,
-        min: 1.0,
-        max: 64.0,
-        doc: "largest point size in pixels",
-    },
-];
+/// The default point budget: 4 M samples, about 9 ms of the hardware point pipeline on an
+/// H100 (0.44 G points/s measured, `shared/gpu/README.md`). Clouds whose finest levels hold
+/// fewer samples skip the budget's passes.
+const DEFAULT_BUDGET: f32 = 4_000_000.0;
+
+const EPSILON: ParamSpec = ParamSpec {
+    name: "epsilon",
+    default: DEFAULT_EPSILON,
+    min: 0.0,
+    max: 64.0,
+    doc: "threshold ε of the projected perpendicular error, in pixels (0: no error allowed)",
+};
+
+const LEVELS: ParamSpec = ParamSpec {
+    name: "levels",
+    default: 0.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "1: color splats by level (thesis Fig. 7.4: grey, yellow, blue, red for 0-3)",
+};
+
+const MAX_SIZE: ParamSpec = ParamSpec {
+    name: "max_size",
+    default: 16.0,
+    min: 1.0,
+    max: 64.0,
+    doc: "largest point size in pixels",
+};
+
+const BUDGET: ParamSpec = ParamSpec {
+    name: "budget",
+    default: DEFAULT_BUDGET,
+    min: 0.0,
+    max: 2_000_000_000.0,
+    doc: "most samples a frame projects, filled by error priority (0: no budget)",
+};
+
+const CHUNK: ParamSpec = ParamSpec {
+    name: "chunk",
+    default: LOD_PATCH_VERTICES as f32,
+    min: 1.0,
+    max: LOD_PATCH_VERTICES as f32,
+    doc: "vertices per geometry invocation, its declared output limit (a power of two; the \
+          patch is split over 64 / chunk invocations)",
+};
+
+const PARAMS: &[ParamSpec] = &[EPSILON, LEVELS, MAX_SIZE, BUDGET];
+
+const GEOMETRY_PARAMS: &[ParamSpec] = &[EPSILON, LEVELS, MAX_SIZE, BUDGET, CHUNK];
 
 pub const COMPUTE_INFO: MethodInfo = MethodInfo {
     name: "lod-compute",
@@ -72,7 +99,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
 pub const GEOMETRY_INFO: MethodInfo = MethodInfo {
     name: "lod-geometry",
     summary: "level of detail from object textures (000 ch. 7): geometry-shader expansion",
-    params: PARAMS,
+    params: GEOMETRY_PARAMS,
     needs_faces: false,
     features: &[Feature::GeometryShader, Feature::GeometryPoints],
     culls_batches: false,
@@ -99,6 +126,11 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
         color_levels: b.config.get("levels") >= 0.5,
         max_point_size: b.config.get("max_size").min(b.ctx.caps.point_size_range[1]),
         record: false,
+        budget: b.config.get("budget").round() as u32,
+        geometry_chunk: match path {
+            Path::Geometry => b.config.get("chunk").round() as u32,
+            _ => LOD_PATCH_VERTICES,
+        },
     };
     let zbuffer = b.graph.image(
         &format!("{name}.zbuffer"),

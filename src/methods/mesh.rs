@@ -91,6 +91,7 @@ pub fn add_mesh(
             topology: vk::PrimitiveTopology::TRIANGLE_LIST,
             cull: vk::CullModeFlags::NONE,
             specialization: &[],
+            geometry_output: None,
         },
     )?);
     let comp = vk::ShaderStageFlags::COMPUTE;

@@ -53,6 +53,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             topology: vk::PrimitiveTopology::POINT_LIST,
             cull: vk::CullModeFlags::NONE,
             specialization: &[],
+            geometry_output: None,
         },
     )?);
     let zbuffer = b.graph.image(

@@ -826,6 +826,7 @@ fn rasterize(
             topology,
             cull: vk::CullModeFlags::NONE,
             specialization: &spec,
+            geometry_output: None,
         },
     )?);
     let load = if clear {

@@ -265,6 +265,7 @@ impl Splats {
                 topology: vk::PrimitiveTopology::POINT_LIST,
                 cull: vk::CullModeFlags::NONE,
                 specialization: &self.specialization,
+                geometry_output: None,
             },
         )?))
     }
