@@ -79,31 +79,48 @@ uint lod_level_offset(GpuLodPatch rep, uint level) {
     }
     return first;
 }
-// What every draw path emits for one object-texture vertex: a point covering the splat's
-// projected diameter (at most `max_size` pixels), colored by level (thesis Fig. 7.4) or with
-// the base color, shaded by splat/points.frag. (The thesis projects the vertices into its
-// pyramid renderer; these paths draw them as screen-aligned squares.)
-struct LodPoint {
+// What every draw path emits for one object-texture vertex: a splat of the splatting family
+// (002 5.2), shaded by splat/flat.frag under the same RASTER: an image-aligned square of the
+// splat's projected diameter (eq. 5.1), or a perspective-correct disc (eqs. 5.4-5.5) in a
+// sprite bounding it, at most `max_size` pixels either way; lit once per splat (flat
+// shading), colored by level (thesis Fig. 7.4) or with the base color. (The thesis projects
+// the vertices into its pyramid renderer instead.)
+layout(constant_id = SPLAT_SPEC_RASTER) const uint LOD_RASTER = SPLAT_RASTER_SQUARES;
+
+struct LodSplat {
     vec4 position;
     float size;
-    vec3 albedo;
+    // Lit color (linear), view-space unit normal, centre and radius.
+    vec3 color;
     vec3 normal;
-    vec3 view_pos;
+    vec3 centre;
+    float radius;
 };
 
-LodPoint lod_point(GpuLodVertex v, float max_size, bool color_levels) {
-    LodPoint o;
-    vec4 view_pos = frame.u.view * vec4(v.sphere.xyz, 1.0);
-    o.position = frame.u.proj * view_pos;
-    float depth = max(-view_pos.z, 1e-6);
-    o.size = clamp(2.0 * v.sphere.w * lod_focal() / depth, 1.0, max_size);
+LodSplat lod_splat(GpuLodVertex v, float max_size, bool color_levels) {
+    LodSplat o;
+    vec3 p = (frame.u.view * vec4(v.sphere.xyz, 1.0)).xyz;
+    o.position = frame.u.proj * vec4(p, 1.0);
+    float d = max(-p.z, 1e-6);
+    float r = v.sphere.w;
+    float size;
+    if (LOD_RASTER == SPLAT_RASTER_PERSPECTIVE) {
+        // As splat/splat.vert: the sprite bounds every point within r of p.
+        float spread = 1.0 + max(abs(p.x), abs(p.y)) / d;
+        size = 2.0 * lod_focal() * r * spread / max(d - r, frame.u.params.y);
+    } else {
+        size = 2.0 * r * lod_focal() / d;
+    }
+    o.size = clamp(size, 1.0, max_size);
     const uint colors[4] = uint[](LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3);
     uint c = colors[min(uint(v.normal.w), 3u)];
-    o.albedo = color_levels
+    vec3 albedo = color_levels
         ? srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0)
         : frame.u.base_color.rgb;
-    o.normal = mat3(frame.u.view) * v.normal.xyz;
-    o.view_pos = view_pos.xyz;
+    o.normal = normalize(mat3(frame.u.view) * v.normal.xyz);
+    o.color = shade(albedo, o.normal, p);
+    o.centre = p;
+    o.radius = r;
     return o;
 }
 #endif

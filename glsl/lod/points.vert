@@ -12,15 +12,19 @@ layout(std430, set = 0, binding = BINDING_LOD_LIST) readonly buffer List { uint 
 
 layout(push_constant) uniform Push { LodParams pc; };
 
-layout(location = 0) out vec3 v_albedo;
-layout(location = 1) out vec3 v_normal;
-layout(location = 2) out vec3 v_view_pos;
+layout(location = 0) flat out vec3 v_color;
+layout(location = 1) flat out vec3 v_normal;
+layout(location = 2) flat out vec3 v_centre;
+layout(location = 3) flat out float v_radius;
+layout(location = 4) flat out float v_size;
 
 void main() {
-    LodPoint o = lod_point(vertices[list[gl_VertexIndex]], pc.max_point_size, COLOR_LEVELS);
+    LodSplat o = lod_splat(vertices[list[gl_VertexIndex]], pc.max_point_size, COLOR_LEVELS);
     gl_Position = o.position;
     gl_PointSize = o.size;
-    v_albedo = o.albedo;
+    v_color = o.color;
     v_normal = o.normal;
-    v_view_pos = o.view_pos;
+    v_centre = o.centre;
+    v_radius = o.radius;
+    v_size = o.size;
 }

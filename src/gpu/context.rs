@@ -78,6 +78,9 @@ pub struct Capabilities {
     pub subgroup_ballot_compute: bool,
     pub max_mesh_output_vertices: u32,
     pub max_geometry_output_vertices: u32,
+    /// `maxGeometryTotalOutputComponents`: components all vertices one geometry invocation
+    /// emits may have.
+    pub max_geometry_total_output_components: u32,
     /// `maxGeometryShaderInvocations`: instances of a geometry shader per primitive.
     pub max_geometry_shader_invocations: u32,
 }
@@ -676,5 +679,6 @@ unsafe fn capabilities(
         },
         max_geometry_output_vertices: limits.max_geometry_output_vertices,
         max_geometry_shader_invocations: limits.max_geometry_shader_invocations,
+        max_geometry_total_output_components: limits.max_geometry_total_output_components,
     }
 }

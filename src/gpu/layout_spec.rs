@@ -225,9 +225,11 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("LOD_COLOR_2", 0x3c64e6),
     ("LOD_COLOR_3", 0xe63c3c),
     // Specialization constant ids of the LOD draws: color by level (1) or the base color (0);
-    // the mesh and geometry paths also append what they emit to the list (tests).
-    ("LOD_SPEC_COLOR_LEVELS", 0),
-    ("LOD_SPEC_RECORD", 1),
+    // the mesh and geometry paths also append what they emit to the list (tests). Past the
+    // splatting family's ids: the draws shade with splat/flat.frag, specialized by
+    // SPLAT_SPEC_RASTER (squares or perspective-correct discs), which they read too.
+    ("LOD_SPEC_COLOR_LEVELS", 8),
+    ("LOD_SPEC_RECORD", 9),
     // The mesh path: a task workgroup chooses the levels of LOD_TASK_GROUP patches and
     // launches one mesh workgroup per patch, of LOD_PATCH_VERTICES threads (the most vertices
     // a level of a patch holds: 4^(LOD_MAX_LEVELS - 1)); the geometry path emits at most
@@ -245,7 +247,7 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // Specialization constant id of the geometry path's vertices per invocation (its
     // declared output limit; the patch's level is split over LOD_PATCH_VERTICES / it
     // invocations).
-    ("LOD_SPEC_GEOMETRY_CHUNK", 2),
+    ("LOD_SPEC_GEOMETRY_CHUNK", 10),
 ];
 
 /// Structs shared between GLSL and Rust.

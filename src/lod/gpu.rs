@@ -10,10 +10,10 @@
 //! * geometry (`add_geometry`, the thesis' path): one vertex per patch, the geometry shader
 //!   chooses the level and emits its vertices.
 //!
-//! Every path draws points covering each splat's projected diameter into the standard targets
-//! and counts the vertices it emits per level. With a point budget (`DrawOptions::budget`,
-//! `add_budget`) two passes before the path raise the threshold the levels are chosen with
-//! until the frame's samples fit.
+//! Every path draws each splat as a square of its projected diameter or a perspective-correct
+//! disc (`splat/flat.frag`) into the standard targets and counts the vertices it emits per
+//! level. With a point budget (`DrawOptions::budget`, `add_budget`) two passes before the path
+//! raise the threshold the levels are chosen with until the frame's samples fit.
 
 use std::sync::Arc;
 
@@ -25,6 +25,8 @@ use crate::gpu::layout::{
     LodParams, BINDING_FRAME, BINDING_LOD_COUNTERS, BINDING_LOD_LIST, BINDING_LOD_PATCHES,
     BINDING_LOD_VERTICES, LOD_BUDGET_BINS, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES,
     LOD_SPEC_COLOR_LEVELS, LOD_SPEC_GEOMETRY_CHUNK, LOD_SPEC_RECORD, LOD_TASK_GROUP,
+    SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_SQUARES, SPLAT_SHADING_FLAT, SPLAT_SPEC_RASTER,
+    SPLAT_SPEC_SHADING,
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, Pipeline};
 use crate::graph::{
@@ -41,6 +43,16 @@ pub const PER_LEVEL_OFFSET: u64 = 16;
 /// what the point budget raised it to. Then the budget's coarsest samples (u32), two pads and
 /// `LOD_BUDGET_BINS` bins (u32; `LOD_COUNTERS_MEMBERS` in `glsl/lod/lod.glsl`).
 pub const THRESHOLD_OFFSET: u64 = PER_LEVEL_OFFSET + 4 * LOD_MAX_LEVELS as u64;
+
+/// Output components of one geometry-shader vertex as the limits count them: `gl_PerVertex`
+/// (position, point size, one clip and one cull distance: 7) and the splat interface of
+/// `splat/flat.frag` (color, normal, centre, radius, size: 11).
+pub const GEOMETRY_VERTEX_COMPONENTS: u32 = 18;
+
+/// The geometry path's default vertices per invocation: 32 × 18 = 576 components, within the
+/// 1024 of `maxGeometryTotalOutputComponents` every device offers (64 would need 1152), so
+/// a patch's finest level takes two invocations.
+pub const DEFAULT_GEOMETRY_CHUNK: u32 = 32;
 
 /// Bytes of the selection's counters.
 pub const COUNTER_BYTES: u64 = THRESHOLD_OFFSET + 16 + 4 * LOD_BUDGET_BINS as u64;
@@ -114,6 +126,9 @@ pub struct DrawOptions {
     pub epsilon: f32,
     /// Color by level (thesis Fig. 7.4) rather than with the base color.
     pub color_levels: bool,
+    /// Draw perspective-correct discs (002 eqs. 5.4-5.5) rather than image-aligned squares
+    /// of the projected diameter (eq. 5.1).
+    pub discs: bool,
     /// Largest point size in pixels.
     pub max_point_size: f32,
     /// Mesh and geometry paths: also append every emitted vertex index to the list (tests).
@@ -128,16 +143,17 @@ pub struct DrawOptions {
 }
 
 impl DrawOptions {
-    /// Threshold `epsilon`, the base color, no budget, points up to 16 pixels, one geometry
-    /// invocation per patch.
+    /// Threshold `epsilon`, the base color, squares, no budget, points up to 16 pixels,
+    /// `DEFAULT_GEOMETRY_CHUNK` vertices per geometry invocation.
     pub fn new(epsilon: f32) -> DrawOptions {
         DrawOptions {
             epsilon,
             color_levels: false,
+            discs: false,
             max_point_size: 16.0,
             record: false,
             budget: 0,
-            geometry_chunk: LOD_PATCH_VERTICES,
+            geometry_chunk: DEFAULT_GEOMETRY_CHUNK,
         }
     }
 }
@@ -339,8 +355,8 @@ pub fn add_select(
     Ok(selection)
 }
 
-/// A points pipeline drawing into the standard targets with reversed-Z depth, shaded by
-/// `splat/points.frag`.
+/// A points pipeline drawing into the standard targets with reversed-Z depth, rasterized and
+/// shaded by `splat/flat.frag` (squares or discs).
 fn draw_pipeline(
     ctx: &Arc<Context>,
     shaders: &[&str],
@@ -364,6 +380,15 @@ fn draw_pipeline(
                 (LOD_SPEC_COLOR_LEVELS, u32::from(options.color_levels)),
                 (LOD_SPEC_RECORD, u32::from(options.record)),
                 (LOD_SPEC_GEOMETRY_CHUNK, options.geometry_chunk),
+                (
+                    SPLAT_SPEC_RASTER,
+                    if options.discs {
+                        SPLAT_RASTER_PERSPECTIVE
+                    } else {
+                        SPLAT_RASTER_SQUARES
+                    },
+                ),
+                (SPLAT_SPEC_SHADING, SPLAT_SHADING_FLAT),
             ],
             geometry_output: shaders
                 .iter()
@@ -409,7 +434,7 @@ pub fn add_compute(
     let vertex = vk::ShaderStageFlags::VERTEX;
     let pipeline = draw_pipeline(
         ctx,
-        &["lod/points.vert", "splat/points.frag"],
+        &["lod/points.vert", "splat/flat.frag"],
         &[
             binding(BINDING_FRAME, vertex | vk::ShaderStageFlags::FRAGMENT),
             binding(BINDING_LOD_VERTICES, vertex),
@@ -482,7 +507,7 @@ pub fn add_mesh(
     let mesh = vk::ShaderStageFlags::MESH_EXT;
     let pipeline = draw_pipeline(
         ctx,
-        &["lod/select.task", "lod/points.mesh", "splat/points.frag"],
+        &["lod/select.task", "lod/points.mesh", "splat/flat.frag"],
         &[
             binding(BINDING_FRAME, task | mesh | vk::ShaderStageFlags::FRAGMENT),
             binding(BINDING_LOD_PATCHES, task),
@@ -539,13 +564,6 @@ pub fn add_geometry(
     options: DrawOptions,
     targets: DrawTargets,
 ) -> Result<Selection> {
-    if ctx.caps.max_geometry_output_vertices < LOD_PATCH_VERTICES {
-        bail!(
-            "the geometry path emits up to {LOD_PATCH_VERTICES} vertices per patch; the device \
-             allows {}",
-            ctx.caps.max_geometry_output_vertices
-        );
-    }
     let LodInputs {
         frame,
         patches,
@@ -556,6 +574,17 @@ pub fn add_geometry(
         bail!(
             "the geometry path's vertices per invocation must be a power of two up to \
              {LOD_PATCH_VERTICES}, not {chunk}"
+        );
+    }
+    let components = chunk * GEOMETRY_VERTEX_COMPONENTS;
+    if chunk > ctx.caps.max_geometry_output_vertices
+        || components > ctx.caps.max_geometry_total_output_components
+    {
+        bail!(
+            "{chunk} vertices per geometry invocation declare {components} output components; \
+             the device allows {} vertices and {} components",
+            ctx.caps.max_geometry_output_vertices,
+            ctx.caps.max_geometry_total_output_components
         );
     }
     let invocations = LOD_PATCH_VERTICES / chunk;
@@ -585,7 +614,7 @@ pub fn add_geometry(
     let geometry = vk::ShaderStageFlags::GEOMETRY;
     let pipeline = draw_pipeline(
         ctx,
-        &["lod/patch.vert", "lod/expand.geom", "splat/points.frag"],
+        &["lod/patch.vert", "lod/expand.geom", "splat/flat.frag"],
         &[
             binding(BINDING_FRAME, geometry | vk::ShaderStageFlags::FRAGMENT),
             binding(BINDING_LOD_PATCHES, geometry),
