@@ -31,15 +31,22 @@ use crate::graph::{
 use crate::methods::compute::storage;
 use crate::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 
+/// Byte offset of the per-level vertex counts in the selection's counters (after the
+/// `VkDrawIndirectCommand`).
+pub const COUNTER_LEVELS_OFFSET: u64 = 16;
+
 /// Bytes of the selection's counters: a `VkDrawIndirectCommand`, then the vertices selected
 /// per level.
-pub const COUNTER_BYTES: u64 = 16 + 4 * LOD_MAX_LEVELS as u64;
+pub const COUNTER_BYTES: u64 = COUNTER_LEVELS_OFFSET + 4 * LOD_MAX_LEVELS as u64;
 
 /// An object texture uploaded: its patches (`GpuLodPatch`) and vertices (`GpuLodVertex`).
 pub struct GpuLod {
     pub patches: Arc<Buffer>,
     pub vertices: Arc<Buffer>,
     pub patch_count: u32,
+    /// The object texture's levels (`ObjectTexture::levels`): the counters' per-level words
+    /// a path writes.
+    pub levels: u32,
     /// The longest list a view selects (`ObjectTexture::max_selected`).
     pub max_selected: u32,
 }
@@ -63,6 +70,7 @@ impl GpuLod {
                 usage,
             )?),
             patch_count: patches.len() as u32,
+            levels: texture.levels,
             max_selected: texture.max_selected(),
         })
     }
