@@ -443,8 +443,9 @@ impl Renderer {
 
     /// Starts the next frame: moves to the next slot, waits for the frame that last used it
     /// (not for the frames submitted since), collects that frame's timestamps and sample
-    /// counts and binds the slot's uniforms and sample readback buffer. Returns the slot's swapchain image-available semaphore (null unless the
-    /// renderer presents). Call before `update`, `record` and `submit`.
+    /// counts and binds the slot's uniforms and sample readback buffer. Returns the slot's
+    /// swapchain image-available semaphore (null unless the renderer presents). Call before
+    /// `update`, `record` and `submit`.
     pub fn begin_frame(&mut self) -> Result<vk::Semaphore> {
         let slot = self.frames.advance()?;
         self.graph.profiler().collect(slot)?;

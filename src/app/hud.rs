@@ -1,6 +1,7 @@
 //! What the viewer's HUD says: the statistics panel (method, per-pass GPU time, points or the
-//! level-of-detail samples per level, GPU memory, frame rate) and the key help. The text is rebuilt twice a second and on changes;
-//! other code extends it by appending lines to `Hud::stats` before `Hud::panels`.
+//! level-of-detail samples per level, GPU memory, frame rate) and the key help. The text is
+//! rebuilt twice a second and on changes; other code extends it by appending lines to
+//! `Hud::stats` before `Hud::panels`.
 
 use std::time::{Duration, Instant};
 
