@@ -18,7 +18,8 @@ use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::lod::gpu::GpuLod;
 use crate::lod::{self, Hierarchy, ObjectTexture};
 use crate::methods::{
-    BuildContext, GpuScene, MethodConfig, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
+    BuildContext, GpuScene, MethodConfig, SampleCounters, Targets, COLOR_FORMAT, DEPTH_FORMAT,
+    NORMAL_FORMAT,
 };
 use crate::overlay::{pass::OverlayPass, Panel};
 use crate::post::{self, PostOptions};
@@ -231,6 +232,39 @@ struct Readback {
     normal: Arc<Buffer>,
 }
 
+/// The per-level sample counts of a method that publishes them (`SampleCounters`), copied
+/// every frame into the frame slot's host-visible buffer and read after the slot's fence.
+struct Samples {
+    /// Per frame slot: the counts of the slot's last frame, bound to the graph's external
+    /// buffer `id` before the slot is recorded.
+    host: Vec<Buffer>,
+    id: BufferId,
+    levels: usize,
+    /// Per frame slot: a frame was submitted whose counts were not read yet.
+    pending: Vec<bool>,
+    /// The newest finished frame's counts (`levels` long once `read` is true).
+    counts: Vec<u64>,
+    read: bool,
+}
+
+impl Samples {
+    /// Reads `slot`'s counts if its frame (finished: its fence was waited on) was not read.
+    fn collect(&mut self, slot: usize) -> Result<()> {
+        if !std::mem::take(&mut self.pending[slot]) {
+            return Ok(());
+        }
+        let bytes = &self.host[slot].mapped()?[..4 * self.levels];
+        self.counts.clear();
+        self.counts.extend(
+            bytemuck::cast_slice::<u8, u32>(bytes)
+                .iter()
+                .map(|&n| u64::from(n)),
+        );
+        self.read = true;
+        Ok(())
+    }
+}
+
 /// One method's compiled graph and what it needs every frame.
 ///
 /// Frames in flight: each slot of `frames` has its own command buffer, fence, timestamp query
@@ -249,6 +283,7 @@ pub struct Renderer {
     uniforms: Vec<Buffer>,
     frame_id: BufferId,
     readback: Option<Readback>,
+    samples: Option<Samples>,
     overlay: Option<OverlayPass>,
     /// The swapchain image slot when presenting.
     pub present_target: Option<ImageId>,
@@ -326,7 +361,7 @@ impl Renderer {
             .indices
             .as_ref()
             .map(|b| g.import_buffer("indices", b.clone()));
-        (config.method.build)(&mut BuildContext {
+        let mut build = BuildContext {
             ctx,
             graph: &mut g,
             config,
@@ -338,7 +373,13 @@ impl Renderer {
             targets,
             width,
             height,
-        })?;
+            samples: None,
+        };
+        (config.method.build)(&mut build)?;
+        let samples = build
+            .samples
+            .map(|counters| add_samples(ctx, &mut g, counters, slots))
+            .transpose()?;
         // The post stage's color (or the method's, without post-processing) is what is shown.
         let shown = Targets {
             color: post::build(ctx, &mut g, targets, width, height, &extras.post)?,
@@ -377,6 +418,7 @@ impl Renderer {
             uniforms,
             frame_id,
             readback,
+            samples,
             overlay,
             present_target,
             width,
@@ -400,14 +442,20 @@ impl Renderer {
     }
 
     /// Starts the next frame: moves to the next slot, waits for the frame that last used it
-    /// (not for the frames submitted since), collects that frame's timestamps and binds the
-    /// slot's uniforms. Returns the slot's swapchain image-available semaphore (null unless the
-    /// renderer presents). Call before `update`, `record` and `submit`.
+    /// (not for the frames submitted since), collects that frame's timestamps and sample
+    /// counts and binds the slot's uniforms and sample readback buffer. Returns the slot's
+    /// swapchain image-available semaphore (null unless the renderer presents). Call before
+    /// `update`, `record` and `submit`.
     pub fn begin_frame(&mut self) -> Result<vk::Semaphore> {
         let slot = self.frames.advance()?;
         self.graph.profiler().collect(slot)?;
         self.graph
             .bind_external_buffer(self.frame_id, &self.uniforms[slot]);
+        if let Some(samples) = &mut self.samples {
+            samples.collect(slot)?;
+            self.graph
+                .bind_external_buffer(samples.id, &samples.host[slot]);
+        }
         if let Some(overlay) = &self.overlay {
             overlay.bind(&mut self.graph, slot);
         }
@@ -499,19 +547,37 @@ impl Renderer {
         wait: Option<vk::Semaphore>,
         signal: Option<vk::Semaphore>,
     ) -> Result<()> {
-        self.frames.submit(wait, signal)
+        self.frames.submit(wait, signal)?;
+        if let Some(samples) = &mut self.samples {
+            samples.pending[self.frames.current()] = true;
+        }
+        Ok(())
     }
 
-    /// Blocks until every submitted frame has finished and collects their timestamps, oldest
-    /// first (so `last_timings` reports the newest frame).
+    /// Blocks until every submitted frame has finished and collects their timestamps and
+    /// sample counts, oldest first (so `last_timings` and `samples_per_level` report the
+    /// newest frame).
     pub fn finish(&mut self) -> Result<()> {
         let (len, current) = (self.frames.len(), self.frames.current());
         for i in 1..=len {
             let slot = (current + i) % len;
             self.frames.wait(slot)?;
             self.graph.profiler().collect(slot)?;
+            if let Some(samples) = &mut self.samples {
+                samples.collect(slot)?;
+            }
         }
         Ok(())
+    }
+
+    /// The samples the method drew per level in the newest finished frame (the level-of-detail
+    /// methods' vertices emitted per level of the object texture); `None` for methods that do
+    /// not count them and before a frame finished.
+    pub fn samples_per_level(&self) -> Option<&[u64]> {
+        self.samples
+            .as_ref()
+            .filter(|s| s.read)
+            .map(|s| s.counts.as_slice())
     }
 
     /// Renders one frame and waits for it (and for any frame still in flight); returns the
@@ -635,6 +701,40 @@ fn add_readback(
     }
     host_pass.record(|_| {});
     Ok(rb)
+}
+
+/// Declares the copy of `counters` into an external buffer bound per frame slot to one of
+/// `slots` host-visible buffers (`samples.copy`, every frame) and its hand-over to the host
+/// (`samples.host`, which keeps the copy from being culled).
+fn add_samples(
+    ctx: &Arc<Context>,
+    g: &mut GraphBuilder,
+    counters: SampleCounters,
+    slots: usize,
+) -> Result<Samples> {
+    let levels = counters.levels as usize;
+    let bytes = 4 * u64::from(counters.levels);
+    let host = (0..slots)
+        .map(|_| Buffer::readback(ctx, "samples", bytes))
+        .collect::<Result<Vec<_>>>()?;
+    let id = g.external_buffer("samples", bytes, vk::BufferUsageFlags::TRANSFER_DST);
+    let region = vk::BufferCopy {
+        src_offset: counters.offset,
+        dst_offset: 0,
+        size: bytes,
+    };
+    g.copy_buffer("samples.copy", counters.buffer, id, &[region]);
+    g.pass("samples.host")
+        .buffer(id, Access::HostRead)
+        .record(|_| {});
+    Ok(Samples {
+        host,
+        id,
+        levels,
+        pending: vec![false; slots],
+        counts: Vec::with_capacity(levels),
+        read: false,
+    })
 }
 
 fn add_present(g: &mut GraphBuilder, color: ImageId, desc: ImageDesc) -> ImageId {

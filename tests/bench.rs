@@ -4,7 +4,7 @@
 mod common;
 
 use surfel::eval::bench;
-use surfel::eval::config::BenchConfig;
+use surfel::eval::config::{quick_sweep_dir, BenchConfig, SweepOrigin};
 use surfel::eval::results::Results;
 
 #[test]
@@ -73,6 +73,9 @@ fn quick_sweep_writes_results_charts_and_report() {
             r.frame_ms_median > 0.0 && r.points_per_second > 0.0,
             "{r:?}"
         );
+        // Methods without level of detail project every point.
+        assert_eq!(r.samples, Some(r.points), "{r:?}");
+        assert!(r.samples_per_level.is_empty(), "{r:?}");
         for (name, v) in r.scores.fields() {
             assert!(v.is_none_or(f64::is_finite), "{name} = {v:?} in {r:?}");
         }
@@ -102,5 +105,52 @@ fn quick_sweep_writes_results_charts_and_report() {
     assert!(text.contains("llvmpipe") || text.contains(&results.device));
     assert!(text.contains("Pareto") && text.contains("points(size=1)"));
     assert!(text.contains("Reference (not ranked): `mesh`"), "{text}");
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn lod_jobs_record_the_samples_read_back_per_level() {
+    let ctx = common::context();
+    let out = std::env::temp_dir().join(format!("surfel-bench-lod-{}", std::process::id()));
+    let sweep = r#"
+        resolutions = ["64x64"]
+        lights = [1]
+        [frames]
+        warmup = 0
+        measured = 1
+        [[models]]
+        name = "bunny"
+        path = "../../../shared/data/stanford/bun_zipper.ply"
+        [[methods]]
+        name = "lod-compute"
+        [[methods]]
+        name = "points"
+        [[poses]]
+        name = "default"
+    "#;
+    // Model paths relative to the quick sweep's directory.
+    let origin = SweepOrigin::File(quick_sweep_dir().join("lod-samples.toml"));
+    let config = BenchConfig::parse_from(sweep, origin).expect("sweep");
+    let run = bench::run(&ctx, &config, &out, false).expect("sweep");
+    common::assert_clean(&ctx);
+    let record = |method: &str| {
+        let found = run.results.records.iter().find(|r| r.method == method);
+        found.unwrap_or_else(|| panic!("no {method} record"))
+    };
+    let lod = record("lod-compute");
+    // Every level of the object texture counted; the framed bunny draws coarse levels, so
+    // fewer samples than points.
+    assert_eq!(lod.samples_per_level.len(), 4, "{lod:?}");
+    let total: u64 = lod.samples_per_level.iter().sum();
+    assert_eq!(lod.samples, Some(total));
+    assert!(total > 0 && total < lod.points, "{lod:?}");
+    let points = record("points");
+    assert_eq!(points.samples, Some(points.points));
+    assert!(points.samples_per_level.is_empty());
+    let csv = std::fs::read_to_string(&run.csv).expect("csv");
+    let header = csv.lines().next().expect("header");
+    for column in ["samples", "samples_l0", "samples_l3"] {
+        assert!(header.split(',').any(|c| c == column), "{header}");
+    }
     std::fs::remove_dir_all(&out).ok();
 }

@@ -67,6 +67,8 @@ fn record(m: usize, points: u64, (w, h): (u32, u32), stress: Option<(&str, f64, 
         frame_ms_median: frame,
         frame_ms_spread: frame * 0.05,
         points_per_second: points as f64 / (frame / 1000.0),
+        samples: None,
+        samples_per_level: Vec::new(),
         scores: Scores {
             psnr: Some(psnr - stress.map_or(0.0, |s| s.2 * 100.0)),
             ssim: Some(ssim),

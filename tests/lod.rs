@@ -1,6 +1,7 @@
 //! Level of detail from object textures (000 ch. 7) on lavapipe under validation: every
-//! expansion path (compute, mesh) emits, for fixed cameras, exactly the vertices the CPU
-//! reference (`ObjectTexture::select`) chooses and counts them per level; the methods render.
+//! expansion path (compute, mesh, geometry) emits, for fixed cameras, exactly the vertices the
+//! CPU reference (`ObjectTexture::select`) chooses and counts them per level; the methods
+//! render, and the renderer reads their counts per level back.
 
 mod common;
 
@@ -438,6 +439,110 @@ fn lod_methods_need_the_object_texture() {
             .err()
             .expect("refused");
     assert!(err.to_string().contains("object texture"), "{err}");
+    drop(scene);
+    common::assert_clean(&ctx);
+}
+
+/// The renderer reads every LOD method's samples per level back each frame: from a near
+/// camera (which culls patches) and a far one, the newest finished frame's counts are the CPU
+/// reference's histogram, also with two frames in flight (`begin_frame` reads the frame it
+/// waited for, `finish` the newest); a method that counts no samples reports none.
+#[test]
+fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
+    use surfel::render::{Extras, Renderer, View};
+    use surfel::scene::{Camera, Light};
+
+    const EDGE: u32 = 128;
+    const EPSILON: f32 = 0.5;
+    let ctx = common::context();
+    let cloud = sphere_cloud(8_000);
+    let (scene, info) = surfel::render::upload_with(&ctx, &cloud, with_lod()).expect("upload");
+    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
+        unreachable!("sphere_cloud has normals and radii");
+    };
+    // The object texture `upload_with` built, on the host.
+    let texture = ObjectTexture::new(&Hierarchy::build(
+        &cloud.positions,
+        normals,
+        radii,
+        DEFAULT_LEVELS,
+    ));
+    let view_from = |distance: f32| View {
+        camera: Camera {
+            eye: Vec3::new(0.3, 0.2, distance),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y: 60f32.to_radians(),
+            near: 0.01,
+        },
+        lights: vec![Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    let (near, far) = (view_from(1.5), view_from(30.0));
+    let histogram = |v: &View| {
+        let (view, proj) = (v.camera.view(), v.camera.projection(1.0));
+        let reference = LodView::from_camera(view, proj, EDGE as f32, EPSILON);
+        let culled = texture
+            .patches
+            .iter()
+            .any(|p| !texture.in_view(p, &reference));
+        (texture.histogram(&reference), culled)
+    };
+    let ((near_counts, near_culls), (far_counts, far_culls)) = (histogram(&near), histogram(&far));
+    assert!(
+        near_culls && !far_culls,
+        "the near view culls, the far one does not"
+    );
+    let total = |c: &[u64]| c.iter().sum::<u64>();
+    assert!(
+        total(&far_counts) > 0 && total(&near_counts) > total(&far_counts),
+        "near {near_counts:?}, far {far_counts:?}"
+    );
+    let mut methods = vec!["lod-compute"];
+    if ctx.caps.mesh_shader && ctx.caps.task_shader {
+        methods.push("lod-mesh");
+    }
+    if ctx.caps.geometry_points {
+        methods.push("lod-geometry");
+    }
+    let renderer = |method: &str| {
+        let config = surfel::methods::MethodConfig::parse(method).expect("method");
+        Renderer::new(&ctx, &scene, info, &config, EDGE, EDGE, Extras::default()).expect("renderer")
+    };
+    for method in methods {
+        let mut r = renderer(&format!("{method}:epsilon={EPSILON}"));
+        assert_eq!(r.frames_in_flight(), 2);
+        assert_eq!(r.samples_per_level(), None, "{method}: no frame finished");
+        for (v, expected) in [
+            (&near, &near_counts),
+            (&far, &far_counts),
+            (&near, &near_counts),
+        ] {
+            r.render(v, false).expect("frame");
+            assert_eq!(r.samples_per_level(), Some(&expected[..]), "{method}");
+        }
+        // Two frames in flight: starting a third waits for (and reads) the first only.
+        for v in [&far, &near] {
+            r.begin_frame().expect("begin");
+            r.update(v).expect("update");
+            r.record(false).expect("record");
+            r.submit(None, None).expect("submit");
+        }
+        r.begin_frame().expect("begin");
+        assert_eq!(r.samples_per_level(), Some(&far_counts[..]), "{method}");
+        r.update(&far).expect("update");
+        r.record(false).expect("record");
+        r.submit(None, None).expect("submit");
+        r.finish().expect("finish");
+        assert_eq!(r.samples_per_level(), Some(&far_counts[..]), "{method}");
+        assert!(r.schedule().contains("samples.copy"), "{method}");
+    }
+    let mut points = renderer("points");
+    points.render(&near, false).expect("frame");
+    assert_eq!(points.samples_per_level(), None);
+    assert!(!points.schedule().contains("samples"));
+    drop(points);
     drop(scene);
     common::assert_clean(&ctx);
 }

@@ -1,10 +1,12 @@
-//! What the viewer's HUD says: the statistics panel (method, per-pass GPU time, points, GPU
-//! memory, frame rate) and the key help. The text is rebuilt twice a second and on changes;
-//! other code extends it by appending lines to `Hud::stats` before `Hud::panels`.
+//! What the viewer's HUD says: the statistics panel (method, per-pass GPU time, points or the
+//! level-of-detail samples per level, GPU memory, frame rate) and the key help. The text is
+//! rebuilt twice a second and on changes; other code extends it by appending lines to
+//! `Hud::stats` before `Hud::panels`.
 
 use std::time::{Duration, Instant};
 
 use crate::color::LegendEntry;
+use crate::gpu::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
 use crate::overlay::{Corner, HudLine, Panel};
 
 /// Every viewer key and mouse control, as shown by the help panel (`H`).
@@ -63,14 +65,54 @@ impl FrameRate {
 }
 
 /// What a method projects of the cloud.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Projected {
     /// Every point.
     All,
     /// The points of the batches in view (counted on the host).
     InView(u64),
-    /// Samples its level of detail selects on the GPU (not read back).
-    LevelOfDetail,
+    /// The samples its level of detail selects on the GPU, per level, as read back from the
+    /// newest finished frame (`None` before one finished).
+    LevelOfDetail(Option<Vec<u64>>),
+}
+
+/// Characters of a level's histogram bar.
+const BAR: usize = 12;
+
+/// The splat colors of levels 0-3 (thesis Fig. 7.4: grey, yellow, blue, red), as the
+/// `levels=1` parameter of the LOD methods draws them.
+const LEVEL_COLORS: [u32; 4] = [LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3];
+
+/// The HUD color of level `level` (the text color past the thesis' four levels).
+fn level_color(level: usize) -> [u8; 4] {
+    LEVEL_COLORS.get(level).map_or(HudLine::TEXT, |&c| {
+        let [_, r, g, b] = c.to_be_bytes();
+        [r, g, b, 255]
+    })
+}
+
+/// One histogram line per level: the level, its samples, their share of `total` and a bar
+/// of `BAR` characters (`#` for the share, `-` for the rest), tab-separated so the columns
+/// line up in the proportional font; in the level's color.
+fn histogram(counts: &[u64], total: u64) -> impl Iterator<Item = HudLine> + '_ {
+    counts.iter().enumerate().map(move |(level, &n)| {
+        let share = if total == 0 {
+            0.0
+        } else {
+            n as f64 / total as f64
+        };
+        let filled = (share * BAR as f64).round() as usize;
+        HudLine::new(
+            format!(
+                "L{level}\t{}\t{:.0} %\t{}{}",
+                thousands(n),
+                share * 100.0,
+                "#".repeat(filled),
+                "-".repeat(BAR - filled)
+            ),
+            level_color(level),
+        )
+    })
 }
 
 /// The figures the statistics panel shows.
@@ -140,22 +182,31 @@ impl Hud {
             stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
         }
         // Batch-culling methods project the points of the batches inside the frustum (counted
-        // on the host with the shader's own test); the others project every point.
+        // on the host with the shader's own test); level of detail projects the samples it
+        // counted per level on the GPU; the others project every point.
         stats.push(HudLine::new(
-            match s.projected {
+            match &s.projected {
                 Projected::InView(n) => format!(
                     "points {}, {} projected (batches in view)",
                     thousands(s.points),
-                    thousands(n)
+                    thousands(*n)
                 ),
                 Projected::All => format!("points {}, all projected", thousands(s.points)),
-                Projected::LevelOfDetail => format!(
-                    "points {}, level of detail selects the samples",
+                Projected::LevelOfDetail(Some(counts)) => format!(
+                    "points {}, {} samples projected (level of detail)",
+                    thousands(s.points),
+                    thousands(counts.iter().sum())
+                ),
+                Projected::LevelOfDetail(None) => format!(
+                    "points {}, level of detail: waiting for the sample counts",
                     thousands(s.points)
                 ),
             },
             HudLine::TEXT,
         ));
+        if let Projected::LevelOfDetail(Some(counts)) = &s.projected {
+            stats.extend(histogram(counts, counts.iter().sum()));
+        }
         stats.push(HudLine::new(
             match s.memory {
                 Some((used, reserved)) => format!(
@@ -278,14 +329,56 @@ mod tests {
             .iter()
             .any(|l| l.text == "points 110,000, all projected"));
         let s = Stats {
-            projected: Projected::LevelOfDetail,
+            projected: Projected::LevelOfDetail(None),
             ..stats(&[])
         };
         let hud = Hud::new(&s, false);
         assert!(hud
             .stats
             .iter()
-            .any(|l| l.text == "points 110,000, level of detail selects the samples"));
+            .any(|l| l.text == "points 110,000, level of detail: waiting for the sample counts"));
+        assert!(!hud.stats.iter().any(|l| l.text.starts_with("L0")));
+    }
+
+    #[test]
+    fn level_of_detail_shows_the_samples_per_level_as_a_histogram_in_the_level_colors() {
+        let s = Stats {
+            projected: Projected::LevelOfDetail(Some(vec![812_345, 400_000, 120_000, 0])),
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        let at = hud
+            .stats
+            .iter()
+            .position(|l| l.text == "points 110,000, 1,332,345 samples projected (level of detail)")
+            .expect("total line");
+        let lines: Vec<(&str, [u8; 4])> = hud.stats[at + 1..at + 5]
+            .iter()
+            .map(|l| (l.text.as_str(), l.color))
+            .collect();
+        assert_eq!(
+            lines,
+            [
+                ("L0\t812,345\t61 %\t#######-----", [0x9e, 0x9e, 0x9e, 255]),
+                ("L1\t400,000\t30 %\t####--------", [0xf0, 0xc8, 0x1e, 255]),
+                ("L2\t120,000\t9 %\t#-----------", [0x3c, 0x64, 0xe6, 255]),
+                ("L3\t0\t0 %\t------------", [0xe6, 0x3c, 0x3c, 255]),
+            ]
+        );
+        assert_eq!(
+            hud.stats[at + 5].text,
+            "GPU memory 3.0 MiB in use, 64.0 MiB reserved"
+        );
+        // No frame's samples yet or none drawn: bars stay empty, no division by zero.
+        let s = Stats {
+            projected: Projected::LevelOfDetail(Some(vec![0, 0])),
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        assert!(hud
+            .stats
+            .iter()
+            .any(|l| l.text == "L1\t0\t0 %\t------------"));
     }
 
     #[test]

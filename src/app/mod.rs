@@ -557,7 +557,9 @@ impl Viewer {
             .collect();
         let label = gpu.renderer.config.label();
         let projected = match &self.scene {
-            _ if gpu.renderer.config.method.needs_lod => hud::Projected::LevelOfDetail,
+            _ if gpu.renderer.config.method.needs_lod => {
+                hud::Projected::LevelOfDetail(gpu.renderer.samples_per_level().map(<[u64]>::to_vec))
+            }
             Some((scene, _)) if gpu.renderer.config.method.culls_batches => {
                 let camera = self.orbit.camera();
                 let aspect = gpu.renderer.width as f32 / gpu.renderer.height.max(1) as f32;

@@ -152,6 +152,9 @@ struct Timed {
     passes: Vec<PassTiming>,
     frame_ms: (f64, f64),
     frames: Vec<Frame>,
+    /// The first (scored) view's samples per level, for methods that count them
+    /// (`Renderer::samples_per_level`).
+    samples_per_level: Option<Vec<u64>>,
 }
 
 /// Renders `views` once each with readback after `warmup` + `measured` timed frames of the
@@ -191,10 +194,14 @@ fn run_method(
         r.render(&views[0], false)?;
     }
     let (scopes, frame) = r.timings();
-    let frames = views
-        .iter()
-        .map(|v| r.render(v, true)?.context("no frame read back"))
-        .collect::<Result<Vec<_>>>()?;
+    let mut samples_per_level = None;
+    let mut frames = Vec::with_capacity(views.len());
+    for (i, v) in views.iter().enumerate() {
+        frames.push(r.render(v, true)?.context("no frame read back")?);
+        if i == 0 {
+            samples_per_level = r.samples_per_level().map(<[u64]>::to_vec);
+        }
+    }
     Ok(Timed {
         passes: scopes
             .into_iter()
@@ -206,6 +213,7 @@ fn run_method(
             .collect(),
         frame_ms: (frame.median_ms, frame.spread_ms),
         frames,
+        samples_per_level,
     })
 }
 
@@ -401,6 +409,13 @@ pub fn run(
             }
         }
         let frame_ms = timed.frame_ms.0;
+        // Level of detail projects the samples it counted per level; the others every point.
+        let samples_per_level = timed.samples_per_level.unwrap_or_default();
+        let samples = if config.method.needs_lod {
+            samples_per_level.iter().sum()
+        } else {
+            u64::from(scene.info.points)
+        };
         results.records.push(Record {
             model: job.model.name.clone(),
             points: u64::from(scene.info.points),
@@ -422,6 +437,8 @@ pub fn run(
             } else {
                 0.0
             },
+            samples: Some(samples),
+            samples_per_level,
             scores,
         });
     }

@@ -997,6 +997,8 @@ mod tests {
             frame_ms_median: ms,
             frame_ms_spread: 0.1,
             points_per_second: 1000.0 / (ms / 1000.0),
+            samples: None,
+            samples_per_level: Vec::new(),
             scores: Scores {
                 psnr: Some(psnr),
                 ..Scores::default()

@@ -202,15 +202,18 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             passes.push(column);
         }
     }
+    // Samples projected (level of detail: read back per level), in results that record them.
+    let has_samples = rows.iter().any(|r| r.samples.is_some());
     let mut header = vec![
         "method".to_string(),
         "params".into(),
         "resolution".into(),
         "points".into(),
-        "pose".into(),
-        "lights".into(),
-        "frame ms (IQR)".into(),
     ];
+    if has_samples {
+        header.push("samples".into());
+    }
+    header.extend(["pose".into(), "lights".into(), "frame ms (IQR)".into()]);
     header.extend(passes.iter().map(|p| format!("{} ms", cell(p))));
     header.extend(
         [
@@ -233,10 +236,15 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             cell(&params_text(r)),
             r.resolution(),
             r.points.to_string(),
+        ];
+        if has_samples {
+            row.push(r.samples.map_or_else(|| "–".into(), |n| n.to_string()));
+        }
+        row.extend([
             cell(&r.pose),
             r.lights.to_string(),
             format!("{:.3} ({:.3})", r.frame_ms_median, r.frame_ms_spread),
-        ];
+        ]);
         row.extend(passes.iter().map(|column| {
             let mut of = r.passes.iter().filter(|p| pass_column(&p.name) == *column);
             let first = of.next().map(|p| p.median_ms);
@@ -483,6 +491,56 @@ mod tests {
     }
 
     #[test]
+    fn the_model_table_shows_the_samples_only_where_recorded() {
+        let lod = Record {
+            model: "m".into(),
+            points: 1000,
+            method: "lod-compute".into(),
+            params: BTreeMap::new(),
+            width: 8,
+            height: 8,
+            pose: "p".into(),
+            lights: 1,
+            stress: None,
+            stress_value: None,
+            device: String::new(),
+            driver: String::new(),
+            passes: Vec::new(),
+            frame_ms_median: 1.0,
+            frame_ms_spread: 0.0,
+            points_per_second: 1e6,
+            samples: Some(640),
+            samples_per_level: vec![600, 40],
+            scores: Default::default(),
+        };
+        let older = Record {
+            method: "points".into(),
+            samples: None,
+            samples_per_level: Vec::new(),
+            ..lod.clone()
+        };
+        let table = |records: Vec<Record>| {
+            let mut md = String::new();
+            let results = Results {
+                records,
+                ..Default::default()
+            };
+            model_table(&mut md, &results, "m");
+            md
+        };
+        let md = table(vec![lod, older.clone()]);
+        let lines: Vec<&str> = md.lines().collect();
+        assert!(
+            lines[0].starts_with("| method | params | resolution | points | samples | pose |"),
+            "{}",
+            lines[0]
+        );
+        assert!(lines[2].starts_with("| lod-compute | – | 8x8 | 1000 | 640 | p |"));
+        assert!(lines[3].starts_with("| points | – | 8x8 | 1000 | – | p |"));
+        assert!(!table(vec![older]).contains("samples"));
+    }
+
+    #[test]
     fn empty_results_give_a_short_report() {
         let dir = std::env::temp_dir().join(format!("surfel_report_empty_{}", std::process::id()));
         let path = write_report(&Results::default(), Path::new("r.json"), &dir).unwrap();
@@ -510,6 +568,8 @@ mod tests {
             frame_ms_median: ms,
             frame_ms_spread: 0.0,
             points_per_second: 0.0,
+            samples: None,
+            samples_per_level: Vec::new(),
             scores: Default::default(),
         };
         let results = Results {

@@ -59,6 +59,15 @@ pub struct Record {
     pub frame_ms_spread: f64,
     /// `points / (frame_ms_median / 1000)`.
     pub points_per_second: f64,
+    /// Samples projected in the scored frame: for level-of-detail methods the sum of
+    /// `samples_per_level`, for every other method the point count (`None` in results written
+    /// before it was recorded).
+    #[serde(default)]
+    pub samples: Option<u64>,
+    /// Level-of-detail methods: the scored frame's samples per level of the object texture,
+    /// read back from the GPU (`Renderer::samples_per_level`); empty for other methods.
+    #[serde(default)]
+    pub samples_per_level: Vec<u64>,
     pub scores: Scores,
 }
 
@@ -142,7 +151,8 @@ impl Results {
         std::fs::write(path, self.to_csv()).with_context(|| format!("writing {}", path.display()))
     }
 
-    /// Flat CSV (RFC 4180, `\n` line ends): the fixed columns, then the scores, then one
+    /// Flat CSV (RFC 4180, `\n` line ends): the fixed columns, `samples` when any record has
+    /// it and `samples_lN` per level any record counted, then the scores, then one
     /// `param.KEY` column per parameter key seen in any record (sorted), then
     /// `pass.NAME.median_ms` and `pass.NAME.spread_ms` per pass name in order of first
     /// appearance. Missing values are empty cells.
@@ -152,6 +162,13 @@ impl Results {
             .iter()
             .flat_map(|r| r.params.keys().map(String::as_str))
             .collect();
+        let has_samples = self.records.iter().any(|r| r.samples.is_some());
+        let levels = self
+            .records
+            .iter()
+            .map(|r| r.samples_per_level.len())
+            .max()
+            .unwrap_or(0);
         let mut pass_names: Vec<&str> = Vec::new();
         for p in self.records.iter().flat_map(|r| &r.passes) {
             if !pass_names.contains(&p.name.as_str()) {
@@ -177,6 +194,10 @@ impl Results {
         .iter()
         .map(|s| s.to_string())
         .collect();
+        if has_samples {
+            header.push("samples".into());
+        }
+        header.extend((0..levels).map(|l| format!("samples_l{l}")));
         header.extend(
             Scores::default()
                 .fields()
@@ -208,6 +229,15 @@ impl Results {
                 r.frame_ms_spread.to_string(),
                 r.points_per_second.to_string(),
             ];
+            if has_samples {
+                row.push(r.samples.map(|n| n.to_string()).unwrap_or_default());
+            }
+            row.extend((0..levels).map(|l| {
+                r.samples_per_level
+                    .get(l)
+                    .map(|n| n.to_string())
+                    .unwrap_or_default()
+            }));
             row.extend(r.scores.fields().iter().map(|(_, v)| opt(*v)));
             row.extend(
                 param_keys
@@ -355,6 +385,8 @@ mod tests {
             frame_ms_median: ms,
             frame_ms_spread: 0.2,
             points_per_second: 1000.0 / (ms / 1000.0),
+            samples: None,
+            samples_per_level: Vec::new(),
             scores: Scores {
                 psnr: Some(psnr),
                 ..Scores::default()
@@ -430,6 +462,66 @@ mod tests {
         assert!(lines[2].contains(",noise,0.01,"));
         assert!(lines[2].ends_with(",4,2,2.25,0.1,,,1,0"), "{}", lines[2]);
         assert_eq!(Results::default().to_csv().lines().count(), 1);
+    }
+
+    #[test]
+    fn csv_lists_samples_and_per_level_counts_only_where_recorded() {
+        let plain = |method: &str, samples: Option<u64>, per_level: Vec<u64>| Record {
+            device: "gpu".into(),
+            samples,
+            samples_per_level: per_level,
+            ..record(method, "1", 2.0, 30.0)
+        };
+        let results = Results {
+            records: vec![
+                plain("lod-compute", Some(700), vec![400, 200, 100, 0]),
+                plain("points", Some(1000), Vec::new()),
+            ],
+            ..Results::default()
+        };
+        let csv = results.to_csv();
+        let rows: Vec<Vec<&str>> = csv.lines().map(|l| l.split(',').collect()).collect();
+        let at = rows[0]
+            .iter()
+            .position(|c| *c == "samples")
+            .expect("samples column");
+        let columns = [
+            "samples",
+            "samples_l0",
+            "samples_l1",
+            "samples_l2",
+            "samples_l3",
+        ];
+        assert_eq!(rows[0][at..at + 5], columns);
+        assert_eq!(rows[1][at..at + 5], ["700", "400", "200", "100", "0"]);
+        assert_eq!(rows[2][at..at + 5], ["1000", "", "", "", ""]);
+        assert!(rows.iter().all(|r| r.len() == rows[0].len()));
+        // Results recorded before the samples were have no such columns.
+        let old = Results {
+            records: vec![plain("points", None, Vec::new())],
+            ..Results::default()
+        };
+        assert!(!old.to_csv().contains("samples"));
+    }
+
+    #[test]
+    fn records_written_before_samples_were_recorded_still_load() {
+        let r = Record {
+            samples: Some(7),
+            samples_per_level: vec![4, 3],
+            ..record("lod-compute", "1", 2.0, 30.0)
+        };
+        let mut json = serde_json::to_value(&r).expect("json");
+        let fields = json.as_object_mut().expect("object");
+        assert!(fields.remove("samples").is_some());
+        assert!(fields.remove("samples_per_level").is_some());
+        let old: Record = serde_json::from_value(json).expect("an older record loads");
+        let expected = Record {
+            samples: None,
+            samples_per_level: Vec::new(),
+            ..r
+        };
+        assert_eq!(old, expected);
     }
 
     #[test]

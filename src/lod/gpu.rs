@@ -62,6 +62,9 @@ pub struct GpuLod {
     pub patches: Arc<Buffer>,
     pub vertices: Arc<Buffer>,
     pub patch_count: u32,
+    /// The object texture's levels (`ObjectTexture::levels`): the counters' per-level words
+    /// a path writes.
+    pub levels: u32,
     /// The longest list a view selects (`ObjectTexture::max_selected`).
     pub max_selected: u32,
 }
@@ -85,6 +88,7 @@ impl GpuLod {
                 usage,
             )?),
             patch_count: patches.len() as u32,
+            levels: texture.levels,
             max_selected: texture.max_selected(),
         })
     }

@@ -8,15 +8,19 @@
 //! * `lod-geometry`: the thesis' path (§7.2): one vertex per patch, the geometry shader chooses
 //!   the level and emits its vertices (`crate::lod::gpu::add_geometry`).
 //!
-//! All three draw points covering each splat's projected diameter.
+//! All three draw points covering each splat's projected diameter and publish their
+//! selection's per-level vertex counts (`BuildContext::samples`), which the renderer reads
+//! back every frame.
 
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec, SampleCounters, ZBUFFER_FORMAT};
 use crate::gpu::layout::LOD_PATCH_VERTICES;
 use crate::gpu::ImageDesc;
-use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK};
+use crate::lod::gpu::{
+    self, DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK, PER_LEVEL_OFFSET,
+};
 
 /// The default ε: the largest measured value that costs the full dragon less than 0.5 dB of
 /// PSNR against ε = 0 at every distance (`benches/sweeps/lod.toml` on lavapipe: 0.01 dB near,
@@ -169,7 +173,12 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
         Path::Mesh => gpu::add_mesh,
         Path::Geometry => gpu::add_geometry,
     };
-    add(b.ctx, b.graph, name, &lod, inputs, options, targets)?;
+    let selection = add(b.ctx, b.graph, name, &lod, inputs, options, targets)?;
+    b.samples = Some(SampleCounters {
+        buffer: selection.counters,
+        offset: PER_LEVEL_OFFSET,
+        levels: lod.levels,
+    });
     Ok(())
 }
 

@@ -272,6 +272,15 @@ pub struct Targets {
     pub normal: ImageId,
 }
 
+/// A method's per-level sample counts on the GPU: `levels` u32 words at byte `offset` of
+/// `buffer`, written every frame (the level-of-detail methods' vertices emitted per level).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleCounters {
+    pub buffer: BufferId,
+    pub offset: u64,
+    pub levels: u32,
+}
+
 /// What a method's `build` gets.
 pub struct BuildContext<'a> {
     pub ctx: &'a Arc<Context>,
@@ -287,4 +296,7 @@ pub struct BuildContext<'a> {
     pub targets: Targets,
     pub width: u32,
     pub height: u32,
+    /// Set by methods that count their samples per level on the GPU; the renderer reads the
+    /// counts back every frame (`Renderer::samples_per_level`).
+    pub samples: Option<SampleCounters>,
 }
