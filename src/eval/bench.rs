@@ -424,6 +424,7 @@ pub fn run(
             width: job.width,
             height: job.height,
             pose: job.pose.name.clone(),
+            distance: job.pose.pose.distance(),
             lights: job.lights,
             stress: job.stress.map(|(k, _)| k.as_str().to_string()),
             stress_value: job.stress.map(|(_, v)| v),

@@ -988,6 +988,7 @@ mod tests {
             width: 64,
             height: 64,
             pose: "default".into(),
+            distance: Some(1.0),
             lights: 1,
             stress: None,
             stress_value: None,

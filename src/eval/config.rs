@@ -278,6 +278,17 @@ pub enum PoseSpec {
     LookAt { eye: [f32; 3], target: [f32; 3] },
 }
 
+impl PoseSpec {
+    /// The camera distance as a multiple of the default framing's (`None` for eye/target).
+    pub fn distance(&self) -> Option<f64> {
+        match self {
+            PoseSpec::Default => Some(1.0),
+            PoseSpec::Orbit { distance, .. } => Some(f64::from(*distance)),
+            PoseSpec::LookAt { .. } => None,
+        }
+    }
+}
+
 /// A named pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedPose {

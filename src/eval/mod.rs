@@ -5,6 +5,7 @@ pub mod bench;
 pub mod charts;
 pub mod config;
 pub mod hpr;
+pub mod lod;
 pub mod metrics;
 pub mod report;
 pub mod results;

@@ -21,12 +21,14 @@ pub const CHARTS_DIR: &str = "charts";
 pub fn write_report(results: &Results, results_path: &Path, out_dir: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let charts = write_charts_by_model(results, &out_dir.join(CHARTS_DIR))?;
-    let text = render(
+    let lod = super::lod::section(results, out_dir, &out_dir.join(CHARTS_DIR))?;
+    let mut text = render(
         results,
         &relative_link(results_path, out_dir),
         &charts,
         out_dir,
     );
+    text.push_str(&lod);
     let path = out_dir.join("report.md");
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
     Ok(path)
@@ -500,6 +502,7 @@ mod tests {
             width: 8,
             height: 8,
             pose: "p".into(),
+            distance: None,
             lights: 1,
             stress: None,
             stress_value: None,
@@ -559,6 +562,7 @@ mod tests {
             width: 8,
             height: 8,
             pose: "p".into(),
+            distance: None,
             lights,
             stress: None,
             stress_value: None,

@@ -45,6 +45,10 @@ pub struct Record {
     pub height: u32,
     /// Pose name.
     pub pose: String,
+    /// The pose's camera distance as a multiple of the default framing's (1 for the default
+    /// pose; `None` for eye/target poses and results written before it was recorded).
+    #[serde(default)]
+    pub distance: Option<f64>,
     pub lights: u32,
     /// Stress kind name (see [`StressKind`]) when a stress was applied.
     pub stress: Option<String>,
@@ -372,6 +376,7 @@ mod tests {
             width: 64,
             height: 32,
             pose: "default".into(),
+            distance: Some(1.0),
             lights: 1,
             stress: None,
             stress_value: None,
