@@ -23,6 +23,9 @@ pub const LOSSLESS_DB: f64 = 40.0;
 
 type Series = Vec<(String, Vec<(f64, f64)>)>;
 
+/// A charted metric: file key, axis description, value.
+type Metric = (&'static str, &'static str, fn(&Record) -> Option<f64>);
+
 fn is_lod(r: &Record) -> bool {
     crate::methods::find(&r.method).is_ok_and(|m| m.needs_lod)
 }
@@ -150,7 +153,7 @@ fn distance_part(
     if distances.len() < 2 {
         return Ok(());
     }
-    let metrics: [(&str, &str, fn(&Record) -> Option<f64>); 3] = [
+    let metrics: [Metric; 3] = [
         ("samples", "samples projected", |r| {
             r.samples.map(|s| s as f64)
         }),
@@ -382,7 +385,7 @@ fn param_part(
         let _ = writeln!(md);
     }
     let _ = writeln!(md);
-    let metrics: [(&str, &str, fn(&Record) -> Option<f64>); 2] = [
+    let metrics: [Metric; 2] = [
         ("ms", "frame time (ms)", |r| Some(r.frame_ms_median)),
         ("psnr", "PSNR (dB)", |r| r.scores.psnr),
     ];
