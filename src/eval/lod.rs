@@ -72,6 +72,30 @@ fn sorted(series: BTreeMap<String, Vec<(f64, f64)>>) -> Series {
         .collect()
 }
 
+/// A table cell: samples projected / frame ms / PSNR dB.
+fn cell(r: &Record) -> String {
+    format!(
+        "{} / {:.1} / {}",
+        r.samples.map_or("–".into(), |s| s.to_string()),
+        r.frame_ms_median,
+        r.scores.psnr.map_or("–".into(), |p| format!("{p:.2}"))
+    )
+}
+
+/// Writes a line chart (`write_line_chart`) into `charts_dir` and embeds it in `md`.
+fn chart(
+    md: &mut String,
+    (out_dir, charts_dir): (&Path, &Path),
+    (stem, caption): (&str, &str),
+    axes: (&str, &str),
+    log_x: bool,
+    series: BTreeMap<String, Vec<(f64, f64)>>,
+) -> Result<()> {
+    let paths = write_line_chart(charts_dir, stem, caption, axes, log_x, sorted(series))?;
+    embed(md, &paths, out_dir);
+    Ok(())
+}
+
 fn embed(md: &mut String, paths: &[std::path::PathBuf], out_dir: &Path) {
     for path in paths
         .iter()
@@ -168,15 +192,9 @@ fn distance_part(
     );
     let mut rows: BTreeMap<String, BTreeMap<u64, String>> = BTreeMap::new();
     for r in records.iter().filter(|r| r.distance.is_some()) {
-        let cell = format!(
-            "{} / {:.1} / {}",
-            r.samples.map_or("–".into(), |s| s.to_string()),
-            r.frame_ms_median,
-            r.scores.psnr.map_or("–".into(), |p| format!("{p:.2}"))
-        );
         rows.entry(r.label())
             .or_default()
-            .insert(r.distance.unwrap_or_default().to_bits(), cell);
+            .insert(r.distance.unwrap_or_default().to_bits(), cell(r));
     }
     let _ = write!(md, "| configuration |");
     for d in &distances {
@@ -202,15 +220,17 @@ fn distance_part(
                 series.entry(r.label()).or_default().push((d, y));
             }
         }
-        let paths = write_line_chart(
-            charts_dir,
-            &format!("{stem}_distance_{key}"),
-            &format!("{title}: {desc} vs distance, {device}"),
+        chart(
+            md,
+            (out_dir, charts_dir),
+            (
+                &format!("{stem}_distance_{key}"),
+                &format!("{title}: {desc} vs distance, {device}"),
+            ),
             ("camera distance (x default framing)", desc),
             true,
-            sorted(series),
+            series,
         )?;
-        embed(md, &paths, out_dir);
     }
     Ok(())
 }
@@ -319,16 +339,17 @@ fn epsilon_part(
             largest(&lossless).map_or("none".into(), |e| e.to_string())
         );
     }
-    let paths = write_line_chart(
-        charts_dir,
-        &format!("{stem}_epsilon_loss"),
-        &format!("{title}: PSNR lost vs ε, {device}"),
+    chart(
+        md,
+        (out_dir, charts_dir),
+        (
+            &format!("{stem}_epsilon_loss"),
+            &format!("{title}: PSNR lost vs ε, {device}"),
+        ),
         ("ε (pixels)", "PSNR lost against ε = 0 (dB)"),
         false,
-        sorted(series),
-    )?;
-    embed(md, &paths, out_dir);
-    Ok(())
+        series,
+    )
 }
 
 /// Frame time and PSNR against the numeric parameter `name` (positive values), a series per
@@ -372,15 +393,8 @@ fn param_part(
     for ((config, pose), by) in &rows {
         let _ = write!(md, "| {config} | {pose} |");
         for v in &values {
-            let cell = by.get(&v.to_bits()).map_or("–".to_string(), |r| {
-                format!(
-                    "{} / {:.1} / {}",
-                    r.samples.map_or("–".into(), |s| s.to_string()),
-                    r.frame_ms_median,
-                    r.scores.psnr.map_or("–".into(), |p| format!("{p:.2}"))
-                )
-            });
-            let _ = write!(md, " {cell} |");
+            let text = by.get(&v.to_bits()).map_or("–".to_string(), |r| cell(r));
+            let _ = write!(md, " {text} |");
         }
         let _ = writeln!(md);
     }
@@ -402,15 +416,17 @@ fn param_part(
                 }
             }
         }
-        let paths = write_line_chart(
-            charts_dir,
-            &format!("{stem}_{name}_{key}"),
-            &format!("{title}: {desc} vs {what}, {device}"),
+        chart(
+            md,
+            (out_dir, charts_dir),
+            (
+                &format!("{stem}_{name}_{key}"),
+                &format!("{title}: {desc} vs {what}, {device}"),
+            ),
             (what, desc),
             true,
-            sorted(series),
+            series,
         )?;
-        embed(md, &paths, out_dir);
     }
     Ok(())
 }

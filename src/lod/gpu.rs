@@ -213,6 +213,50 @@ fn patch_groups(lod: &GpuLod) -> (u32, u32) {
     (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1))
 }
 
+/// Declares `name`: one dispatch of `shader` with one thread per patch, reading the frame
+/// and the patches, updating the counters and, when given, writing the list.
+fn add_patch_pass(
+    ctx: &Arc<Context>,
+    graph: &mut GraphBuilder,
+    name: &str,
+    (shader, params): (&str, LodParams),
+    lod: &GpuLod,
+    (frame, patches, counters): (BufferId, BufferId, BufferId),
+    list: Option<BufferId>,
+) -> Result<()> {
+    let mut bindings = vec![
+        storage(BINDING_FRAME),
+        storage(BINDING_LOD_PATCHES),
+        storage(BINDING_LOD_COUNTERS),
+    ];
+    let mut descriptors = vec![
+        Descriptor::Buffer(BINDING_FRAME, frame),
+        Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
+        Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
+    ];
+    if let Some(list) = list {
+        bindings.push(storage(BINDING_LOD_LIST));
+        descriptors.push(Descriptor::Buffer(BINDING_LOD_LIST, list));
+    }
+    let pipeline = Arc::new(Pipeline::compute(ctx, shader, &bindings)?);
+    let (gx, gy) = patch_groups(lod);
+    let compute = Stages::Compute;
+    let mut pass = graph
+        .pass(name)
+        .buffer(frame, Access::UniformRead(compute))
+        .buffer(patches, Access::StorageRead(compute))
+        .buffer(counters, Access::StorageReadWrite(compute));
+    if let Some(list) = list {
+        pass = pass.buffer(list, Access::StorageWrite(compute));
+    }
+    pass.record(move |ctx| {
+        ctx.bind(&pipeline, &descriptors);
+        ctx.push(&pipeline, bytemuck::bytes_of(&params));
+        ctx.dispatch(gx, gy, 1);
+    });
+    Ok(())
+}
+
 /// The point budget (issue 11): declares `{prefix}.budget.bins`, which sorts the samples every
 /// refinement of a visible patch adds into bins of the projected error demanding it, and
 /// `{prefix}.budget.threshold`, which admits refinements by decreasing error until `budget`
@@ -248,34 +292,16 @@ pub fn add_budget(
         budget,
         ..Default::default()
     };
-    let bins = Arc::new(Pipeline::compute(
+    add_patch_pass(
         ctx,
-        "lod/budget_bins.comp",
-        &[
-            storage(BINDING_FRAME),
-            storage(BINDING_LOD_PATCHES),
-            storage(BINDING_LOD_COUNTERS),
-        ],
-    )?);
-    let (gx, gy) = patch_groups(lod);
+        graph,
+        &format!("{prefix}.budget.bins"),
+        ("lod/budget_bins.comp", params),
+        lod,
+        (frame, patches, counters),
+        None,
+    )?;
     let compute = Stages::Compute;
-    graph
-        .pass(&format!("{prefix}.budget.bins"))
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(patches, Access::StorageRead(compute))
-        .buffer(counters, Access::StorageReadWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(
-                &bins,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-                    Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
-                ],
-            );
-            ctx.push(&bins, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
-        });
     let threshold = Arc::new(Pipeline::compute(
         ctx,
         "lod/budget_threshold.comp",
@@ -320,42 +346,20 @@ pub fn add_select(
         epsilon,
         budget,
     )?;
-    let pipeline = Arc::new(Pipeline::compute(
-        ctx,
-        "lod/select.comp",
-        &[
-            storage(BINDING_FRAME),
-            storage(BINDING_LOD_PATCHES),
-            storage(BINDING_LOD_LIST),
-            storage(BINDING_LOD_COUNTERS),
-        ],
-    )?);
     let params = LodParams {
         epsilon,
         patch_count: lod.patch_count,
         ..Default::default()
     };
-    let (gx, gy) = patch_groups(lod);
-    let compute = Stages::Compute;
-    graph
-        .pass(&format!("{prefix}.select"))
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(patches, Access::StorageRead(compute))
-        .buffer(list, Access::StorageWrite(compute))
-        .buffer(counters, Access::StorageReadWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-                    Descriptor::Buffer(BINDING_LOD_LIST, list),
-                    Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
-                ],
-            );
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
-        });
+    add_patch_pass(
+        ctx,
+        graph,
+        &format!("{prefix}.select"),
+        ("lod/select.comp", params),
+        lod,
+        (frame, patches, counters),
+        Some(list),
+    )?;
     Ok(selection)
 }
 
