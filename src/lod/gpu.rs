@@ -321,6 +321,22 @@ pub fn add_budget(
     Ok(())
 }
 
+/// `new_selection` with threshold `epsilon`, then the point budget's passes (`add_budget`).
+fn budgeted_selection(
+    ctx: &Arc<Context>,
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    list_entries: Option<u32>,
+    lod: &GpuLod,
+    (frame, patches): (BufferId, BufferId),
+    (epsilon, budget): (f32, u32),
+) -> Result<Selection> {
+    let selection = new_selection(graph, prefix, list_entries, epsilon);
+    let inputs = (frame, patches, selection.counters);
+    add_budget(ctx, graph, prefix, inputs, lod, epsilon, budget)?;
+    Ok(selection)
+}
+
 /// Declares the reset of the counters, the point budget's passes (`add_budget`) and the
 /// selection pass over `patches` (the graph's id of `lod.patches`) for the camera in `frame`,
 /// the threshold `epsilon` in pixels and `budget` samples (0: none).
@@ -335,17 +351,16 @@ pub fn add_select(
     epsilon: f32,
     budget: u32,
 ) -> Result<Selection> {
-    let selection = new_selection(graph, prefix, Some(lod.max_selected), epsilon);
-    let Selection { list, counters } = selection;
-    add_budget(
+    let selection = budgeted_selection(
         ctx,
         graph,
         prefix,
-        (frame, patches, counters),
+        Some(lod.max_selected),
         lod,
-        epsilon,
-        budget,
+        (frame, patches),
+        (epsilon, budget),
     )?;
+    let Selection { list, counters } = selection;
     let params = LodParams {
         epsilon,
         patch_count: lod.patch_count,
@@ -495,22 +510,16 @@ pub fn add_mesh(
         patches,
         vertices,
     } = inputs;
-    let selection = new_selection(
-        graph,
-        prefix,
-        options.record.then_some(lod.max_selected),
-        options.epsilon,
-    );
-    let Selection { list, counters } = selection;
-    add_budget(
+    let selection = budgeted_selection(
         ctx,
         graph,
         prefix,
-        (frame, patches, counters),
+        options.record.then_some(lod.max_selected),
         lod,
-        options.epsilon,
-        options.budget,
+        (frame, patches),
+        (options.epsilon, options.budget),
     )?;
+    let Selection { list, counters } = selection;
     let task = vk::ShaderStageFlags::TASK_EXT;
     let mesh = vk::ShaderStageFlags::MESH_EXT;
     let pipeline = draw_pipeline(
@@ -603,22 +612,16 @@ pub fn add_geometry(
             ctx.caps.max_geometry_shader_invocations
         );
     }
-    let selection = new_selection(
-        graph,
-        prefix,
-        options.record.then_some(lod.max_selected),
-        options.epsilon,
-    );
-    let Selection { list, counters } = selection;
-    add_budget(
+    let selection = budgeted_selection(
         ctx,
         graph,
         prefix,
-        (frame, patches, counters),
+        options.record.then_some(lod.max_selected),
         lod,
-        options.epsilon,
-        options.budget,
+        (frame, patches),
+        (options.epsilon, options.budget),
     )?;
+    let Selection { list, counters } = selection;
     let geometry = vk::ShaderStageFlags::GEOMETRY;
     let pipeline = draw_pipeline(
         ctx,
