@@ -8,9 +8,10 @@
 //! * `lod-geometry`: the thesis' path (§7.2): one vertex per patch, the geometry shader chooses
 //!   the level and emits its vertices (`crate::lod::gpu::add_geometry`).
 //!
-//! All three draw points covering each splat's projected diameter and publish their
-//! selection's per-level vertex counts (`BuildContext::samples`), which the renderer reads
-//! back every frame.
+//! All three draw each sample as a perspective-correct disc (or, with `shape=0`, a square of
+//! its projected diameter), honour the point budget (`budget`) and publish their selection's
+//! per-level vertex counts (`BuildContext::samples`), which the renderer reads back every
+//! frame.
 
 use anyhow::{bail, Result};
 use ash::vk;
