@@ -492,60 +492,41 @@ pub fn add_compute(
     Ok(selection)
 }
 
-/// The mesh path: task workgroups of `LOD_TASK_GROUP` patches choose levels and launch one
-/// mesh workgroup per patch, drawing into `targets`. The counters hold the vertices emitted
-/// per level; with `options.record` the list holds every emitted index and the first counter
-/// their number (otherwise the list is the counters buffer again, never written).
-pub fn add_mesh(
-    ctx: &Arc<Context>,
+/// How an expansion draw launches its patches.
+#[derive(Clone, Copy)]
+enum Launch {
+    /// Task workgroups (x, y).
+    MeshTasks(u32, u32),
+    /// One vertex per patch.
+    Vertices(u32),
+}
+
+/// Declares `{prefix}.draw` for the mesh and geometry paths: `pipeline` reads the frame, the
+/// patches and the vertices in `stages`, updates the counters and (under `options.record`)
+/// writes the list, drawing into the cleared `targets`.
+fn add_expansion_draw(
     graph: &mut GraphBuilder,
     prefix: &str,
-    lod: &GpuLod,
-    inputs: LodInputs,
+    (pipeline, params): (Arc<Pipeline>, LodParams),
+    (stages, launch): (Stages, Launch),
+    (inputs, selection): (LodInputs, Selection),
     options: DrawOptions,
-    targets: DrawTargets,
-) -> Result<Selection> {
+    t: DrawTargets,
+) {
     let LodInputs {
         frame,
         patches,
         vertices,
     } = inputs;
-    let selection = budgeted_selection(
-        ctx,
-        graph,
-        prefix,
-        options.record.then_some(lod.max_selected),
-        lod,
-        (frame, patches),
-        (options.epsilon, options.budget),
-    )?;
     let Selection { list, counters } = selection;
-    let task = vk::ShaderStageFlags::TASK_EXT;
-    let mesh = vk::ShaderStageFlags::MESH_EXT;
-    let pipeline = draw_pipeline(
-        ctx,
-        &["lod/select.task", "lod/points.mesh", "splat/flat.frag"],
-        &[
-            binding(BINDING_FRAME, task | mesh | vk::ShaderStageFlags::FRAGMENT),
-            binding(BINDING_LOD_PATCHES, task),
-            binding(BINDING_LOD_VERTICES, mesh),
-            binding(BINDING_LOD_LIST, mesh),
-            binding(BINDING_LOD_COUNTERS, task | mesh),
-        ],
-        &options,
-    )?;
-    let params = draw_params(lod, &options);
-    let groups = lod.patch_count.div_ceil(LOD_TASK_GROUP);
-    let (gx, gy) = (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1));
-    let t = targets;
     let mut pass = graph
         .pass(&format!("{prefix}.draw"))
         .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(patches, Access::StorageRead(Stages::Mesh))
-        .buffer(vertices, Access::StorageRead(Stages::Mesh))
-        .buffer(counters, Access::StorageReadWrite(Stages::Mesh));
+        .buffer(patches, Access::StorageRead(stages))
+        .buffer(vertices, Access::StorageRead(stages))
+        .buffer(counters, Access::StorageReadWrite(stages));
     if options.record {
-        pass = pass.buffer(list, Access::StorageWrite(Stages::Mesh));
+        pass = pass.buffer(list, Access::StorageWrite(stages));
     }
     pass.color(t.color, Load::Clear([0.0; 4]))
         .color(t.depth, Load::Clear([0.0; 4]))
@@ -563,8 +544,64 @@ pub fn add_mesh(
                 ],
             );
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.draw_mesh_tasks(gx, gy, 1);
+            match launch {
+                Launch::MeshTasks(x, y) => ctx.draw_mesh_tasks(x, y, 1),
+                Launch::Vertices(n) => ctx.draw(n, 1),
+            }
         });
+}
+
+/// The mesh path: task workgroups of `LOD_TASK_GROUP` patches choose levels and launch one
+/// mesh workgroup per patch, drawing into `targets`. The counters hold the vertices emitted
+/// per level; with `options.record` the list holds every emitted index and the first counter
+/// their number (otherwise the list is the counters buffer again, never written).
+pub fn add_mesh(
+    ctx: &Arc<Context>,
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    lod: &GpuLod,
+    inputs: LodInputs,
+    options: DrawOptions,
+    targets: DrawTargets,
+) -> Result<Selection> {
+    let selection = budgeted_selection(
+        ctx,
+        graph,
+        prefix,
+        options.record.then_some(lod.max_selected),
+        lod,
+        (inputs.frame, inputs.patches),
+        (options.epsilon, options.budget),
+    )?;
+    let task = vk::ShaderStageFlags::TASK_EXT;
+    let mesh = vk::ShaderStageFlags::MESH_EXT;
+    let pipeline = draw_pipeline(
+        ctx,
+        &["lod/select.task", "lod/points.mesh", "splat/flat.frag"],
+        &[
+            binding(BINDING_FRAME, task | mesh | vk::ShaderStageFlags::FRAGMENT),
+            binding(BINDING_LOD_PATCHES, task),
+            binding(BINDING_LOD_VERTICES, mesh),
+            binding(BINDING_LOD_LIST, mesh),
+            binding(BINDING_LOD_COUNTERS, task | mesh),
+        ],
+        &options,
+    )?;
+    let params = draw_params(lod, &options);
+    let groups = lod.patch_count.div_ceil(LOD_TASK_GROUP);
+    let (gx, gy) = (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1));
+    let inputs = (inputs, selection);
+    let launch = Launch::MeshTasks(gx, gy);
+    let stages = (Stages::Mesh, launch);
+    add_expansion_draw(
+        graph,
+        prefix,
+        (pipeline, params),
+        stages,
+        inputs,
+        options,
+        targets,
+    );
     Ok(selection)
 }
 
@@ -581,11 +618,6 @@ pub fn add_geometry(
     options: DrawOptions,
     targets: DrawTargets,
 ) -> Result<Selection> {
-    let LodInputs {
-        frame,
-        patches,
-        vertices,
-    } = inputs;
     let chunk = options.geometry_chunk;
     if !chunk.is_power_of_two() || chunk > LOD_PATCH_VERTICES {
         bail!(
@@ -618,10 +650,9 @@ pub fn add_geometry(
         prefix,
         options.record.then_some(lod.max_selected),
         lod,
-        (frame, patches),
+        (inputs.frame, inputs.patches),
         (options.epsilon, options.budget),
     )?;
-    let Selection { list, counters } = selection;
     let geometry = vk::ShaderStageFlags::GEOMETRY;
     let pipeline = draw_pipeline(
         ctx,
@@ -636,35 +667,17 @@ pub fn add_geometry(
         &options,
     )?;
     let params = draw_params(lod, &options);
-    let patch_count = lod.patch_count;
-    let t = targets;
-    let stages = Stages::Graphics;
-    let mut pass = graph
-        .pass(&format!("{prefix}.draw"))
-        .buffer(frame, Access::UniformRead(stages))
-        .buffer(patches, Access::StorageRead(stages))
-        .buffer(vertices, Access::StorageRead(stages))
-        .buffer(counters, Access::StorageReadWrite(stages));
-    if options.record {
-        pass = pass.buffer(list, Access::StorageWrite(stages));
-    }
-    pass.color(t.color, Load::Clear([0.0; 4]))
-        .color(t.depth, Load::Clear([0.0; 4]))
-        .color(t.normal, Load::Clear([0.0; 4]))
-        .depth(t.zbuffer, Load::Clear([0.0; 4]))
-        .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-                    Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
-                    Descriptor::Buffer(BINDING_LOD_LIST, list),
-                    Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
-                ],
-            );
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.draw(patch_count, 1);
-        });
+    let inputs = (inputs, selection);
+    let launch = Launch::Vertices(lod.patch_count);
+    let stages = (Stages::Graphics, launch);
+    add_expansion_draw(
+        graph,
+        prefix,
+        (pipeline, params),
+        stages,
+        inputs,
+        options,
+        targets,
+    );
     Ok(selection)
 }
