@@ -9,11 +9,10 @@ use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, Vec2, Vec3, Vec4};
-use half::f16;
 use surfel::gpu::layout::{
     FrameBlock, PyramidParams, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP,
 };
-use surfel::gpu::{Binding, Buffer, Context, FrameRing, Pipeline};
+use surfel::gpu::{Binding, Buffer, Context, Pipeline};
 use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
 use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
@@ -134,80 +133,10 @@ fn gpu_levels(level0: &Level, single: bool, synthesize: bool) -> Vec<Level> {
     let extents: Vec<(u32, u32)> = (0..levels)
         .map(|l| ((w >> l).max(1), (h >> l).max(1)))
         .collect();
-    // Per level, host buffers for A (RGBA16F), B (RGBA32F) and C (RGBA16F).
-    let host: Vec<[Arc<Buffer>; 3]> = extents
-        .iter()
-        .map(|&(lw, lh)| {
-            let px = u64::from(lw * lh);
-            [8, 16, 8].map(|bytes| Arc::new(Buffer::readback(&ctx, "rb", px * bytes).expect("rb")))
-        })
-        .collect();
-    let mut copies = Vec::new();
-    for (l, bufs) in host.iter().enumerate() {
-        let group = place(l as u32);
-        let images = [group.a, group.b, group.c.expect("colors")];
-        for (image, buffer) in images.into_iter().zip(bufs) {
-            copies.push((image, l as u32, g.import_buffer("rb", buffer.clone())));
-        }
-    }
-    let mut pass = g.pass("readback");
-    for &(image, level, id) in &copies {
-        pass = pass
-            .image_mips(image, level, 1, Access::TransferSrc)
-            .buffer(id, Access::TransferDst);
-    }
-    let list = copies.clone();
-    pass.record(move |ctx| {
-        for &(image, level, id) in &list {
-            ctx.copy_image_to_buffer(image, level, id);
-        }
-    });
-    let mut done = g.pass("readback.host");
-    for &(_, _, id) in &copies {
-        done = done.buffer(id, Access::HostRead);
-    }
-    done.record(|_| {});
-    let mut graph = g.compile(&ctx).expect("compile");
-    let mut frames = FrameRing::new(&ctx, 1, false).expect("frame ring");
-    let slot = frames.advance().expect("wait");
-    let cmd = frames.begin().expect("begin");
-    graph.record(cmd, slot, false);
-    frames.end().expect("end");
-    frames.submit(None, None).expect("submit");
-    frames.wait(slot).expect("wait");
-    let out = extents
-        .iter()
-        .zip(&host)
-        .map(|(&(lw, lh), bufs)| {
-            let halves = |b: &Buffer| -> Vec<f32> {
-                b.mapped()
-                    .expect("mapped")
-                    .chunks_exact(2)
-                    .map(|h| f16::from_le_bytes([h[0], h[1]]).to_f32())
-                    .collect()
-            };
-            let (a, c) = (halves(&bufs[0]), halves(&bufs[2]));
-            let b: Vec<f32> = bytemuck::cast_slice(bufs[1].mapped().expect("mapped")).to_vec();
-            Level {
-                width: lw,
-                height: lh,
-                texels: (0..(lw * lh) as usize)
-                    .map(|i| Texel {
-                        n: Vec3::new(a[4 * i], a[4 * i + 1], a[4 * i + 2]),
-                        radius: a[4 * i + 3],
-                        depth: b[4 * i],
-                        half_range: b[4 * i + 1],
-                        disp: Vec2::new(b[4 * i + 2], b[4 * i + 3]),
-                        color: Vec4::new(c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]),
-                    })
-                    .collect(),
-            }
-        })
-        .collect();
-    drop(graph);
-    drop(frames);
-    common::assert_clean(&ctx);
-    out
+    common::run_and_read_levels(&ctx, g, &extents, |l| {
+        let group = place(l);
+        [group.a, group.b, group.c.expect("colors")]
+    })
 }
 
 /// A `w` x `h` level 0: about a third of the pixels hold texels of a front surface (depth

@@ -205,3 +205,89 @@ pub fn assert_levels_match(
         }
     }
 }
+
+/// Adds to `g` the readback of the pyramid images `images(l)` (A: RGBA16F normal and radius,
+/// B: RGBA32F depth, half range and displacement, C: RGBA16F color) at every level of
+/// `extents`, runs the graph once, checks that validation stayed clean and decodes the levels.
+pub fn run_and_read_levels(
+    ctx: &Arc<Context>,
+    mut g: surfel::graph::GraphBuilder,
+    extents: &[(u32, u32)],
+    images: impl Fn(u32) -> [surfel::graph::ImageId; 3],
+) -> Vec<surfel::methods::pyramid::reference::Level> {
+    use surfel::graph::Access;
+    use surfel::methods::pyramid::reference::{Level, Texel};
+    let host: Vec<[Arc<surfel::gpu::Buffer>; 3]> = extents
+        .iter()
+        .map(|&(lw, lh)| {
+            let px = u64::from(lw * lh);
+            [8, 16, 8].map(|bytes| {
+                Arc::new(surfel::gpu::Buffer::readback(ctx, "rb", px * bytes).expect("rb"))
+            })
+        })
+        .collect();
+    let mut copies = Vec::new();
+    for (l, bufs) in host.iter().enumerate() {
+        for (image, buffer) in images(l as u32).into_iter().zip(bufs) {
+            copies.push((image, l as u32, g.import_buffer("rb", buffer.clone())));
+        }
+    }
+    let mut pass = g.pass("readback");
+    for &(image, level, id) in &copies {
+        pass = pass
+            .image_mips(image, level, 1, Access::TransferSrc)
+            .buffer(id, Access::TransferDst);
+    }
+    let list = copies.clone();
+    pass.record(move |ctx| {
+        for &(image, level, id) in &list {
+            ctx.copy_image_to_buffer(image, level, id);
+        }
+    });
+    let mut done = g.pass("readback.host");
+    for &(_, _, id) in &copies {
+        done = done.buffer(id, Access::HostRead);
+    }
+    done.record(|_| {});
+    let mut graph = g.compile(ctx).expect("compile");
+    let mut frames = surfel::gpu::FrameRing::new(ctx, 1, false).expect("frame ring");
+    let slot = frames.advance().expect("wait");
+    let cmd = frames.begin().expect("begin");
+    graph.record(cmd, slot, false);
+    frames.end().expect("end");
+    frames.submit(None, None).expect("submit");
+    frames.wait(slot).expect("wait");
+    let halves = |b: &surfel::gpu::Buffer| -> Vec<f32> {
+        b.mapped()
+            .expect("mapped")
+            .chunks_exact(2)
+            .map(|h| half::f16::from_le_bytes([h[0], h[1]]).to_f32())
+            .collect()
+    };
+    let out = extents
+        .iter()
+        .zip(&host)
+        .map(|(&(lw, lh), bufs)| {
+            let (a, c) = (halves(&bufs[0]), halves(&bufs[2]));
+            let b: Vec<f32> = bytemuck::cast_slice(bufs[1].mapped().expect("mapped")).to_vec();
+            Level {
+                width: lw,
+                height: lh,
+                texels: (0..(lw * lh) as usize)
+                    .map(|i| Texel {
+                        n: Vec3::new(a[4 * i], a[4 * i + 1], a[4 * i + 2]),
+                        radius: a[4 * i + 3],
+                        depth: b[4 * i],
+                        half_range: b[4 * i + 1],
+                        disp: glam::Vec2::new(b[4 * i + 2], b[4 * i + 3]),
+                        color: glam::Vec4::new(c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]),
+                    })
+                    .collect(),
+            }
+        })
+        .collect();
+    drop(graph);
+    drop(frames);
+    assert_clean(ctx);
+    out
+}
