@@ -9,8 +9,8 @@ mod common;
 use std::sync::Arc;
 
 use ash::vk;
-use surfel::gpu::{Buffer, Context, FrameRing};
-use surfel::graph::{Access, BufferId, CompiledGraph, GraphBuilder};
+use surfel::gpu::{Buffer, Context};
+use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::methods::hpr::sort::{add_segmented_max, add_sort, SortPipelines};
 
 /// A small deterministic generator (64-bit LCG, high bits out).
@@ -58,17 +58,6 @@ fn read_back(ctx: &Arc<Context>, g: &mut GraphBuilder, src: BufferId, size: u64)
     g.copy_buffer("download", src, id, &region);
     g.pass("host").buffer(id, Access::HostRead).record(|_| {});
     host
-}
-
-/// Records, submits and waits for one frame of `graph`.
-fn run(ctx: &Arc<Context>, mut graph: CompiledGraph) {
-    let mut frames = FrameRing::new(ctx, 1, false).expect("frame ring");
-    let slot = frames.advance().expect("wait");
-    let cmd = frames.begin().expect("begin");
-    graph.record(cmd, slot, false);
-    frames.end().expect("end");
-    frames.submit(None, None).expect("submit");
-    frames.wait(slot).expect("wait");
 }
 
 fn read_u32(buffer: &Buffer) -> Vec<u32> {
@@ -130,7 +119,7 @@ fn check_sort(
         }
         let key_host = read_back(ctx, &mut g, sorted_keys, count as u64 * 4);
         let value_host = read_back(ctx, &mut g, sorted_values, count as u64 * 8);
-        run(ctx, g.compile(ctx).expect("compile"));
+        g.compile(ctx).expect("compile").run_once(ctx).expect("run");
         let mask = if key_bits == 32 {
             u32::MAX
         } else {
@@ -217,7 +206,10 @@ fn segmented_max_matches_the_cpu_per_key_maximum() {
     let out = input(&ctx, &mut g, "maxima", &bytes(&initial));
     add_segmented_max(&mut g, &p, key_in, value_in, count as u32, out);
     let host = read_back(&ctx, &mut g, out, slots as u64 * 8);
-    run(&ctx, g.compile(&ctx).expect("compile"));
+    g.compile(&ctx)
+        .expect("compile")
+        .run_once(&ctx)
+        .expect("run");
     let got = read_u64(&host);
     for (s, (value, want)) in got.iter().zip(&expected).enumerate() {
         assert_eq!(value, want, "key {s}");

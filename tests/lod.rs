@@ -10,7 +10,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, Vec3, Vec4};
 use surfel::gpu::layout::FrameBlock;
-use surfel::gpu::{Buffer, Context, FrameRing, ImageDesc};
+use surfel::gpu::{Buffer, Context, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::lod::gpu::{
     add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, GpuLod, LodInputs,
@@ -141,14 +141,7 @@ fn emitted(
     let list_bytes = u64::from(lod.max_selected) * 4;
     let list = readback(ctx, &mut g, "list", selection.list, list_bytes);
     let counters = readback(ctx, &mut g, "counts", selection.counters, COUNTER_BYTES);
-    let mut graph = g.compile(ctx).expect("compile");
-    let mut frames = FrameRing::new(ctx, 1, false).expect("frame ring");
-    let slot = frames.advance().expect("wait");
-    let cmd = frames.begin().expect("begin");
-    graph.record(cmd, slot, false);
-    frames.end().expect("end");
-    frames.submit(None, None).expect("submit");
-    frames.wait(slot).expect("wait");
+    g.compile(ctx).expect("compile").run_once(ctx).expect("run");
     let counters = words(&counters);
     let mut list = words(&list);
     list.truncate(counters[0] as usize);
