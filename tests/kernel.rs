@@ -17,9 +17,9 @@ use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
 use surfel::methods::pyramid::kernel::KernelPyramid;
 use surfel::methods::pyramid::kernel_reference::{self, searched_levels};
 use surfel::methods::pyramid::reference::{Level, Texel};
-use surfel::scene::{Camera, Cloud};
+use surfel::scene::Cloud;
 
-use common::{assert_levels_match, render_view};
+use common::{assert_levels_match, covered, eroded, render_view, top_view};
 
 /// (proj[0][0] width, proj[1][1] height) of the synthetic frames (see tests/pyramid.rs).
 const SCALE: Vec2 = Vec2::new(40.0, -40.0);
@@ -168,29 +168,6 @@ fn analysis_and_interpolation_match_the_cpu_model() {
 /// `n` x `n` points on the unit square at height `z` facing +z, radius = the grid spacing.
 fn plane(n: usize, z: f32, color: [u8; 4]) -> Cloud {
     common::layer(n, color, z, |_| true)
-}
-
-fn top_view(_: Vec3, _: f32) -> Camera {
-    Camera::look_at(Vec3::new(0.0, 0.0, 1.5), Vec3::ZERO, 1.0)
-}
-
-/// Pixels covered by `frame`.
-fn covered(frame: &surfel::eval::Frame) -> Vec<bool> {
-    (0..frame.pixels()).map(|i| frame.covered(i)).collect()
-}
-
-/// `mask` shrunk by `r` pixels (a pixel stays when its whole (2r+1)² window is set).
-fn eroded(mask: &[bool], size: usize, r: usize) -> Vec<bool> {
-    (0..mask.len())
-        .map(|i| {
-            let (x, y) = (i % size, i / size);
-            x >= r
-                && y >= r
-                && x + r < size
-                && y + r < size
-                && (y - r..=y + r).all(|v| (x - r..=x + r).all(|u| mask[v * size + u]))
-        })
-        .collect()
 }
 
 #[test]

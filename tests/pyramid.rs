@@ -18,7 +18,7 @@ use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
 use surfel::scene::{Camera, Cloud};
 
-use common::{assert_levels_match, render_view};
+use common::{assert_levels_match, covered, eroded, render_view, top_view};
 
 /// (proj[0][0] width, proj[1][1] height) of the synthetic frames: the pixel-space scale of
 /// view directions (the sign of y flips the image rows, as the renderer's projection does).
@@ -202,29 +202,6 @@ fn plane(n: usize, z: f32, color: [u8; 4]) -> Cloud {
 fn with_param(method: &str, param: &str) -> String {
     let sep = if method.contains(':') { ',' } else { ':' };
     format!("{method}{sep}{param}")
-}
-
-fn top_view(_: Vec3, _: f32) -> Camera {
-    Camera::look_at(Vec3::new(0.0, 0.0, 1.5), Vec3::ZERO, 1.0)
-}
-
-/// Pixels covered by `frame`.
-fn covered(frame: &surfel::eval::Frame) -> Vec<bool> {
-    (0..frame.pixels()).map(|i| frame.covered(i)).collect()
-}
-
-/// `mask` shrunk by `r` pixels (a pixel stays when its whole (2r+1)² window is set).
-fn eroded(mask: &[bool], size: usize, r: usize) -> Vec<bool> {
-    (0..mask.len())
-        .map(|i| {
-            let (x, y) = (i % size, i / size);
-            x >= r
-                && y >= r
-                && x + r < size
-                && y + r < size
-                && (y - r..=y + r).all(|v| (x - r..=x + r).all(|u| mask[v * size + u]))
-        })
-        .collect()
 }
 
 #[test]

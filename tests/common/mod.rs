@@ -284,3 +284,28 @@ pub fn run_and_read_levels(
     assert_clean(ctx);
     out
 }
+
+/// A camera 1.5 above the origin looking down -z (the synthetic planes' top view; the
+/// signature of `render_view`'s framing).
+pub fn top_view(_: Vec3, _: f32) -> surfel::scene::Camera {
+    surfel::scene::Camera::look_at(Vec3::new(0.0, 0.0, 1.5), Vec3::ZERO, 1.0)
+}
+
+/// Pixels covered by `frame`.
+pub fn covered(frame: &surfel::eval::Frame) -> Vec<bool> {
+    (0..frame.pixels()).map(|i| frame.covered(i)).collect()
+}
+
+/// `mask` shrunk by `r` pixels (a pixel stays when its whole (2r+1)² window is set).
+pub fn eroded(mask: &[bool], size: usize, r: usize) -> Vec<bool> {
+    (0..mask.len())
+        .map(|i| {
+            let (x, y) = (i % size, i / size);
+            x >= r
+                && y >= r
+                && x + r < size
+                && y + r < size
+                && (y - r..=y + r).all(|v| (x - r..=x + r).all(|u| mask[v * size + u]))
+        })
+        .collect()
+}
