@@ -242,9 +242,8 @@ struct Samples {
     levels: usize,
     /// Per frame slot: a frame was submitted whose counts were not read yet.
     pending: Vec<bool>,
-    /// The newest finished frame's counts (`levels` long once `read` is true).
+    /// The newest finished frame's counts (`levels` long; empty before a frame was read).
     counts: Vec<u64>,
-    read: bool,
 }
 
 impl Samples {
@@ -260,7 +259,6 @@ impl Samples {
                 .iter()
                 .map(|&n| u64::from(n)),
         );
-        self.read = true;
         Ok(())
     }
 }
@@ -576,7 +574,7 @@ impl Renderer {
     pub fn samples_per_level(&self) -> Option<&[u64]> {
         self.samples
             .as_ref()
-            .filter(|s| s.read)
+            .filter(|s| !s.counts.is_empty())
             .map(|s| s.counts.as_slice())
     }
 
@@ -733,7 +731,6 @@ fn add_samples(
         levels,
         pending: vec![false; slots],
         counts: Vec::with_capacity(levels),
-        read: false,
     })
 }
 

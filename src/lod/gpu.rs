@@ -30,7 +30,7 @@ use crate::gpu::layout::{
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, Pipeline};
 use crate::graph::{
-    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, Stages,
+    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
 use crate::methods::compute::storage;
 use crate::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
@@ -169,6 +169,16 @@ pub struct DrawTargets {
     pub depth: ImageId,
     pub normal: ImageId,
     pub zbuffer: ImageId,
+}
+
+impl DrawTargets {
+    /// `pass` drawing into the targets, all cleared.
+    fn cleared(self, pass: PassBuilder<'_>) -> PassBuilder<'_> {
+        pass.color(self.color, Load::Clear([0.0; 4]))
+            .color(self.depth, Load::Clear([0.0; 4]))
+            .color(self.normal, Load::Clear([0.0; 4]))
+            .depth(self.zbuffer, Load::Clear([0.0; 4]))
+    }
 }
 
 /// The counters of a path, reset by the pass `{prefix}.reset` (instance count 1, threshold
@@ -466,29 +476,24 @@ pub fn add_compute(
         &options,
     )?;
     let params = draw_params(lod, &options);
-    let t = targets;
-    graph
+    let pass = graph
         .pass(&format!("{prefix}.draw"))
         .buffer(frame, Access::UniformRead(Stages::Graphics))
         .buffer(vertices, Access::StorageRead(Stages::Vertex))
         .buffer(list, Access::StorageRead(Stages::Vertex))
-        .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead)
-        .color(t.color, Load::Clear([0.0; 4]))
-        .color(t.depth, Load::Clear([0.0; 4]))
-        .color(t.normal, Load::Clear([0.0; 4]))
-        .depth(t.zbuffer, Load::Clear([0.0; 4]))
-        .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
-                    Descriptor::Buffer(BINDING_LOD_LIST, list),
-                ],
-            );
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            ctx.draw_indirect(counters, 0, 1, 16);
-        });
+        .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
+    targets.cleared(pass).record(move |ctx| {
+        ctx.bind(
+            &pipeline,
+            &[
+                Descriptor::Buffer(BINDING_FRAME, frame),
+                Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
+                Descriptor::Buffer(BINDING_LOD_LIST, list),
+            ],
+        );
+        ctx.push(&pipeline, bytemuck::bytes_of(&params));
+        ctx.draw_indirect(counters, 0, 1, 16);
+    });
     Ok(selection)
 }
 
@@ -528,27 +533,23 @@ fn add_expansion_draw(
     if options.record {
         pass = pass.buffer(list, Access::StorageWrite(stages));
     }
-    pass.color(t.color, Load::Clear([0.0; 4]))
-        .color(t.depth, Load::Clear([0.0; 4]))
-        .color(t.normal, Load::Clear([0.0; 4]))
-        .depth(t.zbuffer, Load::Clear([0.0; 4]))
-        .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-                    Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
-                    Descriptor::Buffer(BINDING_LOD_LIST, list),
-                    Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
-                ],
-            );
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            match launch {
-                Launch::MeshTasks(x, y) => ctx.draw_mesh_tasks(x, y, 1),
-                Launch::Vertices(n) => ctx.draw(n, 1),
-            }
-        });
+    t.cleared(pass).record(move |ctx| {
+        ctx.bind(
+            &pipeline,
+            &[
+                Descriptor::Buffer(BINDING_FRAME, frame),
+                Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
+                Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
+                Descriptor::Buffer(BINDING_LOD_LIST, list),
+                Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
+            ],
+        );
+        ctx.push(&pipeline, bytemuck::bytes_of(&params));
+        match launch {
+            Launch::MeshTasks(x, y) => ctx.draw_mesh_tasks(x, y, 1),
+            Launch::Vertices(n) => ctx.draw(n, 1),
+        }
+    });
 }
 
 /// The mesh path: task workgroups of `LOD_TASK_GROUP` patches choose levels and launch one
