@@ -3,8 +3,8 @@
 // weighted albedo and normal are divided by the weight sum and shaded per pixel with the
 // frame's lights at the depth of the pixel's front-most fragment.
 // Coverage: a pixel shows the surface when a core fragment reached it (its centre lies on the
-// surface the splats' unfiltered footprints cover), or when only halo fragments did but their
-// weight sum reaches COVERAGE, half the sum a pixel inside a uniformly sampled surface
+// surface the splats' unfiltered footprints cover), or when only halo fragments did but the
+// weight sum of the front-facing ones reaches COVERAGE, half the sum a pixel inside a uniformly sampled surface
 // collects (the kernels sum to the surface's indicator filtered by the resampling filter: 1
 // inside, 1/2 on a straight edge), which closes gaps between minified splats. Beyond a
 // silhouette only the prefilter's halo reaches a pixel, with less: it stays empty, so the
@@ -39,7 +39,7 @@ void main() {
     uint64_t key = keys[pixel];
     uint a = 8u * pixel;
     bool halo = (key >> 63) != 0ul;
-    if (key == ~0ul || (halo && float(accum[a + 3u]) < COVERAGE)) {
+    if (key == ~0ul || (halo && float(accum[a + 7u]) < COVERAGE)) {
         imageStore(out_color, px, vec4(0.0));
         imageStore(out_depth, px, vec4(0.0));
         imageStore(out_normal, px, vec4(0.0));

@@ -68,7 +68,7 @@ struct Splat {
     // 2 b x y + c y^2 with (a, b, c).
     vec3 conic;
     // The same for the unfiltered footprint J V_r J^T (the core fragments); zero when the
-    // splat is seen edge-on.
+    // splat is seen edge-on; the filtered one for a splat of radius 0.
     vec3 core;
     // Normalization of the resampling kernel (see `setup`).
     float scale;
@@ -82,6 +82,8 @@ struct Splat {
     ivec2 hi;
     // The box reaches further than EWA_MAX_RADIUS pixels from the centre.
     bool large;
+    // The splat's normal faces the camera (before it was turned towards it).
+    bool facing;
 };
 
 // Sets up splat `i`; false when it is clipped or covers no pixel centre.
@@ -95,7 +97,8 @@ bool setup(uint i, out Splat s) {
     // Without normals a splat is a disc facing the viewer.
     s.n = (frame.u.flags & FLAG_HAS_NORMALS) != 0u
         ? normalize(mat3(frame.u.view) * stream_normal(i)) : -normalize(s.p);
-    if (dot(s.n, s.p) > 0.0) {
+    s.facing = dot(s.n, s.p) <= 0.0;
+    if (!s.facing) {
         s.n = -s.n;
     }
     // Local parametrization (3.1.1): an orthonormal tangent frame of the splat's plane.
@@ -124,6 +127,10 @@ bool setup(uint i, out Splat s) {
     mat2 vr = v - mat2(h2, 0.0, 0.0, h2);
     float det_r = determinant(vr);
     s.core = det_r > 1e-12 * det ? vec3(vr[1][1], -vr[0][1], vr[0][0]) / det_r : vec3(0.0);
+    // A splat without a radius is a point sample: its footprint is the prefilter's.
+    if (s.sigma <= 0.0) {
+        s.core = s.conic;
+    }
     // The kernel rho_k = |J| / (2 pi sqrt|V_rho|) exp(-d^2 / 2) of a normalized object-space
     // Gaussian (eqs. 3.10, 3.29), times 2 pi sigma^2: each reconstruction kernel has unit peak
     // rather than unit integral (deviation: weights in (0, 1] for the fixed-point sums; on a
@@ -213,6 +220,11 @@ void fragment(Splat s, vec3 albedo, int x, int y) {
     atomicAdd(accum[a + 4u], uint(normal.x));
     atomicAdd(accum[a + 5u], uint(normal.y));
     atomicAdd(accum[a + 6u], uint(normal.z));
+    // The coverage weight: front-facing splats only, so that beyond a silhouette the halos of
+    // the surface's front and back sheets do not add up to an interior pixel's weight.
+    if (s.facing) {
+        atomicAdd(accum[a + 7u], wq);
+    }
 }
 
 vec3 albedo_of(uint i) {

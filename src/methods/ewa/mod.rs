@@ -115,7 +115,8 @@ pub fn full_weight(radius: f32, cutoff: f32) -> f32 {
 /// Bytes of the large splats' list header: a `VkDispatchIndirectCommand` and the count listed.
 const LARGE_HEADER: u64 = 16;
 
-/// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz, unused.
+/// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz and the weight of
+/// the front-facing splats (the coverage of halo-only pixels).
 const ACCUM_BYTES: u64 = 32;
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
