@@ -17,6 +17,14 @@
 //       order-independent. Deviation from the sequential test: the interval blended fragments
 //       are compared against is the front-most fragment's own, not one grown by the fragments
 //       blended before (whose extent the paper leaves open).
+// Core and halo fragments: the prefilter widens every footprint by about a pixel beyond the
+// surface the splat reconstructs. A fragment whose pixel centre lies inside the splat's
+// unfiltered footprint (J V_r J^T at the cutoff) is a core fragment; the others are halo. A halo key carries EWA_HALO_BIT and so loses the
+// visibility test to every core key, however near: the halo of a nearer surface never hides
+// the surface a pixel shows, and only a pixel that no core fragment reaches (a gap between
+// minified splats, or beyond a silhouette) is decided by halos. In the accumulation halo
+// fragments in front of the visible interval still blend, with their small weights: the
+// filtered mix of an occluding edge.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "streams.glsl"
@@ -29,6 +37,10 @@ layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
 // One workgroup per splat of the large splats' list (dispatched indirectly) instead of one per
 // batch.
 layout(constant_id = 1) const bool LARGE = false;
+// The accumulation blends each fragment's lit color (its splat's normal, lit at the point of
+// the splat's plane the pixel sees: the shaded surface is what is filtered, as the ground
+// truth's supersampling filters shaded samples) instead of its albedo, for deferred lighting.
+layout(constant_id = 2) const bool SHADE_FRAGMENTS = true;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };
@@ -42,9 +54,8 @@ layout(std430, set = 0, binding = BINDING_EWA_LARGE) buffer Large {
 
 layout(push_constant) uniform Push { EwaParams p; } pc;
 
-// Fixed-point scale of the accumulated weights (a fragment adds at most this much weight; a
-// pixel's sums overflow past 2^32 / EWA_WEIGHT_SCALE = 262,144 full-weight fragments).
-const float EWA_WEIGHT_SCALE = 16384.0;
+// Set in a halo fragment's key (the sign bit of its front depth, always 0 otherwise).
+const uint64_t EWA_HALO_BIT = 1ul << 63;
 
 // One splat set up for rasterization.
 struct Splat {
@@ -56,6 +67,9 @@ struct Splat {
     // The inverse of the resampling filter's covariance V_rho: x^T V_rho^-1 x = a x^2 +
     // 2 b x y + c y^2 with (a, b, c).
     vec3 conic;
+    // The same for the unfiltered footprint J V_r J^T (the core fragments); zero when the
+    // splat is seen edge-on; the filtered one for a splat of radius 0.
+    vec3 core;
     // Normalization of the resampling kernel (see `setup`).
     float scale;
     // Object-space standard deviation of the reconstruction kernel.
@@ -68,6 +82,8 @@ struct Splat {
     ivec2 hi;
     // The box reaches further than EWA_MAX_RADIUS pixels from the centre.
     bool large;
+    // The splat's normal faces the camera (before it was turned towards it).
+    bool facing;
 };
 
 // Sets up splat `i`; false when it is clipped or covers no pixel centre.
@@ -81,7 +97,8 @@ bool setup(uint i, out Splat s) {
     // Without normals a splat is a disc facing the viewer.
     s.n = (frame.u.flags & FLAG_HAS_NORMALS) != 0u
         ? normalize(mat3(frame.u.view) * stream_normal(i)) : -normalize(s.p);
-    if (dot(s.n, s.p) > 0.0) {
+    s.facing = dot(s.n, s.p) <= 0.0;
+    if (!s.facing) {
         s.n = -s.n;
     }
     // Local parametrization (3.1.1): an orthonormal tangent frame of the splat's plane.
@@ -107,6 +124,13 @@ bool setup(uint i, out Splat s) {
         return false;
     }
     s.conic = vec3(v[1][1], -v[0][1], v[0][0]) / det;
+    mat2 vr = v - mat2(h2, 0.0, 0.0, h2);
+    float det_r = determinant(vr);
+    s.core = det_r > 1e-12 * det ? vec3(vr[1][1], -vr[0][1], vr[0][0]) / det_r : vec3(0.0);
+    // A splat without a radius is a point sample: its footprint is the prefilter's.
+    if (s.sigma <= 0.0) {
+        s.core = s.conic;
+    }
     // The kernel rho_k = |J| / (2 pi sqrt|V_rho|) exp(-d^2 / 2) of a normalized object-space
     // Gaussian (eqs. 3.10, 3.29), times 2 pi sigma^2: each reconstruction kernel has unit peak
     // rather than unit integral (deviation: weights in (0, 1] for the fixed-point sums; on a
@@ -162,6 +186,10 @@ void fragment(Splat s, vec3 albedo, int x, int y) {
     precise float back = z + half_width;
     if (MODE == MODE_VISIBILITY) {
         uint64_t key = (uint64_t(floatBitsToUint(front)) << 32) | uint64_t(floatBitsToUint(back));
+        float core = s.core.x * d.x * d.x + 2.0 * s.core.y * d.x * d.y + s.core.z * d.y * d.y;
+        if (s.core == vec3(0.0) || core > pc.p.cutoff * pc.p.cutoff) {
+            key |= EWA_HALO_BIT;
+        }
         if (key < keys[pixel]) {
             atomicMin(keys[pixel], key);
         }
@@ -175,8 +203,14 @@ void fragment(Splat s, vec3 albedo, int x, int y) {
     // Inside: blend with the Gaussian weight. Every fragment adds at least one unit, so the
     // nearest fragment always leaves a weight to divide by.
     float w = s.scale * exp(-0.5 * d2);
-    uint wq = max(uint(round(w * EWA_WEIGHT_SCALE)), 1u);
-    uvec3 color = uvec3(round(albedo * float(wq)));
+    uint wq = max(uint(round(w * float(EWA_WEIGHT_SCALE))), 1u);
+    vec3 value = albedo;
+    if (SHADE_FRAGMENTS) {
+        vec2 ndc = (vec2(x, y) + 0.5) * frame.u.viewport.zw * 2.0 - 1.0;
+        vec3 view_pos = vec3(ndc.x * z / frame.u.proj[0][0], ndc.y * z / frame.u.proj[1][1], -z);
+        value = clamp(shade(albedo, s.n, view_pos), 0.0, 1.0);
+    }
+    uvec3 color = uvec3(round(value * float(wq)));
     ivec3 normal = ivec3(round(s.n * float(wq)));
     uint a = 8u * pixel;
     atomicAdd(accum[a], color.r);
@@ -186,6 +220,11 @@ void fragment(Splat s, vec3 albedo, int x, int y) {
     atomicAdd(accum[a + 4u], uint(normal.x));
     atomicAdd(accum[a + 5u], uint(normal.y));
     atomicAdd(accum[a + 6u], uint(normal.z));
+    // The coverage weight: front-facing splats only, so that beyond a silhouette the halos of
+    // the surface's front and back sheets do not add up to an interior pixel's weight.
+    if (s.facing) {
+        atomicAdd(accum[a + 7u], wq);
+    }
 }
 
 vec3 albedo_of(uint i) {

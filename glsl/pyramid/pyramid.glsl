@@ -79,13 +79,29 @@ Texel blend_finish(Blend b, Texel front, vec2 x) {
 // `c` (000 Fig. 4.6): the major axis, of half-length `radius`, is perpendicular to the projected
 // normal; the minor axis, along it, has half-length radius * |n_z|. 1 on the rim. A tube's
 // texel (its A holds the tangent) is a view-facing disc (000 5.1.2).
-float ellipse_distance2(Texel t, vec2 c, vec2 x) {
+// How far, in texels of the level being synthesized, the synthesis grows the parents' ellipses
+// to fill an enclosed gap (synthesis.comp; the CPU model's reference::FILL_REACH).
+const float PYRAMID_FILL_REACH = 1.5;
+// How far, in texels, a gap's enclosing texels are looked for on each side (the CPU model's
+// reference::FILL_SPAN).
+const int PYRAMID_FILL_SPAN = 4;
+
+// `grow` > 0 widens both axes to sqrt(axis^2 + grow^2), the ellipse convolved with a disc of
+// that radius (the synthesis' reach into enclosed gaps, synthesis.comp).
+float ellipse_distance2_grown(Texel t, vec2 c, vec2 x, float grow) {
     vec2 d = x - c;
     float a = max(t.radius, 1e-6);
     if (COLOR && uint(t.color.a) == PRIMITIVE_TUBE) {
+        if (grow > 0.0) {
+            a = sqrt(a * a + grow * grow);
+        }
         return dot(d, d) / (a * a);
     }
     float b = max(a * abs(t.n.z), 1e-3 * a);
+    if (grow > 0.0) {
+        a = sqrt(a * a + grow * grow);
+        b = sqrt(b * b + grow * grow);
+    }
     // The projected normal in pixel space: view x and y scale by proj[0][0] w / 2 and
     // proj[1][1] h / 2 (the sign of proj[1][1] carries the image's y direction).
     vec2 m = vec2(t.n.x * frame.u.proj[0][0] * frame.u.viewport.x,
@@ -98,5 +114,9 @@ float ellipse_distance2(Texel t, vec2 c, vec2 x) {
     float u = dot(d, m);
     float v = d.x * m.y - d.y * m.x;
     return (u * u) / (b * b) + (v * v) / (a * a);
+}
+
+float ellipse_distance2(Texel t, vec2 c, vec2 x) {
+    return ellipse_distance2_grown(t, c, x, 0.0);
 }
 #endif

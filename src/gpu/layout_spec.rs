@@ -126,6 +126,9 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // EWA_MAX_RADIUS pixels from its centre is rasterized by a whole workgroup (the large
     // splats' list at BINDING_EWA_LARGE) instead of one thread.
     ("EWA_MAX_RADIUS", 16),
+    // Fixed-point scale of EWA's accumulated weights: a fragment of unit weight adds this much
+    // (a pixel's sums overflow past 2^32 / EWA_WEIGHT_SCALE = 262,144 unit-weight fragments).
+    ("EWA_WEIGHT_SCALE", 16384),
     ("BINDING_EWA_LARGE", 14),
     // Pyramid point renderer (000 ch. 4, src/methods/pyramid): the attribute groups of one
     // level are three storage images (A: normal.xyz, projected radius in level-0 pixels;

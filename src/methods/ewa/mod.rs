@@ -2,11 +2,12 @@
 //! of the splatting methods, rasterized in compute like `compute-hq` (`glsl/ewa/`).
 //!
 //! Per splat: a tangent frame from its normal (a view-facing disc without normals), the
-//! reconstruction Gaussian V_r = r² I from its radius (eq. 3.30), the Jacobian of the local
-//! affine approximation of the projection at its centre (eq. 3.25), the screen-space
-//! resampling filter V_ρ = J V_r Jᵀ + V_h with a prefilter of `prefilter` pixels (eqs. 3.23,
-//! 3.31), truncated at `cutoff` standard deviations; the bounding box of that ellipse is
-//! rasterized with Gaussian weights, by the splat's thread when it reaches at most
+//! reconstruction Gaussian V_r = σ² I with σ = `radius` · r (eq. 3.30; by default σ = r / 2,
+//! truncated at `cutoff` = 2 σ: the disc of radius r, with the Gaussian at e⁻² on its rim), the
+//! Jacobian of the local affine approximation of the projection at its centre (eq. 3.25), the
+//! screen-space resampling filter V_ρ = J V_r Jᵀ + V_h with a prefilter of `prefilter` pixels
+//! (eqs. 3.23, 3.31), truncated at `cutoff` standard deviations; the bounding box of that
+//! ellipse is rasterized with Gaussian weights, by the splat's thread when it reaches at most
 //! `EWA_MAX_RADIUS` pixels from the centre, else by a whole workgroup (the large splats' list).
 //!
 //! * `ewa.clear`, `ewa.clear-accum`, `ewa.clear-large`: the 64-bit visibility keys to all
@@ -14,14 +15,21 @@
 //! * `ewa.visibility` (one workgroup per batch; large splats are listed) and
 //!   `ewa.visibility-large` (one workgroup per listed splat, dispatched indirectly): every
 //!   fragment's depth interval (the splat plane's depth at the pixel ± `interval` standard
-//!   deviations) through `atomicMin` of front ‖ back: the front-most interval per pixel.
+//!   deviations) through `atomicMin` of halo ‖ front ‖ back: the front-most interval per pixel
+//!   among the core fragments (pixel centre inside the unfiltered footprint J V_r Jᵀ), else
+//!   among the halo the prefilter adds.
 //! * `ewa.accumulate` and `ewa.accumulate-large`: the ternary depth test against that
-//!   interval: fragments inside it blend
-//!   (w·albedo, w·normal, w added with fixed-point atomics), fragments behind it are discarded,
-//!   and the front-most one is the fragment every "in front → replace" of the sequential test
-//!   would have ended with (`glsl/ewa/splat.comp` states the mapping).
-//! * `ewa.resolve`: normalization (eq. 3.36) and deferred per-pixel lighting into the standard
-//!   targets.
+//!   interval: fragments inside it (or in front of it) blend (w·color, w·normal, w added with
+//!   fixed-point atomics), fragments behind it are discarded, and the front-most one is the
+//!   fragment every "in front → replace" of the sequential test would have ended with
+//!   (`glsl/ewa/splat.comp` states the mapping). With `shading` = 1 (default) each fragment
+//!   is lit with its splat's normal at its point of the splat's plane and the lit colors are
+//!   filtered, as the ground truth filters shaded samples; with 0 albedo and normals are
+//!   filtered and lit per pixel (deferred).
+//! * `ewa.resolve`: normalization (eq. 3.36), coverage (a core fragment, or halo weights of at
+//!   least half an interior pixel's: the ground truth's half-coverage rule, so the prefilter
+//!   smooths silhouettes without dilating them) and, when deferred, per-pixel lighting into
+//!   the standard targets.
 //!
 //! The splat set-up is recomputed in both rasterization passes rather than stored (no buffer
 //! of per-splat ellipses). Every point is set up each frame (no batch culling: a batch's box
@@ -36,7 +44,7 @@ use super::compute::{add_resolve, resolve_pipeline, storage, Projection};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_SEGMENTS,
-    BINDING_VISIBILITY,
+    BINDING_VISIBILITY, EWA_WEIGHT_SCALE,
 };
 use crate::gpu::Pipeline;
 use crate::graph::{Access, BufferRange, Descriptor, Stages};
@@ -48,25 +56,37 @@ pub const INFO: MethodInfo = MethodInfo {
     params: &[
         ParamSpec {
             name: "radius",
-            default: 1.0,
+            default: 0.5,
             min: 0.01,
             max: 16.0,
-            doc: "scale of the per-point radius, the reconstruction kernel's standard deviation",
+            doc: "the reconstruction kernel's standard deviation in units of the per-point radius \
+                  (default 0.5: with `cutoff` 2 the disc of radius r, where the Gaussian has \
+                  fallen to e^-2)",
         },
         ParamSpec {
             name: "cutoff",
-            default: 1.0,
+            default: 2.0,
             min: 0.5,
             max: 4.0,
-            doc: "the Gaussian is truncated at this many standard deviations (1: at the splat's \
-                  disc of radius r)",
+            doc: "the Gaussian is truncated at this many standard deviations",
         },
         ParamSpec {
             name: "prefilter",
-            default: 1.0,
+            default: 0.29,
             min: 0.0,
             max: 4.0,
-            doc: "standard deviation of the screen-space prefilter in pixels",
+            doc: "standard deviation of the screen-space prefilter in pixels (default 0.29: the \
+                  variance of the one-pixel box the ground truth resolves with, 1/12; Zwicker \
+                  et al. use 1)",
+        },
+        ParamSpec {
+            name: "shading",
+            default: 1.0,
+            min: 0.0,
+            max: 1.0,
+            doc: "1: every fragment lit with its splat's normal and the lit colors filtered (the \
+                  shaded surface, as the ground truth filters it); 0: albedo and normals \
+                  filtered and lit once per pixel (deferred)",
         },
         ParamSpec {
             name: "interval",
@@ -83,10 +103,20 @@ pub const INFO: MethodInfo = MethodInfo {
     build,
 };
 
+/// The weight sum a pixel inside a uniformly sampled surface collects, in units of a kernel's
+/// peak: per unit area the surface holds 1/h² splats (h the point spacing, the stream radius
+/// from the density), each of integral 2π σ² (1 − e^(−c²/2)) truncated at c standard
+/// deviations (σ = `radius` h, projection and prefilter preserve it, eq. 3.29), so
+/// 2π radius² (1 − e^(−c²/2)).
+pub fn full_weight(radius: f32, cutoff: f32) -> f32 {
+    std::f32::consts::TAU * radius * radius * (1.0 - (-0.5 * cutoff * cutoff).exp())
+}
+
 /// Bytes of the large splats' list header: a `VkDispatchIndirectCommand` and the count listed.
 const LARGE_HEADER: u64 = 16;
 
-/// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz, unused.
+/// Bytes of the accumulators per pixel: w·r, w·g, w·b, w, w·nx, w·ny, w·nz and the weight of
+/// the front-facing splats (the coverage of halo-only pixels).
 const ACCUM_BYTES: u64 = 32;
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
@@ -97,6 +127,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         prefilter: b.config.get("prefilter"),
         interval: b.config.get("interval"),
     };
+    let shade_fragments = u32::from(b.config.get("shading") == 1.0);
     // Usage flags follow from the declared accesses.
     let usage = vk::BufferUsageFlags::empty();
     let visibility = b.graph.buffer("ewa.visibility", pixels * 8, usage);
@@ -120,7 +151,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             b.ctx,
             "ewa/splat.comp",
             &bindings,
-            &[(0, mode), (1, u32::from(large))],
+            &[(0, mode), (1, u32::from(large)), (2, shade_fragments)],
         )
         .map(Arc::new)
     };
@@ -128,7 +159,12 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let visibility_large = splat(0, true)?;
     let accumulate_small = splat(1, false)?;
     let accumulate_large = splat(1, true)?;
-    let resolve = resolve_pipeline(b, "ewa/resolve.comp", &[])?;
+    let coverage = 0.5 * full_weight(params.radius, params.cutoff) * EWA_WEIGHT_SCALE as f32;
+    let resolve = resolve_pipeline(
+        b,
+        "ewa/resolve.comp",
+        &[(0, coverage.to_bits()), (1, shade_fragments)],
+    )?;
     let (frame, segments, batches) = (b.frame, b.segments, b.batches);
     let compute = Stages::Compute;
     // Empty pixels hold the largest key; the accumulators start at zero.

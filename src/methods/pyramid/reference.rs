@@ -128,13 +128,30 @@ pub fn pixel_centre(q: IVec2, level: u32) -> Vec2 {
 /// tube's texel); `scale` is
 /// (proj[0][0] width, proj[1][1] height), which maps view directions to pixel directions.
 pub fn ellipse_distance2(t: &Texel, c: Vec2, x: Vec2, scale: Vec2) -> f32 {
+    ellipse_distance2_grown(t, c, x, scale, 0.0)
+}
+
+/// How far, in texels of the level being synthesized, the synthesis grows the parents'
+/// ellipses to fill an enclosed gap (`PYRAMID_FILL_REACH` in `glsl/pyramid/pyramid.glsl`).
+pub const FILL_REACH: f32 = 1.5;
+
+/// [`ellipse_distance2`] with both axes widened to sqrt(axis² + grow²) when `grow` > 0.
+pub fn ellipse_distance2_grown(t: &Texel, c: Vec2, x: Vec2, scale: Vec2, grow: f32) -> f32 {
     let d = x - c;
-    let a = t.radius.max(1e-6);
+    let widen = |axis: f32| {
+        if grow > 0.0 {
+            (axis * axis + grow * grow).sqrt()
+        } else {
+            axis
+        }
+    };
+    let a0 = t.radius.max(1e-6);
+    let a = widen(a0);
     // A tube's texel is a view-facing disc.
     if t.color.w as u32 == PRIMITIVE_TUBE {
         return d.dot(d) / (a * a);
     }
-    let b = (a * t.n.z.abs()).max(1e-3 * a);
+    let b = widen((a0 * t.n.z.abs()).max(1e-3 * a0));
     let m = Vec2::new(t.n.x * scale.x, t.n.y * scale.y);
     let len = m.length();
     if len < 1e-6 {
@@ -218,23 +235,14 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
     if !t.is_empty() && !occluded {
         return t;
     }
-    let base = IVec2::new((q.x - 1) >> 1, (q.y - 1) >> 1);
     let x = pixel_centre(q, level);
-    let mut cands: Vec<(Texel, Vec2, f32)> = Vec::new();
-    for k in 0..4 {
-        let pq = base + IVec2::new(k & 1, k >> 1);
-        if pq.cmplt(IVec2::ZERO).any() || pq.cmpge(parent.size()).any() {
-            continue;
-        }
-        let p = parent.at(pq);
-        if p.is_empty() {
-            continue;
-        }
-        let c = pixel_centre(pq, level + 1) + p.disp;
-        let d2 = ellipse_distance2(&p, c, x, scale);
-        if d2 <= 1.0 {
-            cands.push((p, c, d2));
-        }
+    let mut grow = 0.0;
+    let (mut cands, valid) = gather(parent, q, x, level, scale, grow);
+    if cands.is_empty() && !occluded && valid == 4 && enclosed(own, q) {
+        // An enclosed gap (see synthesis.comp): the parents' ellipses grown to reach it; the
+        // filled texel keeps the grown radius.
+        grow = FILL_REACH * (1u32 << level) as f32;
+        cands = gather(parent, q, x, level, scale, grow).0;
     }
     let Some(front) = cands
         .iter()
@@ -248,7 +256,59 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
     for (p, c, d2) in cands.iter().filter(|c| c.0.overlaps(&front)) {
         blend.add(p, *c, (-falloff * d2).exp());
     }
-    blend.finish(&front, x)
+    let mut out = blend.finish(&front, x);
+    out.radius = out.radius.hypot(grow);
+    out
+}
+
+/// How far, in texels, [`enclosed`] looks for valid texels on each side
+/// (`PYRAMID_FILL_SPAN` in `glsl/pyramid/pyramid.glsl`).
+pub const FILL_SPAN: i32 = 4;
+
+/// Whether texel `q` has a valid texel within [`FILL_SPAN`] texels in each of the four axis
+/// directions (a gap enclosed by the surface; see synthesis.comp).
+fn enclosed(own: &Level, q: IVec2) -> bool {
+    [IVec2::X, IVec2::NEG_X, IVec2::Y, IVec2::NEG_Y]
+        .into_iter()
+        .all(|step| {
+            (1..=FILL_SPAN)
+                .map(|k| q + step * k)
+                .take_while(|p| p.cmpge(IVec2::ZERO).all() && p.cmplt(own.size()).all())
+                .any(|p| !own.at(p).is_empty())
+        })
+}
+
+/// The parents among the four nearest to texel `q` of `level` (centre `x`) whose ellipses,
+/// grown by `grow`, cover `x` (with their centres and squared distances), and how many of the
+/// four are inside the level and not empty.
+fn gather(
+    parent: &Level,
+    q: IVec2,
+    x: Vec2,
+    level: u32,
+    scale: Vec2,
+    grow: f32,
+) -> (Vec<(Texel, Vec2, f32)>, usize) {
+    let base = IVec2::new((q.x - 1) >> 1, (q.y - 1) >> 1);
+    let mut cands = Vec::new();
+    let mut valid = 0;
+    for k in 0..4 {
+        let pq = base + IVec2::new(k & 1, k >> 1);
+        if pq.cmplt(IVec2::ZERO).any() || pq.cmpge(parent.size()).any() {
+            continue;
+        }
+        let p = parent.at(pq);
+        if p.is_empty() {
+            continue;
+        }
+        valid += 1;
+        let c = pixel_centre(pq, level + 1) + p.disp;
+        let d2 = ellipse_distance2_grown(&p, c, x, scale, grow);
+        if d2 <= 1.0 {
+            cands.push((p, c, d2));
+        }
+    }
+    (cands, valid)
 }
 
 #[cfg(test)]
