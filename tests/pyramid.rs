@@ -273,9 +273,7 @@ fn synthesis_fills_isolated_empty_texels_and_small_blocks() {
         .iter()
         .zip(&cpu[0].texels)
         .enumerate()
-        .filter(|(i, (before, after))| {
-            before.is_empty() && !after.is_empty() && !holes.contains(i)
-        })
+        .filter(|(i, (before, after))| before.is_empty() && !after.is_empty() && !holes.contains(i))
         .count();
     // The disc's rim: a pixel just outside it may be enclosed where the rim is concave on the
     // pixel grid, never more than a ring's worth.
