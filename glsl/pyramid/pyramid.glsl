@@ -17,9 +17,11 @@ layout(push_constant) uniform Push { PyramidParams pyr; };
 
 struct Texel {
     vec3 n;           // view-space unit normal, facing the camera
-    float radius;     // projected radius in level-0 pixels
+    float radius;     // projected radius in level-0 pixels; negative: a texel the synthesis
+                      // filled across an enclosed gap (its grown ellipse, synthesis.comp)
     float depth;      // linear view depth; 0: empty
-    float half_range; // half range of the depth interval, in view units (the splat's radius)
+    float half_range; // half range of the depth interval, in view units (the splat's radius);
+                      // negative: a texel the synthesis filled where the level was empty
     vec2 disp;        // ellipse centre minus the texel's pixel centre, in level-0 pixels
     vec4 color;       // linear albedo, primitive id
 };
@@ -35,7 +37,7 @@ vec2 pixel_centre(ivec2 q, uint level) {
 
 // Whether the depth intervals of two texels overlap (the occlusion test of 4.2.2).
 bool overlaps(Texel a, Texel b) {
-    return abs(a.depth - b.depth) <= a.half_range + b.half_range;
+    return abs(a.depth - b.depth) <= abs(a.half_range) + abs(b.half_range);
 }
 
 // Weighted sums of texels and of their ellipse centres: the average analysis takes (weight 1)
@@ -52,9 +54,9 @@ Blend blend_empty() {
 
 void blend_add(inout Blend b, Texel t, vec2 centre, float w) {
     b.sum.n += w * t.n;
-    b.sum.radius += w * t.radius;
+    b.sum.radius += w * abs(t.radius);
     b.sum.depth += w * t.depth;
-    b.sum.half_range += w * t.half_range;
+    b.sum.half_range += w * abs(t.half_range);
     b.sum.color += w * t.color;
     b.centres += w * centre;
     b.weight += w;
@@ -90,7 +92,7 @@ const int PYRAMID_FILL_SPAN = 4;
 // that radius (the synthesis' reach into enclosed gaps, synthesis.comp).
 float ellipse_distance2_grown(Texel t, vec2 c, vec2 x, float grow) {
     vec2 d = x - c;
-    float a = max(t.radius, 1e-6);
+    float a = max(abs(t.radius), 1e-6);
     if (COLOR && uint(t.color.a) == PRIMITIVE_TUBE) {
         if (grow > 0.0) {
             a = sqrt(a * a + grow * grow);

@@ -18,8 +18,8 @@ layout(local_size_x = PYRAMID_GROUP, local_size_y = PYRAMID_GROUP) in;
 // whose ellipses, axes grown by `grow` level-0 pixels, cover `x`: their count, attributes,
 // centres and squared elliptical distances, the front-most of them, and in `valid` how many
 // of the four are inside the level and not empty.
-int gather(ivec2 q, vec2 x, uint level, float grow, out Texel cand[4], out vec2 centre[4],
-           out float dist2[4], out int front, out int valid) {
+int gather(ivec2 q, vec2 x, uint level, float grow, bool gap, out Texel cand[4],
+           out vec2 centre[4], out float dist2[4], out int front, out int valid) {
     ivec2 parent_size = imageSize(parent_a);
     // The four parents whose centres are nearest to q's: (q - 1) / 2 rounded down, and + 1.
     ivec2 base = (q - 1) >> 1;
@@ -36,6 +36,11 @@ int gather(ivec2 q, vec2 x, uint level, float grow, out Texel cand[4], out vec2 
             continue;
         }
         ++valid;
+        // A parent filled across a gap reaches only texels of an enclosed gap, never past a
+        // silhouette.
+        if (t.radius < 0.0 && !gap) {
+            continue;
+        }
         vec2 c = pixel_centre(pq, level + 1u) + t.disp;
         float d2 = ellipse_distance2_grown(t, c, x, grow);
         if (d2 > 1.0) {
@@ -54,7 +59,9 @@ int gather(ivec2 q, vec2 x, uint level, float grow, out Texel cand[4], out vec2 
 
 // Whether texel `q` of the level (as the analysis left it) has a valid texel within
 // PYRAMID_FILL_SPAN texels in each of the four axis directions: a gap enclosed by the surface,
-// not the background beyond a silhouette or beside a thin line.
+// not the background beyond a silhouette or beside a thin line. Texels this pass filled carry
+// a negative half range and do not count, so the single-image layout, which updates the level
+// in place, decides as the ping-pong layout does whatever the order of the invocations.
 bool enclosed(ivec2 q) {
     ivec2 size = imageSize(level_b);
     for (int d = 0; d < 4; ++d) {
@@ -65,7 +72,8 @@ bool enclosed(ivec2 q) {
             if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, size))) {
                 break;
             }
-            found = imageLoad(level_b, p).x > 0.0;
+            vec2 b = imageLoad(level_b, p).xy;
+            found = b.x > 0.0 && b.y >= 0.0;
         }
         if (!found) {
             return false;
@@ -84,7 +92,8 @@ void main() {
     uint level = pyr.level;
     Texel own = load_level(q);
     Texel above = load_parent(min(q / 2, parent_size - 1));
-    bool occluded = above.depth > 0.0 && own.depth - own.half_range > above.depth + above.half_range;
+    bool occluded =
+        above.depth > 0.0 && own.depth - own.half_range > above.depth + abs(above.half_range);
     if (own.depth > 0.0 && !occluded) {
         store_out(q, own);
         return;
@@ -96,17 +105,18 @@ void main() {
     int front;
     int valid;
     float grow = 0.0;
-    int n = gather(q, x, level, grow, cand, centre, dist2, front, valid);
-    if (n == 0 && !occluded && valid == 4 && enclosed(q)) {
+    bool gap = !occluded && enclosed(q);
+    int n = gather(q, x, level, grow, gap, cand, centre, dist2, front, valid);
+    if (n == 0 && gap && valid == 4) {
         // Deviation: an empty texel whose four nearest parents are all valid and that has
         // valid texels on all four sides lies in a gap enclosed by the surface (a pixel no
         // point projected to, or whose point was culled) that ellipses smaller than the
         // texel spacing leave open. The parents' ellipses are
         // grown by PYRAMID_FILL_REACH texels of this level (convolved with a disc of that
         // radius, like EWA's prefilter) to reach it, and the filled texel keeps the grown
-        // radius. Beyond a silhouette one side is empty, so the silhouette does not grow.
+        // radius, negated: on the levels below it covers only texels of enclosed gaps. Beyond a silhouette one side is empty, so the silhouette does not grow.
         grow = PYRAMID_FILL_REACH * float(1u << level);
-        n = gather(q, x, level, grow, cand, centre, dist2, front, valid);
+        n = gather(q, x, level, grow, gap, cand, centre, dist2, front, valid);
     }
     if (n == 0) {
         // Deviation: an "occluded" texel no parent ellipse covers keeps its value (nothing
@@ -122,7 +132,12 @@ void main() {
     }
     Texel t = blend_finish(blend, cand[front], x);
     // A texel filled across a gap keeps the grown ellipse, so that it reaches the gap's texels
-    // on the levels below.
-    t.radius = length(vec2(t.radius, grow));
+    // on the levels below, marked by its sign.
+    if (grow > 0.0) {
+        t.radius = -length(vec2(t.radius, grow));
+    }
+    if (!occluded) {
+        t.half_range = -t.half_range;
+    }
     store_out(q, t);
 }

@@ -13,11 +13,13 @@ use crate::gpu::layout::PRIMITIVE_TUBE;
 pub struct Texel {
     /// View-space unit normal facing the camera.
     pub n: Vec3,
-    /// Projected radius in level-0 pixels.
+    /// Projected radius in level-0 pixels; negative for a texel the synthesis filled across
+    /// an enclosed gap (its grown ellipse).
     pub radius: f32,
     /// Linear view depth; 0: empty.
     pub depth: f32,
-    /// Half range of the depth interval (view units).
+    /// Half range of the depth interval (view units); negative for a texel the synthesis
+    /// filled where the level was empty.
     pub half_range: f32,
     /// Ellipse centre minus pixel centre, in level-0 pixels.
     pub disp: Vec2,
@@ -50,7 +52,7 @@ impl Texel {
     }
 
     pub(super) fn overlaps(&self, other: &Texel) -> bool {
-        (self.depth - other.depth).abs() <= self.half_range + other.half_range
+        (self.depth - other.depth).abs() <= self.half_range.abs() + other.half_range.abs()
     }
 }
 
@@ -95,9 +97,9 @@ pub(super) struct Blend {
 impl Blend {
     pub(super) fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
         self.sum.n += w * t.n;
-        self.sum.radius += w * t.radius;
+        self.sum.radius += w * t.radius.abs();
         self.sum.depth += w * t.depth;
-        self.sum.half_range += w * t.half_range;
+        self.sum.half_range += w * t.half_range.abs();
         self.sum.color += w * t.color;
         self.centres += w * centre;
         self.weight += w;
@@ -145,7 +147,7 @@ pub fn ellipse_distance2_grown(t: &Texel, c: Vec2, x: Vec2, scale: Vec2, grow: f
             axis
         }
     };
-    let a0 = t.radius.max(1e-6);
+    let a0 = t.radius.abs().max(1e-6);
     let a = widen(a0);
     // A tube's texel is a view-facing disc.
     if t.color.w as u32 == PRIMITIVE_TUBE {
@@ -231,18 +233,20 @@ pub fn synthesis(mut levels: Vec<Level>, scale: Vec2, falloff: f32) -> Vec<Level
 fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, falloff: f32) -> Texel {
     let t = own.at(q);
     let above = parent.at((q / 2).min(parent.size() - 1));
-    let occluded = !above.is_empty() && t.depth - t.half_range > above.depth + above.half_range;
+    let occluded =
+        !above.is_empty() && t.depth - t.half_range > above.depth + above.half_range.abs();
     if !t.is_empty() && !occluded {
         return t;
     }
     let x = pixel_centre(q, level);
     let mut grow = 0.0;
-    let (mut cands, valid) = gather(parent, q, x, level, scale, grow);
-    if cands.is_empty() && !occluded && valid == 4 && enclosed(own, q) {
+    let gap = !occluded && enclosed(own, q);
+    let (mut cands, valid) = gather(parent, q, x, level, scale, grow, gap);
+    if cands.is_empty() && gap && valid == 4 {
         // An enclosed gap (see synthesis.comp): the parents' ellipses grown to reach it; the
         // filled texel keeps the grown radius.
         grow = FILL_REACH * (1u32 << level) as f32;
-        cands = gather(parent, q, x, level, scale, grow).0;
+        cands = gather(parent, q, x, level, scale, grow, gap).0;
     }
     let Some(front) = cands
         .iter()
@@ -257,7 +261,12 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
         blend.add(p, *c, (-falloff * d2).exp());
     }
     let mut out = blend.finish(&front, x);
-    out.radius = out.radius.hypot(grow);
+    if grow > 0.0 {
+        out.radius = -out.radius.hypot(grow);
+    }
+    if !occluded {
+        out.half_range = -out.half_range;
+    }
     out
 }
 
@@ -280,7 +289,7 @@ fn enclosed(own: &Level, q: IVec2) -> bool {
 
 /// The parents among the four nearest to texel `q` of `level` (centre `x`) whose ellipses,
 /// grown by `grow`, cover `x` (with their centres and squared distances), and how many of the
-/// four are inside the level and not empty.
+/// four are inside the level and not empty; parents filled across a gap only when `gap`.
 fn gather(
     parent: &Level,
     q: IVec2,
@@ -288,6 +297,7 @@ fn gather(
     level: u32,
     scale: Vec2,
     grow: f32,
+    gap: bool,
 ) -> (Vec<(Texel, Vec2, f32)>, usize) {
     let base = IVec2::new((q.x - 1) >> 1, (q.y - 1) >> 1);
     let mut cands = Vec::new();
@@ -302,6 +312,9 @@ fn gather(
             continue;
         }
         valid += 1;
+        if p.radius < 0.0 && !gap {
+            continue;
+        }
         let c = pixel_centre(pq, level + 1) + p.disp;
         let d2 = ellipse_distance2_grown(&p, c, x, scale, grow);
         if d2 <= 1.0 {
