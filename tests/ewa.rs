@@ -28,6 +28,16 @@ fn merge(layers: Vec<Cloud>) -> Cloud {
     out
 }
 
+/// A camera 3 units up +z looking at the origin (`render_view`'s camera argument).
+fn front_view(_: Vec3, _: f32) -> Camera {
+    Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0)
+}
+
+/// Pixels per view unit at depth 3 in a 64² image with the 45° field of view.
+fn pixels_per_unit() -> f64 {
+    32.0 / (22.5f64.to_radians().tan() * 3.0)
+}
+
 #[test]
 fn ternary_depth_test_replaces_blends_and_discards() {
     // Seen from z = 3 down -z: yellow at z = 0.3 over the left half (in front of everything:
@@ -41,11 +51,7 @@ fn ternary_depth_test_replaces_blends_and_discards() {
         layer(n, [255, 255, 0, 255], 0.3, |x| x < 0.0),
     ]);
     let size = 128;
-    let view = |method: &str| {
-        render_view(&cloud, method, size, Default::default(), |_, _| {
-            Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0)
-        })
-    };
+    let view = |method: &str| render_view(&cloud, method, size, Default::default(), front_view);
     let frame = view("ewa");
     let at = |x: u32| (size / 2 * size + x) as usize;
     // The left half: the yellow layer alone (no blue or green at all, full red and green).
@@ -108,9 +114,9 @@ fn two_splats_blend_with_the_weights_of_their_resampling_gaussians() {
         "ewa:radius=1,cutoff=3,prefilter=1",
         size,
         Default::default(),
-        |_, _| Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0),
+        front_view,
     );
-    let px = 32.0 / (22.5f64.to_radians().tan() * 3.0);
+    let px = pixels_per_unit();
     let (d, s2) = (0.05 * px, (0.1 * px).powi(2) + 1.0);
     let srgb = |c: f64| (255.0 * (1.055 * c.powf(1.0 / 2.4) - 0.055)).round();
     for column in 29..35u32 {
@@ -148,10 +154,10 @@ fn a_splat_larger_than_a_thread_takes_covers_its_whole_ellipse() {
         "ewa:radius=1,cutoff=1,prefilter=1",
         size,
         Default::default(),
-        |_, _| Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0),
+        front_view,
     );
     assert!(f64::from(surfel::gpu::layout::EWA_MAX_RADIUS) < 25.0);
-    let px = 32.0 / (22.5f64.to_radians().tan() * 3.0);
+    let px = pixels_per_unit();
     let s2 = px * px;
     let mut mismatched = 0;
     for i in 0..frame.pixels() {
@@ -197,18 +203,10 @@ fn a_densely_sampled_plane_has_no_holes_and_matches_its_mesh() {
 /// The centre `2 r` × `2 r` pixels of a frame.
 fn crop(frame: &surfel::eval::Frame, r: u32) -> surfel::eval::Frame {
     let (w, h) = (frame.width, frame.height);
-    let keep = |i: usize| {
-        let (x, y) = ((i as u32) % w, (i as u32) / w);
-        x.abs_diff(w / 2) < r && y.abs_diff(h / 2) < r
-    };
-    let mut out = frame.clone();
-    for i in 0..frame.pixels() {
-        if !keep(i) {
-            out.color[i] = [0; 4];
-            out.depth[i] = f32::INFINITY;
-        }
-    }
-    out
+    let keep: Vec<bool> = (0..frame.pixels() as u32)
+        .map(|i| (i % w).abs_diff(w / 2) < r && (i / w).abs_diff(h / 2) < r)
+        .collect();
+    masked(frame, &keep)
 }
 
 #[test]
@@ -303,10 +301,9 @@ fn a_tilted_splat_covers_its_footprint_with_the_resampling_gaussian() {
         [255, 0, 0, 255],
     );
     let size = 64;
-    let camera = |_: Vec3, _: f32| Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 1.0);
     let method = "ewa:radius=1,cutoff=3,prefilter=1,interval=16,shading=0";
-    let px = 32.0 / (22.5f64.to_radians().tan() * 3.0);
-    let alone = render_view(&red, method, size, Default::default(), camera);
+    let px = pixels_per_unit();
+    let alone = render_view(&red, method, size, Default::default(), front_view);
     for i in 0..alone.pixels() {
         let x = (i as u32 % size) as f64 + 0.5 - 32.0;
         let y = (i as u32 / size) as f64 + 0.5 - 32.0;
@@ -321,7 +318,7 @@ fn a_tilted_splat_covers_its_footprint_with_the_resampling_gaussian() {
         }
     }
     let both = merge(vec![red, splat(Vec3::Z, sigma_b, [0, 0, 255, 255])]);
-    let frame = render_view(&both, method, size, Default::default(), camera);
+    let frame = render_view(&both, method, size, Default::default(), front_view);
     let v_r = (sigma * px * tilt.cos()).powi(2) + h * h;
     let v_r_y = (sigma * px).powi(2) + h * h;
     let scale_r = px * px * tilt.cos() * sigma * sigma / (v_r * v_r_y).sqrt();
@@ -434,24 +431,18 @@ fn ewa_ranks_first_on_a_densely_sampled_curved_surface() {
         })
         .collect();
     others.extend(splats.iter().map(String::as_str));
-    {
-        let rings = 160;
-        let cloud = sphere(rings);
-        let truth = render(&cloud, "mesh", size);
-        let inside = common::eroded(&common::covered(&truth), size as usize, 2);
-        let score = |method: &str| {
-            let frame = render(&cloud, method, size);
-            metrics::psnr_color(&masked(&frame, &inside), &masked(&truth, &inside))
-                .unwrap()
-                .unwrap()
-        };
-        let ewa = score("ewa");
-        for method in &others {
-            let psnr = score(method);
-            assert!(
-                psnr < ewa,
-                "{rings} rings: {method} {psnr:.2} dB, EWA {ewa:.2} dB"
-            );
-        }
+    let cloud = sphere(160);
+    let truth = render(&cloud, "mesh", size);
+    let inside = common::eroded(&common::covered(&truth), size as usize, 2);
+    let score = |method: &str| {
+        let frame = render(&cloud, method, size);
+        metrics::psnr_color(&masked(&frame, &inside), &masked(&truth, &inside))
+            .unwrap()
+            .unwrap()
+    };
+    let ewa = score("ewa");
+    for method in &others {
+        let psnr = score(method);
+        assert!(psnr < ewa, "{method} {psnr:.2} dB, EWA {ewa:.2} dB");
     }
 }

@@ -52,13 +52,14 @@ void main() {
     float back = uintBitsToFloat(uint(key & 0xffffffffu));
     float depth = 0.5 * (front + back);
     float weight = float(max(accum[a + 3u], 1u));
-    vec3 albedo = vec3(accum[a], accum[a + 1u], accum[a + 2u]) / weight;
+    // The filtered albedo, or the filtered lit color when the fragments were shaded.
+    vec3 filtered = vec3(accum[a], accum[a + 1u], accum[a + 2u]) / weight;
     vec2 ndc = (vec2(px) + 0.5) * frame.u.viewport.zw * 2.0 - 1.0;
     vec3 view_pos = vec3(ndc.x * depth / frame.u.proj[0][0], ndc.y * depth / frame.u.proj[1][1],
                          -depth);
     vec3 sum = vec3(ivec3(accum[a + 4u], accum[a + 5u], accum[a + 6u]));
     vec3 n = length(sum) > 0.0 ? normalize(sum) : normalize(-view_pos);
-    vec3 color = SHADED ? albedo : shade(albedo, n, view_pos);
+    vec3 color = SHADED ? filtered : shade(filtered, n, view_pos);
     imageStore(out_color, px, vec4(linear_to_srgb(color), 1.0));
     imageStore(out_depth, px, vec4(depth));
     imageStore(out_normal, px, vec4(n, 1.0));

@@ -108,7 +108,7 @@ pub const INFO: MethodInfo = MethodInfo {
 /// from the density), each of integral 2π σ² (1 − e^(−c²/2)) truncated at c standard
 /// deviations (σ = `radius` h, projection and prefilter preserve it, eq. 3.29), so
 /// 2π radius² (1 − e^(−c²/2)).
-pub fn full_weight(radius: f32, cutoff: f32) -> f32 {
+fn full_weight(radius: f32, cutoff: f32) -> f32 {
     std::f32::consts::TAU * radius * radius * (1.0 - (-0.5 * cutoff * cutoff).exp())
 }
 
