@@ -87,6 +87,10 @@ const float PYRAMID_FILL_REACH = 1.5;
 // How far, in texels, a gap's enclosing texels are looked for on each side (the CPU model's
 // reference::FILL_SPAN).
 const int PYRAMID_FILL_SPAN = 4;
+// The gap fill runs on levels below this one only: gaps up to 4 x 4 pixels at any alignment
+// (at level 2 a texel spans 4 pixels); wider openings are the background between parts of
+// the model, which coarser levels would close (the CPU model's reference::FILL_LEVELS).
+const uint PYRAMID_FILL_LEVELS = 3u;
 
 // `grow` > 0 widens both axes to sqrt(axis^2 + grow^2), the ellipse convolved with a disc of
 // that radius (the synthesis' reach into enclosed gaps, synthesis.comp).

@@ -105,7 +105,7 @@ void main() {
     int front;
     int valid;
     float grow = 0.0;
-    bool gap = !occluded && enclosed(q);
+    bool gap = !occluded && level < PYRAMID_FILL_LEVELS && enclosed(q);
     int n = gather(q, x, level, grow, gap, cand, centre, dist2, front, valid);
     if (n == 0 && gap && valid == 4) {
         // Deviation: an empty texel whose four nearest parents are all valid and that has

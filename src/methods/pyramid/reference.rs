@@ -240,7 +240,7 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
     }
     let x = pixel_centre(q, level);
     let mut grow = 0.0;
-    let gap = !occluded && enclosed(own, q);
+    let gap = !occluded && level < FILL_LEVELS && enclosed(own, q);
     let (mut cands, valid) = gather(parent, q, x, level, scale, grow, gap);
     if cands.is_empty() && gap && valid == 4 {
         // An enclosed gap (see synthesis.comp): the parents' ellipses grown to reach it; the
@@ -273,6 +273,10 @@ fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, fallo
 /// How far, in texels, [`enclosed`] looks for valid texels on each side
 /// (`PYRAMID_FILL_SPAN` in `glsl/pyramid/pyramid.glsl`).
 pub const FILL_SPAN: i32 = 4;
+
+/// The gap fill runs on levels below this one (`PYRAMID_FILL_LEVELS`): gaps up to 4 × 4
+/// pixels; wider openings are background between parts of the model.
+pub const FILL_LEVELS: u32 = 3;
 
 /// Whether texel `q` has a valid texel within [`FILL_SPAN`] texels in each of the four axis
 /// directions (a gap enclosed by the surface; see synthesis.comp).
