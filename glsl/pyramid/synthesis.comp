@@ -5,27 +5,30 @@
 // texels of the level above whose ellipses cover q's centre (point-in-ellipse through their
 // displacement vectors, 000 Fig. 4.6) and whose depth intervals overlap the front-most of
 // those, weighted by a Gaussian of the elliptical distance to each centre,
-// exp(-falloff d^2); an empty texel enclosed by valid parents that none covers is filled from
-// their ellipses grown by PYRAMID_FILL_REACH texels. Nothing covers it: an empty texel stays
-// empty, an occluded one keeps its
-// value (a deviation: on slanted surfaces, where neighbouring depth intervals of +-radius stop
-// overlapping, the thesis' rule emptied valid texels no ellipse could refill).
+// exp(-falloff d^2); an empty texel in an enclosed gap that none covers is filled from their
+// ellipses grown by PYRAMID_FILL_REACH texels. Nothing covers it: an empty texel stays empty,
+// an occluded one keeps its value (a deviation: on slanted surfaces, where neighbouring depth
+// intervals of +-radius stop overlapping, the thesis' rule emptied valid texels no ellipse
+// could refill).
 #include "images.glsl"
 
 layout(local_size_x = PYRAMID_GROUP, local_size_y = PYRAMID_GROUP) in;
 
 // The parents of level `level` + 1 among the four nearest to texel `q` of `level` (centre `x`)
 // whose ellipses, axes grown by `grow` level-0 pixels, cover `x`: their count, attributes,
-// centres and squared elliptical distances, the front-most of them, and in `valid` how many
-// of the four are inside the level and not empty.
+// centres and squared elliptical distances, the front-most of them, in `valid` how many of
+// the four are inside the level and not empty and in `filled` how many of those were filled
+// across a gap (they cover only when `gap`).
 int gather(ivec2 q, vec2 x, uint level, float grow, bool gap, out Texel cand[4],
-           out vec2 centre[4], out float dist2[4], out int front, out int valid) {
+           out vec2 centre[4], out float dist2[4], out int front, out int valid,
+           out int filled) {
     ivec2 parent_size = imageSize(parent_a);
     // The four parents whose centres are nearest to q's: (q - 1) / 2 rounded down, and + 1.
     ivec2 base = (q - 1) >> 1;
     int n = 0;
     front = -1;
     valid = 0;
+    filled = 0;
     for (int k = 0; k < 4; ++k) {
         ivec2 pq = base + ivec2(k & 1, k >> 1);
         if (any(lessThan(pq, ivec2(0))) || any(greaterThanEqual(pq, parent_size))) {
@@ -38,8 +41,11 @@ int gather(ivec2 q, vec2 x, uint level, float grow, bool gap, out Texel cand[4],
         ++valid;
         // A parent filled across a gap reaches only texels of an enclosed gap, never past a
         // silhouette.
-        if (t.radius < 0.0 && !gap) {
-            continue;
+        if (t.radius < 0.0) {
+            ++filled;
+            if (!gap) {
+                continue;
+            }
         }
         vec2 c = pixel_centre(pq, level + 1u) + t.disp;
         float d2 = ellipse_distance2_grown(t, c, x, grow);
@@ -105,18 +111,29 @@ void main() {
     int front;
     int valid;
     float grow = 0.0;
-    bool gap = !occluded && level < PYRAMID_FILL_LEVELS && enclosed(q);
-    int n = gather(q, x, level, grow, gap, cand, centre, dist2, front, valid);
+    int filled;
+    int n = gather(q, x, level, grow, false, cand, centre, dist2, front, valid, filled);
+    // Whether the texel lies in an enclosed gap matters only when a parent filled across a gap
+    // is near or all four parents are valid and none covers it: only then the neighbours are
+    // read (not for the background, whose parents are empty).
+    bool gap = false;
+    if (!occluded && level < PYRAMID_FILL_LEVELS && (filled > 0 || (n == 0 && valid == 4))) {
+        gap = enclosed(q);
+        if (gap && filled > 0) {
+            n = gather(q, x, level, grow, true, cand, centre, dist2, front, valid, filled);
+        }
+    }
     if (n == 0 && gap && valid == 4) {
         // Deviation: an empty texel whose four nearest parents are all valid and that has
         // valid texels on all four sides lies in a gap enclosed by the surface (a pixel no
         // point projected to, or whose point was culled) that ellipses smaller than the
-        // texel spacing leave open. The parents' ellipses are
-        // grown by PYRAMID_FILL_REACH texels of this level (convolved with a disc of that
-        // radius, like EWA's prefilter) to reach it, and the filled texel keeps the grown
-        // radius, negated: on the levels below it covers only texels of enclosed gaps. Beyond a silhouette one side is empty, so the silhouette does not grow.
+        // texel spacing leave open. The parents' ellipses are grown by PYRAMID_FILL_REACH
+        // texels of this level (convolved with a disc of that radius, like EWA's prefilter)
+        // to reach it, and the filled texel keeps the grown radius, negated: on the levels
+        // below it covers only texels of enclosed gaps. Beyond a silhouette one side is
+        // empty, so the silhouette does not grow.
         grow = PYRAMID_FILL_REACH * float(1u << level);
-        n = gather(q, x, level, grow, gap, cand, centre, dist2, front, valid);
+        n = gather(q, x, level, grow, true, cand, centre, dist2, front, valid, filled);
     }
     if (n == 0) {
         // Deviation: an "occluded" texel no parent ellipse covers keeps its value (nothing
