@@ -33,7 +33,7 @@ fn buffer_with(ctx: &Arc<Context>, name: &str, bytes: &[u8]) -> Arc<Buffer> {
 
 /// Runs level 0 through the GPU analysis (and synthesis) and reads every level back: the
 /// analysed levels, or the synthesized ones (the top level as analysed).
-fn gpu_levels(level0: &Level, single: bool, synthesize: bool) -> Vec<Level> {
+fn gpu_levels(level0: &Level, single: bool, synthesize: bool, falloff: f32) -> Vec<Level> {
     let ctx = common::context();
     let (w, h) = (level0.width, level0.height);
     let mut block: FrameBlock = bytemuck::Zeroable::zeroed();
@@ -67,7 +67,7 @@ fn gpu_levels(level0: &Level, single: bool, synthesize: bool) -> Vec<Level> {
         level: 0,
         level_count: levels,
         radius_scale: 1.0,
-        falloff: FALLOFF,
+        falloff,
     };
     let compute = vk::ShaderStageFlags::COMPUTE;
     let mut bindings = vec![Binding::new(
@@ -172,7 +172,7 @@ fn analysis_matches_the_cpu_model_in_both_layouts() {
     let cpu = reference::analysis(level0.clone());
     assert_eq!(cpu.len(), 6);
     for single in [false, true] {
-        let gpu = gpu_levels(&level0, single, false);
+        let gpu = gpu_levels(&level0, single, false, FALLOFF);
         assert_levels_match(&gpu, &cpu, &format!("analysis, single image {single}"));
     }
 }
@@ -188,7 +188,7 @@ fn synthesis_matches_the_cpu_model_in_both_layouts() {
         "{filled} of {projected}: holes filled"
     );
     for single in [false, true] {
-        let gpu = gpu_levels(&level0, single, true);
+        let gpu = gpu_levels(&level0, single, true, FALLOFF);
         assert_levels_match(&gpu, &cpu, &format!("synthesis, single image {single}"));
     }
 }
@@ -279,8 +279,48 @@ fn synthesis_fills_isolated_empty_texels_and_small_blocks() {
     // pixel grid, never more than a ring's worth.
     assert!(outside < 48, "{outside} background texels filled");
     for single in [false, true] {
-        let gpu = gpu_levels(&level0, single, true);
+        let gpu = gpu_levels(&level0, single, true, FALLOFF);
         assert_levels_match(&gpu, &cpu, &format!("pinholes, single image {single}"));
+    }
+}
+
+#[test]
+fn a_hole_takes_the_gaussian_weighted_mean_of_the_parents_covering_it() {
+    // Level 0 (4 x 2): a red texel at (0, 0) and a blue one at (3, 0), both facing the camera
+    // (circles of radius 2.5) at the same depth; everything else empty. Their level-1 parents
+    // hold them alone, centred on them, so the hole (1, 0) is covered by the red ellipse at
+    // distance 1 and the blue one at distance 2: its albedo is the mean weighted by
+    // exp(-falloff d^2) with d the distance over the radius, computed here from the geometry.
+    let texel = |color: Vec4| {
+        Texel {
+            n: Vec3::Z,
+            radius: 2.5,
+            depth: 2.0,
+            half_range: 0.05,
+            disp: Vec2::ZERO,
+            color,
+        }
+        .stored()
+    };
+    let mut level0 = Level::empty(4, 2);
+    level0.texels[0] = texel(Vec4::new(1.0, 0.0, 0.0, 0.0));
+    level0.texels[3] = texel(Vec4::new(0.0, 0.0, 1.0, 0.0));
+    for falloff in [0.5, 4.0] {
+        let cpu = reference::synthesis(reference::analysis(level0.clone()), SCALE, falloff);
+        for (q, near, far) in [(1usize, 1.0f32, 2.0f32), (2, 2.0, 1.0)] {
+            let weight = |d: f32| (-falloff * (d / 2.5).powi(2)).exp();
+            let red = weight(near) / (weight(near) + weight(far));
+            let t = cpu[0].texels[q];
+            assert!(
+                (t.color.x - red).abs() < 1e-3 && (t.color.z - (1.0 - red)).abs() < 1e-3,
+                "falloff {falloff}, texel {q}: {:?}, expected red share {red}",
+                t.color
+            );
+        }
+        for single in [false, true] {
+            let gpu = gpu_levels(&level0, single, true, falloff);
+            assert_levels_match(&gpu, &cpu, &format!("two parents, falloff {falloff}"));
+        }
     }
 }
 
