@@ -591,7 +591,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let load_s = since();
     let ctx = context(a.validation)?;
     let device_s = since();
-    let (scene, info) = upload_for(&ctx, &cloud, coloring, config.method.needs_lod)?;
+    let (scene, info) = upload_for(&ctx, &cloud, coloring, config.method)?;
     let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,

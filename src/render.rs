@@ -18,12 +18,13 @@ use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::lod::gpu::GpuLod;
 use crate::lod::{self, Hierarchy, ObjectTexture};
 use crate::methods::{
-    BuildContext, GpuScene, MethodConfig, SampleCounters, Targets, COLOR_FORMAT, DEPTH_FORMAT,
-    NORMAL_FORMAT,
+    BuildContext, GpuScene, MethodConfig, MethodInfo, SampleCounters, Targets, COLOR_FORMAT,
+    DEPTH_FORMAT, NORMAL_FORMAT,
 };
 use crate::overlay::{pass::OverlayPass, Panel};
 use crate::post::{self, PostOptions};
-use crate::scene::{lights, Camera, Cloud, Light, Up};
+use crate::scene::preprocess::Neighbours;
+use crate::scene::{lights, normal_field, Camera, Cloud, Light, Up};
 use crate::streams::{upload, StreamLayout, UploadOptions};
 
 /// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
@@ -56,22 +57,26 @@ pub fn upload_colored(
     cloud: &Cloud,
     coloring: Coloring,
 ) -> Result<(GpuScene, SceneInfo)> {
-    upload_for(ctx, cloud, coloring, false)
+    let options = UploadOptions {
+        scalar: coloring.scalar,
+        ..UploadOptions::default()
+    };
+    let (scene, mut info) = upload_with(ctx, cloud, options)?;
+    info.coloring = coloring;
+    Ok((scene, info))
 }
 
-/// `upload_colored`, with the object texture of level of detail when `lod` (a method with
-/// `needs_lod` will draw it).
+/// `upload_colored`, with what `method` reads beyond the streams (`MethodInfo::upload_options`).
 pub fn upload_for(
     ctx: &Arc<Context>,
     cloud: &Cloud,
     coloring: Coloring,
-    lod: bool,
+    method: &MethodInfo,
 ) -> Result<(GpuScene, SceneInfo)> {
-    let options = UploadOptions {
+    let options = method.upload_options(UploadOptions {
         scalar: coloring.scalar,
-        lod,
         ..UploadOptions::default()
-    };
+    });
     let (scene, mut info) = upload_with(ctx, cloud, options)?;
     info.coloring = coloring;
     Ok((scene, info))
@@ -88,8 +93,11 @@ pub fn upload_with(
     let segment_points = options
         .segment_points
         .unwrap_or_else(|| upload::default_segment_points(ctx));
-    let layout =
+    let mut layout =
         StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
+    if options.normal_field {
+        layout = layout.with_normal_field(fit_normal_field(cloud)?);
+    }
     let streams = upload::upload(ctx, cloud, &layout, options)?;
     let inverse = layout.inverse();
     let remap = |i: u32| inverse.get(i as usize).copied().unwrap_or(0);
@@ -173,6 +181,17 @@ fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
     };
     let hierarchy = Hierarchy::build(&cloud.positions, normals, radii, lod::DEFAULT_LEVELS);
     GpuLod::upload(ctx, &ObjectTexture::new(&hierarchy))
+}
+
+/// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to
+/// its `normal_field::FIELD_K` nearest neighbours.
+fn fit_normal_field(cloud: &Cloud) -> Result<Vec<[u32; 2]>> {
+    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
+        bail!("Phong splatting's normal fields need a cloud with normals and radii");
+    };
+    let neighbours = Neighbours::compute(&cloud.positions, normal_field::FIELD_K, false);
+    let field = normal_field::fit(&cloud.positions, normals, radii, &neighbours);
+    Ok(field.into_iter().map(normal_field::pack).collect())
 }
 
 /// Per-frame settings.
@@ -314,6 +333,12 @@ impl Renderer {
         if config.method.needs_lod && scene.lod.is_none() {
             bail!(
                 "method '{}' needs the object texture of level of detail (upload with lod)",
+                config.method.name
+            );
+        }
+        if config.method.needs_normal_field && !scene.streams.normal_field {
+            bail!(
+                "method '{}' needs the splats' linear normal fields (upload with normal_field)",
                 config.method.name
             );
         }

@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{layer, render, render_view};
+use common::{layer, masked, render, render_view, sphere};
 use glam::Vec3;
 use surfel::eval::metrics;
 use surfel::scene::{pack, preprocess, Camera, Cloud};
@@ -350,65 +350,6 @@ fn a_tilted_splat_covers_its_footprint_with_the_resampling_gaussian() {
         checked += usize::from(expected > 0.1 && expected < 0.9);
     }
     assert!(checked >= 4, "the shares cross over inside the footprint");
-}
-
-/// A UV sphere of radius 1 (`rings` × `2 rings` quads) as a mesh and its vertices as points
-/// with their exact normals and radii from the density of their 10 nearest neighbours.
-fn sphere(rings: usize) -> Cloud {
-    let segments = 2 * rings;
-    let mut positions = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
-            positions.push(Vec3::new(
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            ));
-        }
-    }
-    let at = |i: usize, j: usize| (i * segments + j % segments) as u32;
-    let mut faces = Vec::new();
-    for i in 0..rings {
-        for j in 0..segments {
-            faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    let neighbours = preprocess::Neighbours::compute(&positions, preprocess::DEFAULT_K, false);
-    let radii = preprocess::estimate_radii(
-        &positions,
-        &neighbours,
-        preprocess::RadiusMode::DensitySpacing,
-    );
-    let colors = positions
-        .iter()
-        .map(|p| {
-            let c = |v: f32| (127.5 + 127.0 * v) as u8;
-            [c(p.x), c(p.y), c(p.z), 255]
-        })
-        .collect();
-    Cloud {
-        normals: Some(positions.clone()),
-        radii: Some(radii),
-        colors: Some(colors),
-        faces: Some(faces),
-        positions,
-        ..Default::default()
-    }
-}
-
-/// `frame` with the pixels outside `mask` emptied.
-fn masked(frame: &surfel::eval::Frame, mask: &[bool]) -> surfel::eval::Frame {
-    let mut out = frame.clone();
-    for (i, keep) in mask.iter().enumerate() {
-        if !keep {
-            out.color[i] = [0; 4];
-            out.depth[i] = f32::INFINITY;
-        }
-    }
-    out
 }
 
 #[test]

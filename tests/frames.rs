@@ -110,10 +110,7 @@ fn renderer_sized(
     post: PostOptions,
     size: u32,
 ) -> (Renderer, View) {
-    let options = surfel::streams::UploadOptions {
-        lod: config.method.needs_lod,
-        ..Default::default()
-    };
+    let options = config.method.upload_options(Default::default());
     let (scene, info) = upload_with(ctx, cloud, options).expect("upload");
     let r = Renderer::new(
         ctx,

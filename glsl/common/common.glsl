@@ -19,6 +19,15 @@ vec3 oct_decode(uint packed) {
     return len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
 }
 
+// An orthonormal tangent frame (t_u, t_v) of the plane with unit normal n: t_u = n x h with the
+// helper axis h = +x unless |n.x| >= 0.9, then +y; t_v = n x t_u (mirrors `tangent_frame` in
+// src/scene/normal_field.rs).
+mat2x3 tangent_frame(vec3 n) {
+    vec3 helper = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+    vec3 tu = normalize(cross(n, helper));
+    return mat2x3(tu, cross(n, tu));
+}
+
 vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));
 }

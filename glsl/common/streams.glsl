@@ -40,6 +40,15 @@ float stream_radius(uint i) {
     return (l & 1u) == 0u ? pair.x : pair.y;
 }
 
+// The linear normal field of Phong splatting (src/scene/normal_field.rs): the shape operator
+// [[a, b], [b, c]] in the tangent frame of the stored normal, times the splat radius.
+vec3 stream_normal_field(uint i) {
+    uint s = segment_of(i);
+    uint l = 2u * local_index(i, s);
+    WordStream w = WordStream(segments[s].normal_field.xy);
+    return vec3(unpackHalf2x16(w.v[l]), unpackHalf2x16(w.v[l + 1u]).x);
+}
+
 // The f32 value of the scalar field uploaded for coloring (GpuSegment.scalar).
 float stream_scalar(uint i) {
     uint s = segment_of(i);

@@ -102,9 +102,9 @@ bool setup(uint i, out Splat s) {
         s.n = -s.n;
     }
     // Local parametrization (3.1.1): an orthonormal tangent frame of the splat's plane.
-    vec3 helper = abs(s.n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
-    vec3 tu = normalize(cross(s.n, helper));
-    vec3 tv = cross(s.n, tu);
+    mat2x3 frame_uv = tangent_frame(s.n);
+    vec3 tu = frame_uv[0];
+    vec3 tv = frame_uv[1];
     // Reconstruction kernel V_r = r^2 I in tangent coordinates (eq. 3.30).
     s.sigma = pc.p.radius * stream_radius(i);
     // Jacobian of the local affine approximation of the projection (eq. 3.25): derivatives of

@@ -14,18 +14,21 @@ void main() {
     SplatHit hit = splat_fragment();
     gl_FragDepth = zbuffer_depth(hit.q * (1.0 - splat.epsilon));
     float w = splat_weight(hit.rho);
-    // Normals are accumulated facing the eye, so two-sided surfaces do not cancel out.
-    vec3 n = dot(v_normal, hit.q) > 0.0 ? -v_normal : v_normal;
+    vec3 n = v_normal;
     vec3 c = v_color;
     if (SHADING == SPLAT_SHADING_PHONG) {
-        // Eq. 5.7: the splat's linear normal field, n_i = ((q + n) - p) / |(q + n) - p|, lit per
-        // fragment at q. As in the paper, q - p is in view units while n is a unit vector, so
-        // the field tilts by atan(|q - p|) (up to atan(r) at the rim): strongly for splats of
-        // radius near 1, hardly for small ones. Botsch et al. fit the field's slopes to the
-        // neighbours' normals instead; the paper's construction is kept.
-        n = normalize(hit.q + n - v_centre);
+        // 002 section 5.3.3 with the normal field of Botsch et al. (2004): the splat's normal
+        // varies linearly over its plane, n(q) = normalize(n + S (q - p)), with S fitted to the
+        // neighbours' normals in preprocessing (src/scene/normal_field.rs), lit per fragment at
+        // q. Deviation: eq. 5.7's field n + (q - p) adds an offset in scene units to a unit
+        // vector, so its tilt depended on the model's units (none on a bunny in metres, up to
+        // 45 degrees at the rim of a unit splat); the fitted field is the surface's own.
+        n = normalize(n + v_field * (hit.q - v_centre));
         c = shade(v_color, n, hit.q);
     }
+    // Normals are accumulated facing the eye, so two-sided surfaces do not cancel out (the
+    // splat's own normal decides, so a field never flips within one splat).
+    n = dot(v_normal, hit.q) > 0.0 ? -n : n;
     o_color = vec4(w * c, w);
     o_normal = vec4(w * n, w);
 }

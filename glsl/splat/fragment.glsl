@@ -9,6 +9,8 @@ layout(location = 1) flat in vec3 v_normal;
 layout(location = 2) flat in vec3 v_centre;
 layout(location = 3) flat in float v_radius;
 layout(location = 4) flat in float v_size;
+// Phong shading's linear normal field: the normal at q is n + v_field (q - p), view space.
+layout(location = 5) flat in mat3 v_field;
 
 // A covered fragment: the view-space surface point q it shows and its normalized distance rho
 // from the splat's centre (1 at the rim of the disc).

@@ -321,9 +321,10 @@ impl Viewer {
                 validation: self.opts.validation,
                 surface_extensions: exts,
             })?);
-            // The object texture only when the viewer starts on a method drawing it.
-            let lod = METHODS[self.method].needs_lod;
-            self.scene = Some(upload_for(&ctx, &self.cloud, self.opts.coloring, lod)?);
+            // The object texture and the normal fields only when the viewer starts on a method
+            // reading them.
+            let method = &METHODS[self.method];
+            self.scene = Some(upload_for(&ctx, &self.cloud, self.opts.coloring, method)?);
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -400,12 +401,17 @@ impl Viewer {
             .as_ref()
             .is_some_and(|(s, _)| s.indices.is_some());
         let has_lod = self.scene.as_ref().is_some_and(|(s, _)| s.lod.is_some());
+        let has_field = self
+            .scene
+            .as_ref()
+            .is_some_and(|(s, _)| s.streams.normal_field);
         let caps = self.ctx.as_ref().map(|c| c.caps.clone());
         for _ in 0..METHODS.len() {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
             let m = &METHODS[self.method];
             let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
-            if supported && (!m.needs_faces || has_faces) && (!m.needs_lod || has_lod) {
+            let data = (!m.needs_lod || has_lod) && (!m.needs_normal_field || has_field);
+            if supported && (!m.needs_faces || has_faces) && data {
                 break;
             }
         }

@@ -46,13 +46,8 @@ struct Loaded {
     info: SceneInfo,
 }
 
-/// Uploads `cloud`, with the object texture of level of detail when `lod` (a job's method
-/// draws it).
-fn load_gpu(ctx: &Arc<Context>, cloud: Cloud, lod: bool) -> Result<Loaded> {
-    let options = UploadOptions {
-        lod,
-        ..UploadOptions::default()
-    };
+/// Uploads `cloud` with `options` (what the sweep's methods read beyond the streams).
+fn load_gpu(ctx: &Arc<Context>, cloud: Cloud, options: UploadOptions) -> Result<Loaded> {
     let (gpu, info) = upload_with(ctx, &cloud, options)?;
     Ok(Loaded { cloud, gpu, info })
 }
@@ -246,9 +241,10 @@ pub fn run(
     let mut variants: HashMap<(PathBuf, String), Loaded> = HashMap::new();
     let mut truths: HashMap<String, Vec<Frame>> = HashMap::new();
     let jobs = config.jobs();
-    let lod = jobs
+    let options = jobs
         .iter()
-        .any(|j| crate::methods::find(&j.method).is_ok_and(|m| m.needs_lod));
+        .filter_map(|j| crate::methods::find(&j.method).ok())
+        .fold(UploadOptions::default(), |o, m| m.upload_options(o));
     let use_color = config.color;
     for (i, job) in jobs.iter().enumerate() {
         let truth_path = job.model.truth.as_ref().unwrap_or(&job.model.path).clone();
@@ -256,7 +252,7 @@ pub fn run(
             if let Entry::Vacant(slot) = models.entry(path.clone()) {
                 let cloud = load_prepared(path, &LoadOptions::default())
                     .with_context(|| format!("{}, model {:?}", config.origin, job.model.name))?;
-                slot.insert(load_gpu(ctx, cloud, lod)?);
+                slot.insert(load_gpu(ctx, cloud, options)?);
             }
         }
         let original = &models[&job.model.path];
@@ -280,7 +276,7 @@ pub fn run(
                         stressed(&original.cloud, kind, v)?
                     }
                 };
-                slot.insert(load_gpu(ctx, cloud, lod)?);
+                slot.insert(load_gpu(ctx, cloud, options)?);
             }
         }
         let scene = match &variant_key {

@@ -34,6 +34,7 @@ pub struct GpuSegment {
     pub normal_radius: [u32; 4],
     pub color_first: [u32; 4],
     pub scalar: [u32; 4],
+    pub normal_field: [u32; 4],
 }
 
 /// One light, resolved to view space on the CPU.
@@ -265,7 +266,8 @@ pub fn mirrors() -> Vec<Mirror> {
             medium_fine,
             normal_radius,
             color_first,
-            scalar
+            scalar,
+            normal_field
         }),
         mirror!(GpuLight {
             position,
@@ -413,7 +415,7 @@ mod tests {
     fn frame_block_places_lights_after_the_uniforms() {
         assert_eq!(std::mem::offset_of!(FrameBlock, lights), 304);
         assert_eq!(std::mem::size_of::<GpuBatch>(), 32);
-        assert_eq!(std::mem::size_of::<GpuSegment>(), 80);
+        assert_eq!(std::mem::size_of::<GpuSegment>(), 96);
         assert_eq!(TARGET_NORMAL, 2);
     }
 }

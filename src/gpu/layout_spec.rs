@@ -287,6 +287,9 @@ pub const STRUCTS: &[StructSpec] = &[
             // xy: the f32 stream of the one scalar field uploaded (the field colored by),
             // z: that field's index in the cloud, w: unused.
             f("uvec4", "scalar"),
+            // xy: the linear normal fields of the Phong splats (8 B/point: the shape operator
+            // [[a, b], [b, c]] times the splat radius as f16 a, b, c and a zero), zw: unused.
+            f("uvec4", "normal_field"),
         ],
     },
     StructSpec {

@@ -105,6 +105,7 @@ pub const COMPUTE_INFO: MethodInfo = MethodInfo {
     features: &[],
     culls_batches: false,
     needs_lod: true,
+    needs_normal_field: false,
     build: build_compute,
 };
 
@@ -116,6 +117,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     features: &[Feature::MeshShader],
     culls_batches: false,
     needs_lod: true,
+    needs_normal_field: false,
     build: build_mesh,
 };
 
@@ -127,6 +129,7 @@ pub const GEOMETRY_INFO: MethodInfo = MethodInfo {
     features: &[Feature::GeometryShader, Feature::GeometryPoints],
     culls_batches: false,
     needs_lod: true,
+    needs_normal_field: false,
     build: build_geometry,
 };
 

@@ -28,6 +28,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[],
     culls_batches: false,
     needs_lod: false,
+    needs_normal_field: false,
     build,
 };
 

@@ -19,7 +19,7 @@ use ash::vk;
 
 use crate::gpu::{Buffer, Capabilities, Context};
 use crate::graph::{BufferId, GraphBuilder, ImageId};
-use crate::streams::GpuStreams;
+use crate::streams::{GpuStreams, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
@@ -54,6 +54,8 @@ pub struct MethodInfo {
     pub culls_batches: bool,
     /// Draws the scene's object texture (`GpuScene::lod`, level of detail of 000 ch. 7).
     pub needs_lod: bool,
+    /// Reads the linear normal fields of Phong splatting (`Stream::NormalField`).
+    pub needs_normal_field: bool,
     pub build: fn(&mut BuildContext<'_>) -> Result<()>,
 }
 
@@ -115,6 +117,16 @@ impl MethodInfo {
                 caps.device_name
             )
         })
+    }
+
+    /// `options` with the per-scene data this method reads switched on (the object texture,
+    /// the normal fields); what other methods need stays as `options` had it.
+    pub fn upload_options(&self, options: UploadOptions) -> UploadOptions {
+        UploadOptions {
+            lod: options.lod || self.needs_lod,
+            normal_field: options.normal_field || self.needs_normal_field,
+            ..options
+        }
     }
 }
 

@@ -11,6 +11,7 @@ pub mod input;
 pub mod las;
 pub mod lights;
 pub mod lines;
+pub mod normal_field;
 pub mod obj;
 pub mod pack;
 pub mod pcd;

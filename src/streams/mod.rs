@@ -6,7 +6,8 @@
 //! (Schütz et al. 2022: 10 bits per axis each, relative to the batch's box, so a distant batch
 //! reads 4 bytes per point, a nearer one 8 and a close one 12), octahedral normals (4 B), f16
 //! radii (2 B), RGBA8 colors (4 B, only when the cloud has colors) and the one f32 scalar
-//! attribute the frame is colored by (4 B, only when the color mode reads one). Streams are split into segments of whole batches
+//! attribute the frame is colored by (4 B, only when the color mode reads one), and the linear
+//! normal fields of Phong splatting (8 B, only for the methods that read them). Streams are split into segments of whole batches
 //! that each fit the device's buffer limits; shaders reach them through buffer device addresses
 //! kept in a segment table (`upload.rs`).
 //!
@@ -55,6 +56,8 @@ pub enum Stream {
     Color,
     /// The k-th scalar attribute of the cloud as f32.
     Scalar(usize),
+    /// Linear normal field (`crate::scene::normal_field`): three f16 and a zero.
+    NormalField,
 }
 
 impl Stream {
@@ -63,6 +66,7 @@ impl Stream {
         match self {
             Stream::Position => 12,
             Stream::Radius => 2,
+            Stream::NormalField => 8,
             _ => 4,
         }
     }
@@ -78,6 +82,7 @@ impl Stream {
             Stream::Radius => "radius f16".into(),
             Stream::Color => "color rgba8".into(),
             Stream::Scalar(k) => format!("scalar {k} f32"),
+            Stream::NormalField => "normal field 3×f16".into(),
         }
     }
 }
@@ -93,6 +98,9 @@ pub struct StreamLayout {
     pub segment_points: u32,
     /// Streams present, in upload order.
     pub streams: Vec<Stream>,
+    /// The packed linear normal fields in cloud order (`normal_field::pack`), when the
+    /// layout has the `NormalField` stream.
+    pub normal_field: Option<Vec<[u32; 2]>>,
 }
 
 impl StreamLayout {
@@ -137,7 +145,16 @@ impl StreamLayout {
             batches,
             segment_points,
             streams,
+            normal_field: None,
         })
+    }
+
+    /// Adds the `NormalField` stream with the packed fields of every point, in cloud order.
+    pub fn with_normal_field(mut self, field: Vec<[u32; 2]>) -> Self {
+        debug_assert_eq!(field.len(), self.order.len());
+        self.streams.push(Stream::NormalField);
+        self.normal_field = Some(field);
+        self
     }
 
     /// The streams a cloud needs: positions (f32 and quantized), normals, radii, colors when
@@ -308,6 +325,18 @@ impl StreamLayout {
             Stream::Scalar(k) => {
                 let values = &cloud.scalars[k].values;
                 encode_words(out, ids, chunk, |i| values[i].to_bits());
+            }
+            Stream::NormalField => {
+                let field = self.normal_field.as_deref().unwrap_or_default();
+                out.par_chunks_mut(chunk * 8)
+                    .zip(ids.par_chunks(chunk))
+                    .for_each(|(o, ids)| {
+                        for (o, &i) in o.chunks_exact_mut(8).zip(ids) {
+                            let w = field.get(i as usize).copied().unwrap_or_default();
+                            o[..4].copy_from_slice(&w[0].to_le_bytes());
+                            o[4..].copy_from_slice(&w[1].to_le_bytes());
+                        }
+                    });
             }
             Stream::Radius => {
                 let radii = cloud.radii.as_deref();

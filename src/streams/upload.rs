@@ -26,6 +26,9 @@ pub struct UploadOptions {
     /// Also build and upload the object texture of level of detail (`crate::lod`, for the
     /// methods with `needs_lod`; the cloud needs normals and radii).
     pub lod: bool,
+    /// Also fit and upload the linear normal fields of Phong splatting
+    /// (`crate::scene::normal_field`, for the methods with `needs_normal_field`).
+    pub normal_field: bool,
 }
 
 impl Default for UploadOptions {
@@ -35,6 +38,7 @@ impl Default for UploadOptions {
             chunk_bytes: 32 << 20,
             scalar: None,
             lod: false,
+            normal_field: false,
         }
     }
 }
@@ -57,6 +61,8 @@ pub struct GpuStreams {
     pub point_count: u32,
     pub batch_count: u32,
     pub segment_points: u32,
+    /// Whether the `NormalField` stream was uploaded.
+    pub normal_field: bool,
 }
 
 /// The segment size fitting every stream into one storage-buffer range of `ctx`'s device.
@@ -247,6 +253,7 @@ pub fn upload(
                 u32::from(has_scalar),
             ],
             scalar,
+            normal_field: pair(Stream::NormalField, Stream::NormalField),
         });
         segments.push(buffers);
     }
@@ -270,5 +277,6 @@ pub fn upload(
         point_count: layout.len() as u32,
         batch_count: layout.batches.len() as u32,
         segment_points: layout.segment_points,
+        normal_field: layout.normal_field.is_some(),
     })
 }

@@ -61,7 +61,7 @@ pub fn coverage(frame: &surfel::eval::Frame) -> f64 {
 }
 
 /// Renders `cloud` with `method` at `size`² in a validated context (streams uploaded with
-/// `options`, camera from the bounding sphere's centre and radius): one frame with the
+/// `options` and what the method reads, camera from the bounding sphere's centre and radius): one frame with the
 /// first-frame barriers, then a read-back frame with the steady-state ones. Fails on any
 /// validation error.
 pub fn render_view(
@@ -72,6 +72,8 @@ pub fn render_view(
     camera: impl Fn(Vec3, f32) -> surfel::scene::Camera,
 ) -> surfel::eval::Frame {
     let ctx = context();
+    let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let options = config.method.upload_options(options);
     let (scene, info) = surfel::render::upload_with(&ctx, cloud, options).expect("upload");
     let camera = camera(info.centre, info.radius);
     two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
@@ -308,4 +310,67 @@ pub fn eroded(mask: &[bool], size: usize, r: usize) -> Vec<bool> {
                 && (y - r..=y + r).all(|v| (x - r..=x + r).all(|u| mask[v * size + u]))
         })
         .collect()
+}
+
+/// A UV sphere of radius 1 (`rings` × `2 rings` quads) as a mesh and its vertices as points
+/// with their exact normals and radii from the density of their 10 nearest neighbours.
+pub fn sphere(rings: usize) -> Cloud {
+    let segments = 2 * rings;
+    let mut positions = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            positions.push(Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ));
+        }
+    }
+    let at = |i: usize, j: usize| (i * segments + j % segments) as u32;
+    let mut faces = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    let neighbours = surfel::scene::preprocess::Neighbours::compute(
+        &positions,
+        surfel::scene::preprocess::DEFAULT_K,
+        false,
+    );
+    let radii = surfel::scene::preprocess::estimate_radii(
+        &positions,
+        &neighbours,
+        surfel::scene::preprocess::RadiusMode::DensitySpacing,
+    );
+    let colors = positions
+        .iter()
+        .map(|p| {
+            let c = |v: f32| (127.5 + 127.0 * v) as u8;
+            [c(p.x), c(p.y), c(p.z), 255]
+        })
+        .collect();
+    Cloud {
+        normals: Some(positions.clone()),
+        radii: Some(radii),
+        colors: Some(colors),
+        faces: Some(faces),
+        positions,
+        ..Default::default()
+    }
+}
+
+/// `frame` with the pixels outside `mask` emptied.
+pub fn masked(frame: &surfel::eval::Frame, mask: &[bool]) -> surfel::eval::Frame {
+    let mut out = frame.clone();
+    for (i, keep) in mask.iter().enumerate() {
+        if !keep {
+            out.color[i] = [0; 4];
+            out.depth[i] = f32::INFINITY;
+        }
+    }
+    out
 }

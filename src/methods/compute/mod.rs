@@ -39,6 +39,7 @@ pub const COMPUTE: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     needs_lod: false,
+    needs_normal_field: false,
     build: build_nearest,
 };
 
@@ -59,6 +60,7 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     needs_lod: false,
+    needs_normal_field: false,
     build: build_high_quality,
 };
 

@@ -100,6 +100,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_normal_field: false,
     build,
 };
 

@@ -652,6 +652,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_normal_field: false,
     build: build_points,
 };
 
@@ -663,6 +664,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_normal_field: false,
     build: build_mesh,
 };
 

@@ -76,6 +76,7 @@ pub const KERNEL3: MethodInfo = MethodInfo {
     params: PARAMS,
     needs_faces: false,
     needs_lod: false,
+    needs_normal_field: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     build: build3,

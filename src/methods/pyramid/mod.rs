@@ -136,6 +136,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     needs_lod: false,
+    needs_normal_field: false,
     build,
 };
 
@@ -148,6 +149,7 @@ pub const HYBRID_INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     needs_lod: false,
+    needs_normal_field: false,
     build: build_hybrid,
 };
 

@@ -3,8 +3,9 @@
 //! perspective-correct splats), each with four shadings: flat (one pass, lit per splat) and the
 //! three blended ones, which share a depth-only visibility pass, an additive accumulation of
 //! weighted color and normal within a relative depth `epsilon` of the visible surface and a
-//! normalization pass: Gouraud (lit per splat), Phong (a linear normal field per splat, lit per
-//! fragment) and deferred (albedo and normal blended, lit once per pixel in the normalization).
+//! normalization pass: Gouraud (lit per splat), Phong (a linear normal field per splat, fitted to
+//! the neighbours' normals in preprocessing, `crate::scene::normal_field`, lit per fragment) and
+//! deferred (albedo and normal blended, lit once per pixel in the normalization).
 //! Every combination is one pair of shaders specialized by constants; the method name
 //! `{raster}-{shading}` picks them.
 
@@ -76,7 +77,20 @@ const fn info(
         features: &[],
         culls_batches: false,
         needs_lod: false,
+        needs_normal_field: false,
         build,
+    }
+}
+
+/// `info` for a Phong variant: it reads the splats' linear normal fields.
+const fn phong(
+    name: &'static str,
+    summary: &'static str,
+    params: &'static [ParamSpec],
+) -> MethodInfo {
+    MethodInfo {
+        needs_normal_field: true,
+        ..info(name, summary, params)
     }
 }
 
@@ -141,24 +155,24 @@ pub const PERSPECTIVE_GOURAUD_INFO: MethodInfo = info(
     "perspective-correct splats (002 eqs. 5.4-5.5), Gouraud shading (002 5.3.2)",
     SPLATS_BLENDED,
 );
-pub const POINTS_PHONG_INFO: MethodInfo = info(
+pub const POINTS_PHONG_INFO: MethodInfo = phong(
     "points-phong",
-    "fixed-size point sprites, Phong shading: linear normal field lit per fragment, blended (002 5.3.3)",
+    "fixed-size point sprites, Phong shading: each splat's fitted linear normal field lit per fragment, blended (002 5.3.3)",
     POINTS_BLENDED,
 );
-pub const SQUARES_PHONG_INFO: MethodInfo = info(
+pub const SQUARES_PHONG_INFO: MethodInfo = phong(
     "squares-phong",
-    "image-aligned squares (002 eq. 5.1), Phong shading (002 eq. 5.7)",
+    "image-aligned squares (002 eq. 5.1), Phong shading with fitted linear normal fields (002 5.3.3)",
     SPLATS_BLENDED,
 );
-pub const AFFINE_PHONG_INFO: MethodInfo = info(
+pub const AFFINE_PHONG_INFO: MethodInfo = phong(
     "affine-phong",
-    "affinely projected discs (002 eqs. 5.2-5.3), Phong shading (002 eq. 5.7)",
+    "affinely projected discs (002 eqs. 5.2-5.3), Phong shading with fitted linear normal fields (002 5.3.3)",
     SPLATS_BLENDED,
 );
-pub const PERSPECTIVE_PHONG_INFO: MethodInfo = info(
+pub const PERSPECTIVE_PHONG_INFO: MethodInfo = phong(
     "perspective-phong",
-    "perspective-correct splats (002 eqs. 5.4-5.5), Phong shading (002 eq. 5.7)",
+    "perspective-correct splats (002 eqs. 5.4-5.5), Phong shading with fitted linear normal fields (002 5.3.3)",
     SPLATS_BLENDED,
 );
 
