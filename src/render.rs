@@ -180,7 +180,10 @@ fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
         bail!("level of detail needs a cloud with normals and radii");
     };
     let hierarchy = Hierarchy::build(&cloud.positions, normals, radii, lod::DEFAULT_LEVELS);
-    GpuLod::upload(ctx, &ObjectTexture::new(&hierarchy))
+    GpuLod::upload(
+        ctx,
+        &ObjectTexture::new(&hierarchy, cloud.colors.as_deref()),
+    )
 }
 
 /// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, Vec3, Vec4};
+use surfel::eval::metrics;
 use surfel::gpu::layout::FrameBlock;
 use surfel::gpu::{Buffer, Context, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
@@ -174,7 +175,7 @@ fn paths(ctx: &Context) -> Vec<Path> {
 fn every_path_emits_the_cpu_reference_sample_set() {
     let ctx = common::context();
     let (p, r) = sphere(30_000);
-    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS), None);
     let lod = GpuLod::upload(&ctx, &texture).expect("upload");
     let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
     let mut totals = Vec::new();
@@ -235,7 +236,7 @@ fn every_path_emits_the_cpu_reference_sample_set() {
 fn every_path_fills_the_point_budget_as_the_cpu_reference() {
     let ctx = common::context();
     let (p, r) = sphere(30_000);
-    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS), None);
     let lod = GpuLod::upload(&ctx, &texture).expect("upload");
     let patches = texture.patches.len() as u32;
     let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
@@ -303,7 +304,7 @@ fn geometry_invocations_split_a_patch_without_changing_the_samples() {
         return;
     }
     let (p, r) = sphere(20_000);
-    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS));
+    let texture = ObjectTexture::new(&Hierarchy::build(&p, &p, &r, DEFAULT_LEVELS), None);
     let lod = GpuLod::upload(&ctx, &texture).expect("upload");
     let proj = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.0, 0.01);
     let view = Mat4::look_at_rh(Vec3::new(0.3, 0.2, 2.5), Vec3::ZERO, Vec3::Y);
@@ -423,6 +424,60 @@ fn lod_compute_colors_coarse_levels_when_asked() {
 }
 
 #[test]
+fn pyramid_lod_projects_the_selection_with_its_points_colors() {
+    // The sphere red for x < 0, blue for x >= 0.
+    let mut cloud = sphere_cloud(20_000);
+    cloud.colors = Some(
+        cloud
+            .positions
+            .iter()
+            .map(|p| {
+                if p.x < 0.0 {
+                    [230, 20, 20, 255]
+                } else {
+                    [20, 20, 230, 255]
+                }
+            })
+            .collect(),
+    );
+    let size = 128;
+    let render = |method: &str| common::render_with(&cloud, method, size, with_lod());
+    // ε = 0 selects every input point: level 0 is the hardware projection of all points, the
+    // image `pyramid:projection=1`'s (the radii differ by the f16 rounding of the streams).
+    let all = render("pyramid:projection=1");
+    let fine = render("pyramid-lod:epsilon=0");
+    let same = metrics::psnr_color(&fine, &all)
+        .expect("psnr")
+        .expect("pixels");
+    assert!(
+        same > 40.0,
+        "pyramid-lod at epsilon 0 against every point: {same:.1} dB"
+    );
+    // ε = 64: the representatives, each the mean color of its 64 points. Away from x = 0 the
+    // patches are one color, so each side keeps its own; the outline moves by at most 1.5
+    // pixels (the silhouette's representatives are discs seen edge-on).
+    let coarse = render("pyramid-lod:epsilon=64");
+    let pixels = f64::from(size * size);
+    let (fine_px, coarse_px) = (
+        common::coverage(&fine) * pixels,
+        common::coverage(&coarse) * pixels,
+    );
+    let perimeter = 2.0 * (std::f64::consts::PI * fine_px).sqrt();
+    assert!(
+        (coarse_px - fine_px).abs() < 1.5 * perimeter,
+        "{coarse_px} px covered against {fine_px} (outline {perimeter:.0} px)"
+    );
+    for (i, c) in coarse.color.iter().enumerate().filter(|(_, c)| c[3] > 0) {
+        let column = i % size as usize;
+        if column < 40 {
+            assert!(c[0] > 2 * c[2], "pixel {i}: {c:?} on the red side");
+        } else if column >= 88 {
+            assert!(c[2] > 2 * c[0], "pixel {i}: {c:?} on the blue side");
+        }
+    }
+}
+
+#[test]
 fn lod_methods_need_the_object_texture() {
     let ctx = common::context();
     let (scene, info) = surfel::render::upload(&ctx, &sphere_cloud(100)).expect("upload");
@@ -454,12 +509,10 @@ fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
         unreachable!("sphere_cloud has normals and radii");
     };
     // The object texture `upload_with` built, on the host.
-    let texture = ObjectTexture::new(&Hierarchy::build(
-        &cloud.positions,
-        normals,
-        radii,
-        DEFAULT_LEVELS,
-    ));
+    let texture = ObjectTexture::new(
+        &Hierarchy::build(&cloud.positions, normals, radii, DEFAULT_LEVELS),
+        cloud.colors.as_deref(),
+    );
     let view_from = |distance: f32| View {
         camera: Camera {
             eye: Vec3::new(0.3, 0.2, distance),
@@ -492,7 +545,7 @@ fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
         total(&far_counts) > 0 && total(&near_counts) > total(&far_counts),
         "near {near_counts:?}, far {far_counts:?}"
     );
-    let mut methods = vec!["lod-compute"];
+    let mut methods = vec!["lod-compute", "pyramid-lod"];
     if ctx.caps.mesh_shader && ctx.caps.task_shader {
         methods.push("lod-mesh");
     }

@@ -1,5 +1,5 @@
 #version 460
-// The point budget's first pass (issue 11): one thread per patch in view adds its coarsest
+// The point budget's first pass: one thread per patch in view adds its coarsest
 // level's samples to `budget_base` and, for each finer level l - 1, the samples refining to it
 // adds (counts[l - 1] - counts[l]) to the bin of the projected error e_l that demands it.
 // Only errors above ε count: below it the finer level is drawn whatever the budget.

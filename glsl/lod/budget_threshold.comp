@@ -1,5 +1,5 @@
 #version 460
-// The point budget's second pass (issue 11), one workgroup: the refinements are admitted in
+// The point budget's second pass, one workgroup: the refinements are admitted in
 // order of decreasing projected error until the budget is full. With S_k the samples of bins
 // k and above, drawing with threshold edge(k) (the smallest error bin k holds) projects at
 // most budget_base + S_k samples; the threshold becomes ε when everything fits (k = 0), the

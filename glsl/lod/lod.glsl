@@ -79,12 +79,20 @@ uint lod_level_offset(GpuLodPatch rep, uint level) {
     }
     return first;
 }
+// A vertex's albedo (linear): its points' mean color when the frame shows the cloud's colors,
+// else the base color.
+vec3 lod_albedo(GpuLodVertex v) {
+    return frame.u.color_mode == COLOR_RGB
+        ? srgb_to_linear(unpackUnorm4x8(v.normal_color.y).rgb) : frame.u.base_color.rgb;
+}
+
 // What every draw path emits for one object-texture vertex: a splat of the splatting family
 // (002 5.2), shaded by splat/flat.frag under the same RASTER: an image-aligned square of the
 // splat's projected diameter (eq. 5.1), or a perspective-correct disc (eqs. 5.4-5.5) in a
 // sprite bounding it, at most `max_size` pixels either way; lit once per splat (flat
-// shading), colored by level (thesis Fig. 7.4) or with the base color. (The thesis projects
-// the vertices into its pyramid renderer instead.)
+// shading), colored by level (thesis Fig. 7.4), by the mean color of its points (when the
+// frame shows the cloud's colors) or with the base color. The thesis projects the vertices
+// into its pyramid renderer: that is `pyramid-lod` (pyramid/project_lod.vert).
 layout(constant_id = SPLAT_SPEC_RASTER) const uint LOD_RASTER = SPLAT_RASTER_SQUARES;
 
 struct LodSplat {
@@ -113,11 +121,11 @@ LodSplat lod_splat(GpuLodVertex v, float max_size, bool color_levels) {
     }
     o.size = clamp(size, 1.0, max_size);
     const uint colors[4] = uint[](LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3);
-    uint c = colors[min(uint(v.normal.w), 3u)];
+    uint c = colors[min(v.normal_color.z, 3u)];
     vec3 albedo = color_levels
         ? srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0)
-        : frame.u.base_color.rgb;
-    o.normal = normalize(mat3(frame.u.view) * v.normal.xyz);
+        : lod_albedo(v);
+    o.normal = normalize(mat3(frame.u.view) * oct_decode(v.normal_color.x));
     o.color = shade(albedo, o.normal, p);
     o.centre = p;
     o.radius = r;

@@ -1,4 +1,4 @@
-//! The level-of-detail part of a report (issue 11, thesis 000 ch. 7): samples projected, frame
+//! The level-of-detail part of a report (thesis 000 ch. 7): samples projected, frame
 //! time and accuracy against the camera distance (every method, so with and without level of
 //! detail), the accuracy lost against ε, frame time and accuracy against the point budget,
 //! and frame time against the geometry path's vertices per invocation; each drawn when the
@@ -13,7 +13,7 @@ use anyhow::{Context as _, Result};
 use super::charts::write_line_chart;
 use super::results::{Record, Results};
 
-/// Accuracy loss the default ε may cost (000 ch. 7, issue 11), dB of PSNR against ε = 0.
+/// Accuracy loss the default ε may cost (000 ch. 7), dB of PSNR against ε = 0.
 pub const LOSS_DB: f64 = 0.5;
 
 /// PSNR above which a loss is not visible: the customary threshold of visually lossless

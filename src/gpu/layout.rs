@@ -156,7 +156,7 @@ pub struct GpuLodPatch {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLodVertex {
     pub sphere: Vec4,
-    pub normal: Vec4,
+    pub normal_color: [u32; 4],
 }
 
 /// Push constants of the LOD selection (`LodParams` in GLSL).
@@ -337,7 +337,10 @@ pub fn mirrors() -> Vec<Mirror> {
             pad0,
             pad1
         }),
-        mirror!(GpuLodVertex { sphere, normal }),
+        mirror!(GpuLodVertex {
+            sphere,
+            normal_color
+        }),
         mirror!(LodParams {
             epsilon,
             patch_count,

@@ -239,7 +239,7 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // LOD_PATCH_VERTICES points per patch.
     ("LOD_TASK_GROUP", 32),
     ("LOD_PATCH_VERTICES", 64),
-    // The point budget (issue 11): after the per-level counts the counters hold the threshold
+    // The point budget: after the per-level counts the counters hold the threshold
     // the paths choose levels with (ε, or raised until the budget holds), the samples the
     // visible patches' coarsest levels draw, two pads, then LOD_BUDGET_BINS bins of the
     // samples each refinement adds, by the projected error demanding it: bin b holds errors
@@ -497,8 +497,9 @@ pub const STRUCTS: &[StructSpec] = &[
         fields: &[
             // xyz: centre, w: radius.
             f("vec4", "sphere"),
-            // xyz: unit normal, w: the level.
-            f("vec4", "normal"),
+            // x: octahedral unit normal, y: RGBA8 sRGB color (the mean of its points' colors),
+            // z: the level, w: unused.
+            f("uvec4", "normal_color"),
         ],
     },
     // Push constants of the LOD selection (src/lod/gpu.rs).

@@ -267,7 +267,7 @@ fn add_patch_pass(
     Ok(())
 }
 
-/// The point budget (issue 11): declares `{prefix}.budget.bins`, which sorts the samples every
+/// The point budget: declares `{prefix}.budget.bins`, which sorts the samples every
 /// refinement of a visible patch adds into bins of the projected error demanding it, and
 /// `{prefix}.budget.threshold`, which admits refinements by decreasing error until `budget`
 /// samples are reached and writes the threshold the path then chooses levels with (the CPU

@@ -15,6 +15,8 @@
 
 use glam::{Mat4, Vec3, Vec4};
 
+use crate::scene::pack::{linear_component, oct_encode, srgb_byte};
+
 use crate::gpu::layout::{
     GpuLodPatch, GpuLodVertex, LOD_BUDGET_BINS, LOD_BUDGET_BIN_BASE, LOD_MAX_LEVELS,
 };
@@ -271,6 +273,44 @@ impl Hierarchy {
     }
 }
 
+/// The sRGB color of every node of `h`: the input point's at level 0, above the mean of the
+/// children's linear colors weighted by the points below each (so the mean of the points).
+fn node_colors(h: &Hierarchy, colors: Option<&[[u8; 4]]>) -> Vec<Vec<[u8; 4]>> {
+    let Some(colors) = colors else {
+        return h.levels.iter().map(|l| vec![[255; 4]; l.len()]).collect();
+    };
+    let linear = |c: [u8; 4]| Vec3::from_array(std::array::from_fn(|k| linear_component(c[k])));
+    let mut means: Vec<Vec<Vec3>> = Vec::with_capacity(h.levels.len());
+    means.push(
+        h.levels[0]
+            .iter()
+            .map(|n| linear(colors[n.first as usize]))
+            .collect(),
+    );
+    for l in 1..h.levels.len() {
+        let below = (&h.levels[l - 1], &means[l - 1]);
+        let level = h.levels[l]
+            .iter()
+            .map(|n| {
+                let children = n.first as usize..(n.first + n.children) as usize;
+                let sum: Vec3 = children
+                    .map(|c| below.1[c] * below.0[c].points as f32)
+                    .sum();
+                sum / n.points as f32
+            })
+            .collect();
+        means.push(level);
+    }
+    means
+        .iter()
+        .map(|l| {
+            l.iter()
+                .map(|c| [srgb_byte(c.x), srgb_byte(c.y), srgb_byte(c.z), 255])
+                .collect()
+        })
+        .collect()
+}
+
 /// One patch of the object texture: the representative splat, the offset of its vertices and
 /// the count and error of every level.
 #[derive(Clone, Debug, PartialEq)]
@@ -296,6 +336,9 @@ impl Patch {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Vertex {
     pub splat: Splat,
+    /// sRGB color: level 0 the point's, above the mean of its points' colors in linear space
+    /// (white without colors).
+    pub color: [u8; 4],
     pub level: u32,
     /// Level 0: the input point's index; above: the node's index in its level.
     pub source: u32,
@@ -340,8 +383,11 @@ impl LodView {
 }
 
 impl ObjectTexture {
-    pub fn new(h: &Hierarchy) -> ObjectTexture {
+    /// The object texture of `h`, its vertices colored from `colors` (the input points',
+    /// indexed as the hierarchy's level 0 `first`), or white.
+    pub fn new(h: &Hierarchy, colors: Option<&[[u8; 4]]>) -> ObjectTexture {
         let levels = h.level_count();
+        let node_colors = node_colors(h, colors);
         let mut patches = Vec::with_capacity(h.patch_count());
         let mut vertices = Vec::with_capacity(h.levels.iter().map(Vec::len).sum());
         for ranges in &h.patch_nodes {
@@ -352,6 +398,7 @@ impl ObjectTexture {
                     let n = &h.levels[l][k as usize];
                     vertices.push(Vertex {
                         splat: n.splat,
+                        color: node_colors[l][k as usize],
                         level: l as u32,
                         source: if l == 0 { n.first } else { k },
                     });
@@ -401,7 +448,7 @@ impl ObjectTexture {
         (1.0 - cos * cos).sqrt() / distance * view.focal_pixels
     }
 
-    /// The point budget (issue 11), the CPU reference of `glsl/lod/budget_*.comp`: the
+    /// The point budget, the CPU reference of `glsl/lod/budget_*.comp`: the
     /// threshold that fills at most `budget` samples by error priority. Refining a visible
     /// patch from level l to l − 1 adds counts[l − 1] − counts[l] samples and is demanded by
     /// the projected error e_l; refinements are admitted by decreasing e_l, in bins of an
@@ -498,7 +545,12 @@ impl ObjectTexture {
             .iter()
             .map(|v| GpuLodVertex {
                 sphere: v.splat.position.extend(v.splat.radius),
-                normal: v.splat.normal.extend(v.level as f32),
+                normal_color: [
+                    oct_encode(v.splat.normal),
+                    u32::from_le_bytes(v.color),
+                    v.level,
+                    0,
+                ],
             })
             .collect()
     }
@@ -538,7 +590,7 @@ mod tests {
     #[test]
     fn patches_outside_the_view_are_culled() {
         let (p, n, r) = sphere(10_000);
-        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
         let proj = Mat4::perspective_infinite_reverse_rh(40f32.to_radians(), 1.0, 0.01);
         let at = |eye: Vec3, target: Vec3| {
             LodView::from_camera(Mat4::look_at_rh(eye, target, Vec3::Y), proj, 512.0, 1.0)
@@ -619,7 +671,7 @@ mod tests {
                 assert_eq!(node.splat.position, p[node.first as usize]);
             }
             assert!(seen.iter().all(|&s| s == 1), "levels {levels}");
-            let t = ObjectTexture::new(&h);
+            let t = ObjectTexture::new(&h, None);
             let mut seen = vec![0u32; p.len()];
             for v in t.vertices.iter().filter(|v| v.level == 0) {
                 seen[v.source as usize] += 1;
@@ -648,7 +700,7 @@ mod tests {
     fn lod_counts_and_offsets_are_consistent() {
         let (p, n, r) = random_cloud(20_000, 3);
         let h = Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS);
-        let t = ObjectTexture::new(&h);
+        let t = ObjectTexture::new(&h, None);
         assert_eq!(
             t.vertices.len(),
             h.levels.iter().map(Vec::len).sum::<usize>()
@@ -711,7 +763,7 @@ mod tests {
     #[test]
     fn lod_perpendicular_error_is_zero_on_a_plane_and_grows_with_curvature() {
         let worst = |(p, n, r): (Vec<Vec3>, Vec<Vec3>, Vec<f32>)| {
-            let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+            let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
             t.patches.iter().map(|p| p.errors[3]).fold(0.0, f32::max)
         };
         let flat = worst(plane(64));
@@ -763,7 +815,7 @@ mod tests {
     #[test]
     fn lod_far_cameras_choose_coarse_levels_and_near_ones_fine() {
         let (p, n, r) = sphere(40_000);
-        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
         let view = |d: f32| wide_view(Vec3::new(0.0, 0.0, d), 1000.0, 0.5);
         let levels: Vec<f32> = [1.5, 3.0, 10.0, 100.0, 1000.0]
             .iter()
@@ -788,7 +840,7 @@ mod tests {
     #[test]
     fn lod_silhouettes_get_finer_levels() {
         let (p, n, r) = sphere(40_000);
-        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
         let view = wide_view(Vec3::new(0.0, 0.0, 6.0), 1000.0, 0.5);
         // Patches facing the eye (normal within 30° of the view axis) vs on the silhouette
         // (within 15° of perpendicular).
@@ -830,7 +882,7 @@ mod tests {
     #[test]
     fn lod_budget_admits_the_largest_errors_first_and_never_overflows() {
         let (p, n, r) = sphere(40_000);
-        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
         let view = wide_view(Vec3::new(0.0, 0.0, 2.0), 1000.0, 0.05);
         let total =
             |epsilon: f32| -> u64 { t.histogram(&LodView { epsilon, ..view }).iter().sum() };
@@ -872,7 +924,7 @@ mod tests {
     #[test]
     fn lod_selection_ranges_hold_one_level_per_patch() {
         let (p, n, r) = sphere(10_000);
-        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS));
+        let t = ObjectTexture::new(&Hierarchy::build(&p, &n, &r, DEFAULT_LEVELS), None);
         let view = wide_view(Vec3::new(0.0, 0.0, 4.0), 800.0, 1.0);
         let ranges = t.select(&view);
         let hist = t.histogram(&view);

@@ -38,7 +38,7 @@ const DEFAULT_EPSILON: f32 = 0.02;
 /// fewer samples skip the budget's passes.
 const DEFAULT_BUDGET: f32 = 4_000_000.0;
 
-const EPSILON: ParamSpec = ParamSpec {
+pub(super) const EPSILON: ParamSpec = ParamSpec {
     name: "epsilon",
     default: DEFAULT_EPSILON,
     min: 0.0,

@@ -155,6 +155,7 @@ pub static METHODS: &[MethodInfo] = &[
     ewa::INFO,
     pyramid::INFO,
     pyramid::HYBRID_INFO,
+    pyramid::LOD_INFO,
     pyramid::kernel::KERNEL3,
     pyramid::kernel::KERNEL5,
     pyramid::kernel::KERNEL7,

@@ -15,6 +15,7 @@ use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats};
 use super::error::{show, LoadError};
+use super::pack::srgb_byte;
 
 fn map_error(file: &str, err: obj::ObjError) -> LoadError {
     use obj::ObjError as E;
@@ -250,17 +251,6 @@ pub struct PolygonMesh {
 
 /// The colour of a polygon without a known material: light grey.
 pub const NO_MATERIAL_COLOR: [u8; 4] = [200, 200, 200, 255];
-
-/// A linear colour component (`Kd` as Blender writes it) as an sRGB byte.
-fn srgb_byte(linear: f32) -> u8 {
-    let c = linear.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
-}
 
 /// Parses OBJ text held in memory into polygons; `material` gives the linear `Kd` of a material
 /// name (`usemtl`), if known. `file` names the text in error messages. A polygon with fewer

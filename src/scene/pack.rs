@@ -1,7 +1,28 @@
-//! Octahedral normal encoding (the normal stream's format) and mesh vertex normals for inputs
-//! with faces.
+//! Octahedral normal encoding (the normal stream's format), sRGB byte conversions and mesh
+//! vertex normals for inputs with faces.
 
 use glam::{Vec2, Vec3};
+
+/// A linear color component as an sRGB byte (clamped to [0, 1]).
+pub fn srgb_byte(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// An sRGB byte as a linear color component.
+pub fn linear_component(srgb: u8) -> f32 {
+    let c = f32::from(srgb) / 255.0;
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
 
 /// Octahedral encoding of a unit normal into two snorm16 values.
 pub fn oct_encode(n: Vec3) -> u32 {

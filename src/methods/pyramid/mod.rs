@@ -37,20 +37,22 @@ pub mod reference;
 
 use std::sync::Arc;
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use ash::vk;
 
 use super::compute::{project, storage, storage_image, ProjectOptions};
-use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec, SampleCounters, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
-    PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL,
-    BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT, BINDING_SEGMENTS, BINDING_VISIBILITY,
-    PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID, PYRAMID_SPEC_TUBE,
+    PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_LOD_LIST, BINDING_LOD_VERTICES,
+    BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT,
+    BINDING_SEGMENTS, BINDING_VISIBILITY, PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL,
+    PYRAMID_SPEC_HYBRID, PYRAMID_SPEC_TUBE,
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
+use crate::lod::gpu::{add_select, LodInputs, PER_LEVEL_OFFSET};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
 /// k-th nearest neighbour (4.2.1, k = 10); the clouds here carry the density spacing
@@ -89,42 +91,50 @@ pub(super) const CULL: ParamSpec = ParamSpec {
     doc: "back-face culling by normal in the projection",
 };
 
+const PROJECTION: ParamSpec = ParamSpec {
+    name: "projection",
+    default: 0.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "level 0 by 0: the compute projection (atomicMin), 1: the hardware point pipeline",
+};
+const LAYOUT: ParamSpec = ParamSpec {
+    name: "layout",
+    default: 0.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per group \
+          with per-mip barriers",
+};
+const FALLOFF: ParamSpec = ParamSpec {
+    name: "falloff",
+    default: 2.0,
+    min: 0.0,
+    max: 16.0,
+    doc: "synthesis weight exp(-falloff d²), d the elliptical distance to a centre",
+};
+const SHOW: ParamSpec = ParamSpec {
+    name: "show",
+    default: -1.0,
+    min: -1.0,
+    max: 15.0,
+    doc: "-1: the reconstruction; N: level N of the analysis magnified, without synthesis \
+          (0: the raw projection)",
+};
+
 /// The parameters of `pyramid` and `pyramid-hybrid`.
-const PARAMS: &[ParamSpec] = &[
+const PARAMS: &[ParamSpec] = &[RADIUS, PROJECTION, LAYOUT, COLOR, CULL, FALLOFF, SHOW];
+
+/// The parameters of `pyramid-lod`: the pyramid's, less the projection (the selection's list is
+/// drawn by the hardware point pipeline), and the level of detail's threshold ε.
+const LOD_PARAMS: &[ParamSpec] = &[
     RADIUS,
-    ParamSpec {
-        name: "projection",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "level 0 by 0: the compute projection (atomicMin), 1: the hardware point \
-              pipeline",
-    },
-    ParamSpec {
-        name: "layout",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        doc: "0: ping-pong image pairs with a copy pass (the thesis), 1: one image per \
-              group with per-mip barriers",
-    },
+    LAYOUT,
     COLOR,
     CULL,
-    ParamSpec {
-        name: "falloff",
-        default: 2.0,
-        min: 0.0,
-        max: 16.0,
-        doc: "synthesis weight exp(-falloff d²), d the elliptical distance to a centre",
-    },
-    ParamSpec {
-        name: "show",
-        default: -1.0,
-        min: -1.0,
-        max: 15.0,
-        doc: "-1: the reconstruction; N: level N of the analysis magnified, without \
-              synthesis (0: the raw projection)",
-    },
+    FALLOFF,
+    SHOW,
+    super::lod::EPSILON,
 ];
 
 pub const INFO: MethodInfo = MethodInfo {
@@ -151,6 +161,19 @@ pub const HYBRID_INFO: MethodInfo = MethodInfo {
     needs_lod: false,
     needs_normal_field: false,
     build: build_hybrid,
+};
+
+pub const LOD_INFO: MethodInfo = MethodInfo {
+    name: "pyramid-lod",
+    summary: "pyramid point renderer over the level of detail: the splats the object texture's \
+              selection chooses projected into level 0 with their colors (000 ch. 7)",
+    params: LOD_PARAMS,
+    needs_faces: false,
+    features: &[],
+    culls_batches: false,
+    needs_lod: true,
+    needs_normal_field: false,
+    build: build_lod,
 };
 
 /// Levels of a pyramid over a `width` x `height` base down to 1 x 1.
@@ -448,6 +471,38 @@ fn build_hybrid(b: &mut BuildContext<'_>) -> Result<()> {
     build_with(b, settings, Level0::Hybrid)
 }
 
+/// `pyramid-lod`: the object texture's selection for ε (`lod::gpu::add_select`, without a
+/// point budget), its list drawn into level 0, then the pyramid as usual. The samples per
+/// level are the selection's counters.
+fn build_lod(b: &mut BuildContext<'_>) -> Result<()> {
+    let Some(lod) = b.scene.lod.clone() else {
+        bail!("method 'pyramid-lod' needs the scene's object texture (UploadOptions::lod)");
+    };
+    let inputs = LodInputs::import(b.graph, b.frame, &lod);
+    let epsilon = b.config.get("epsilon");
+    let selection = add_select(
+        b.ctx,
+        b.graph,
+        "pyramid-lod",
+        b.frame,
+        inputs.patches,
+        &lod,
+        epsilon,
+        0,
+    )?;
+    b.samples = Some(SampleCounters {
+        buffer: selection.counters,
+        offset: PER_LEVEL_OFFSET,
+        levels: lod.levels,
+    });
+    let level0 = Level0::Lod {
+        vertices: inputs.vertices,
+        list: selection.list,
+        counters: selection.counters,
+    };
+    build_with(b, Settings::of(b.config), level0)
+}
+
 /// The pyramid's parameters (`PARAMS`), read from a `pyramid` configuration or defaults.
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
@@ -497,6 +552,13 @@ enum Level0 {
         offset: u64,
         skip: BufferId,
     },
+    /// The object-texture vertices in `list` (`pyramid-lod`), drawn by the indirect draw at the
+    /// start of `counters`.
+    Lod {
+        vertices: BufferId,
+        list: BufferId,
+        counters: BufferId,
+    },
 }
 
 /// The pyramid over HPR's reconstruction (`hpr-mesh:pyramid=1`): the triangles at `indices`
@@ -522,7 +584,7 @@ pub(crate) fn build_over_triangles(
 }
 
 fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> Result<()> {
-    let hybrid = !matches!(level0, Level0::Points);
+    let hybrid = matches!(level0, Level0::Hybrid | Level0::Indirect { .. });
     // A tube's texel needs its primitive id, kept in the albedo group.
     let color = settings.color || (hybrid && b.scene.tubes.is_some());
     let Settings {
@@ -555,6 +617,14 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         ),
         _ => (None, None, None, None),
     };
+    let lod_list = match level0 {
+        Level0::Lod {
+            vertices,
+            list,
+            counters,
+        } => Some(Primitives::LodList(vertices, list, counters)),
+        _ => None,
+    };
     let (mask, indirect) = match level0 {
         Level0::Indirect {
             indices,
@@ -579,6 +649,7 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
 
     // Level 0: triangles and lines first (hybrid), then the points where they are nearer.
     let rasterized = drawn.iter().any(Option::is_some);
+    let hardware = hardware || lod_list.is_some();
     let targets = (hardware || rasterized).then(|| raster_targets(b, first));
     if let Some(targets) = targets {
         for (k, primitives) in drawn.into_iter().flatten().enumerate() {
@@ -586,14 +657,8 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
         }
     }
     if let (true, Some(targets)) = (hardware, targets) {
-        rasterize(
-            b,
-            targets,
-            &spec,
-            params,
-            Primitives::Points(mask),
-            !rasterized,
-        )?;
+        let points = lod_list.unwrap_or(Primitives::Points(mask));
+        rasterize(b, targets, &spec, params, points, !rasterized)?;
     } else {
         let options = ProjectOptions {
             cull,
@@ -761,6 +826,9 @@ enum Primitives {
     Ribbons(BufferId, u32),
     /// Tube segments: index buffer and count (000 5.1.2).
     Tubes(BufferId, u32),
+    /// The object-texture vertices (`GpuLodVertex`) whose indices a selection wrote to a list:
+    /// vertices, list, and the counters starting with the list's indirect draw.
+    LodList(BufferId, BufferId, BufferId),
 }
 
 /// A graphics pass drawing `primitives` into level 0 (`pyramid.project-hw` or
@@ -795,6 +863,11 @@ fn rasterize(
             vk::PrimitiveTopology::LINE_LIST,
             "pyramid.tubes",
         ),
+        Primitives::LodList(..) => (
+            "pyramid/project_lod.vert",
+            vk::PrimitiveTopology::POINT_LIST,
+            "pyramid.project-lod",
+        ),
     };
     let mut spec = spec.to_vec();
     spec.push((
@@ -802,22 +875,22 @@ fn rasterize(
         u32::from(matches!(primitives, Primitives::Tubes(..))),
     ));
     let vertex_only = vk::ShaderStageFlags::VERTEX;
+    let buffer =
+        |binding, stages| Binding::new(binding, vk::DescriptorType::STORAGE_BUFFER, stages);
+    // The object texture's list reads its vertices; every other draw the point streams (and
+    // the mask of points drawn as faces).
+    let inputs = match primitives {
+        Primitives::LodList(..) => [BINDING_LOD_VERTICES, BINDING_LOD_LIST],
+        _ => [BINDING_SEGMENTS, BINDING_FACE_VERTICES],
+    };
     let pipeline = Arc::new(Pipeline::graphics(
         b.ctx,
         &GraphicsDesc {
             shaders: &[vertex, "pyramid/project.frag"],
             bindings: &[
-                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
-                Binding::new(
-                    BINDING_SEGMENTS,
-                    vk::DescriptorType::STORAGE_BUFFER,
-                    vertex_only,
-                ),
-                Binding::new(
-                    BINDING_FACE_VERTICES,
-                    vk::DescriptorType::STORAGE_BUFFER,
-                    vertex_only,
-                ),
+                buffer(BINDING_FRAME, stages),
+                buffer(inputs[0], vertex_only),
+                buffer(inputs[1], vertex_only),
             ],
             color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
             blends: &[Blend::Replace; 3],
@@ -838,19 +911,30 @@ fn rasterize(
     };
     let (frame, segments) = (b.frame, b.segments);
     let points = b.scene.point_count;
+    let vertex_read = Access::StorageRead(Stages::Vertex);
     let mut pass = b
         .graph
         .pass(name)
-        .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(segments, Access::StorageRead(Stages::Vertex));
-    // The mask is read only by the hybrid variant of project.vert; otherwise its binding
-    // (statically present) aliases the segment table.
-    let mut mask = segments;
+        .buffer(frame, Access::UniformRead(Stages::Graphics));
+    // The buffers bound at `inputs`. The mask is read only by the hybrid variant of
+    // project.vert; otherwise its binding (statically present) aliases the segment table.
+    let mut bound = [segments, segments];
+    match primitives {
+        Primitives::LodList(vertices, list, counters) => {
+            pass = pass
+                .buffer(vertices, vertex_read)
+                .buffer(list, vertex_read)
+                .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
+            bound = [vertices, list];
+        }
+        _ => pass = pass.buffer(segments, vertex_read),
+    }
     match primitives {
         Primitives::Points(Some(m)) => {
-            pass = pass.buffer(m, Access::StorageRead(Stages::Vertex));
-            mask = m;
+            pass = pass.buffer(m, vertex_read);
+            bound[1] = m;
         }
+        Primitives::LodList(..) => {}
         Primitives::Points(None) => {}
         Primitives::Triangles(indices, _)
         | Primitives::Ribbons(indices, _)
@@ -872,8 +956,8 @@ fn rasterize(
                 &pipeline,
                 &[
                     Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_FACE_VERTICES, mask),
+                    Descriptor::Buffer(inputs[0], bound[0]),
+                    Descriptor::Buffer(inputs[1], bound[1]),
                 ],
             );
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
@@ -885,6 +969,7 @@ fn rasterize(
                 Primitives::IndirectTriangles(indices, args, offset) => {
                     ctx.draw_indexed_indirect(indices, args, offset, 1, 20)
                 }
+                Primitives::LodList(_, _, counters) => ctx.draw_indirect(counters, 0, 1, 16),
             }
         });
     Ok(())
