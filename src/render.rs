@@ -96,7 +96,7 @@ pub fn upload_with(
     let mut layout =
         StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
     if options.normal_field {
-        layout = layout.with_normal_field(fit_normal_field(cloud)?);
+        layout = layout.with_normal_field(fit_normal_field(cloud));
     }
     let streams = upload::upload(ctx, cloud, &layout, options)?;
     let inverse = layout.inverse();
@@ -187,14 +187,14 @@ fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
 }
 
 /// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to
-/// its `normal_field::FIELD_K` nearest neighbours.
-fn fit_normal_field(cloud: &Cloud) -> Result<Vec<[u32; 2]>> {
+/// its `normal_field::FIELD_K` nearest neighbours; flat (zero) without normals or radii.
+fn fit_normal_field(cloud: &Cloud) -> Vec<[u32; 2]> {
     let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
-        bail!("Phong splatting's normal fields need a cloud with normals and radii");
+        return vec![[0; 2]; cloud.len()];
     };
     let neighbours = Neighbours::compute(&cloud.positions, normal_field::FIELD_K, false);
     let field = normal_field::fit(&cloud.positions, normals, radii, &neighbours);
-    Ok(field.into_iter().map(normal_field::pack).collect())
+    field.into_iter().map(normal_field::pack).collect()
 }
 
 /// Per-frame settings.

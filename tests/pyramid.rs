@@ -16,7 +16,7 @@ use surfel::gpu::{Binding, Buffer, Context, Pipeline};
 use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
 use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
-use surfel::scene::{Camera, Cloud};
+use surfel::scene::{pack, Camera, Cloud};
 
 use common::{assert_levels_match, covered, eroded, render_view, top_view};
 
@@ -402,6 +402,54 @@ fn a_sparse_plane_reconstructs_without_holes() {
             "{}",
             frame.depth[centre]
         );
+    }
+}
+
+#[test]
+fn a_plane_with_a_color_gradient_is_reconstructed_within_three_levels() {
+    // 24 × 24 points about 3.5 pixels apart, grey with a linear albedo ramp along x (linear
+    // values 0.2 → 0.8 across the plane): most pixels are built by the synthesis. Lit by the
+    // headlight, a pixel's linear color is its albedo times the light's factor there, which a
+    // white plane through the same pyramid measures.
+    let size = 128;
+    let n = 24;
+    let ramp = |x: f32| 0.2 + 0.6 * (x + 0.5);
+    let mut cloud = plane(n, 0.0, [255; 4]);
+    let white = render_view(&cloud, "pyramid", size, Default::default(), top_view);
+    cloud.colors = Some(
+        cloud
+            .positions
+            .iter()
+            .map(|p| {
+                let c = pack::srgb_byte(ramp(p.x));
+                [c, c, c, 255]
+            })
+            .collect(),
+    );
+    let camera = top_view(Vec3::ZERO, 1.0);
+    let pixels_per_unit = size as f32 / 2.0 / (camera.fov_y / 2.0).tan() / 1.5;
+    for method in ["pyramid", "pyramid:layout=1", "pyramid:projection=1"] {
+        let frame = render_view(&cloud, method, size, Default::default(), top_view);
+        // Inside the points' hull (the outermost points are at ±0.48; beyond them the colors
+        // are the edge's, not the ramp's).
+        let inside = eroded(&covered(&frame), size as usize, 3);
+        let mut checked = 0;
+        for (i, _) in inside.iter().enumerate().filter(|(_, &c)| c) {
+            let at = |k: usize| (k as f32 + 0.5 - size as f32 / 2.0) / pixels_per_unit;
+            let (x, y) = (at(i % size as usize), at(i / size as usize));
+            if x.abs() > 0.45 || y.abs() > 0.45 {
+                continue;
+            }
+            let light = pack::linear_component(white.color[i][0]);
+            let expected = pack::srgb_byte(ramp(x) * light);
+            let got = frame.color[i];
+            assert!(
+                got[..3].iter().all(|&c| c.abs_diff(expected) <= 3),
+                "{method}: pixel {i} (x = {x:.3}) {got:?}, the ramp gives {expected}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 8_000, "{method}: {checked} pixels checked");
     }
 }
 

@@ -37,9 +37,10 @@ layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
 // One workgroup per splat of the large splats' list (dispatched indirectly) instead of one per
 // batch.
 layout(constant_id = 1) const bool LARGE = false;
-// The accumulation blends each fragment's lit color (its splat's normal, lit at the point of
-// the splat's plane the pixel sees: the shaded surface is what is filtered, as the ground
-// truth's supersampling filters shaded samples) instead of its albedo, for deferred lighting.
+// The accumulation blends each fragment's lit color (lit at the point of the splat's plane the
+// pixel sees with the splat's linear normal field, as Phong splatting does: the shaded surface
+// is what is filtered, as the ground truth's supersampling filters shaded samples) instead of
+// its albedo, for deferred lighting.
 layout(constant_id = 2) const bool SHADE_FRAGMENTS = true;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
@@ -84,6 +85,10 @@ struct Splat {
     bool large;
     // The splat's normal faces the camera (before it was turned towards it).
     bool facing;
+    // The linear normal field (src/scene/normal_field.rs) as a view-space matrix, turned with
+    // the normal: the normal at the plane's point q is n + field (q - p). Set only where
+    // fragments are shaded.
+    mat3 field;
 };
 
 // Sets up splat `i`; false when it is clipped or covers no pixel centre.
@@ -100,6 +105,19 @@ bool setup(uint i, out Splat s) {
     s.facing = dot(s.n, s.p) <= 0.0;
     if (!s.facing) {
         s.n = -s.n;
+    }
+    s.field = mat3(0.0);
+    float stored_r = stream_radius(i);
+    bool has_normals = (frame.u.flags & FLAG_HAS_NORMALS) != 0u;
+    if (MODE == MODE_ACCUMULATE && SHADE_FRAGMENTS && has_normals && stored_r > 0.0) {
+        // As splat/splat.vert: the operator stored in the tangent frame of the stored normal.
+        vec3 f = stream_normal_field(i) / stored_r;
+        mat3 view = mat3(frame.u.view);
+        mat2x3 t = tangent_frame(stream_normal(i));
+        vec3 fu = view * t[0];
+        vec3 fv = view * t[1];
+        s.field = (s.facing ? 1.0 : -1.0)
+            * (outerProduct(f.x * fu + f.y * fv, fu) + outerProduct(f.y * fu + f.z * fv, fv));
     }
     // Local parametrization (3.1.1): an orthonormal tangent frame of the splat's plane.
     mat2x3 frame_uv = tangent_frame(s.n);
@@ -205,13 +223,15 @@ void fragment(Splat s, vec3 albedo, int x, int y) {
     float w = s.scale * exp(-0.5 * d2);
     uint wq = max(uint(round(w * float(EWA_WEIGHT_SCALE))), 1u);
     vec3 value = albedo;
+    vec3 n = s.n;
     if (SHADE_FRAGMENTS) {
         vec2 ndc = (vec2(x, y) + 0.5) * frame.u.viewport.zw * 2.0 - 1.0;
         vec3 view_pos = vec3(ndc.x * z / frame.u.proj[0][0], ndc.y * z / frame.u.proj[1][1], -z);
-        value = clamp(shade(albedo, s.n, view_pos), 0.0, 1.0);
+        n = normalize(s.n + s.field * (view_pos - s.p));
+        value = clamp(shade(albedo, n, view_pos), 0.0, 1.0);
     }
     uvec3 color = uvec3(round(value * float(wq)));
-    ivec3 normal = ivec3(round(s.n * float(wq)));
+    ivec3 normal = ivec3(round(n * float(wq)));
     uint a = 8u * pixel;
     atomicAdd(accum[a], color.r);
     atomicAdd(accum[a + 1u], color.g);

@@ -23,9 +23,10 @@
 //!   fixed-point atomics), fragments behind it are discarded, and the front-most one is the
 //!   fragment every "in front → replace" of the sequential test would have ended with
 //!   (`glsl/ewa/splat.comp` states the mapping). With `shading` = 1 (default) each fragment
-//!   is lit with its splat's normal at its point of the splat's plane and the lit colors are
-//!   filtered, as the ground truth filters shaded samples; with 0 albedo and normals are
-//!   filtered and lit per pixel (deferred).
+//!   is lit at its point of the splat's plane with the splat's linear normal field (Phong
+//!   splatting, Botsch et al. 2004: `crate::scene::normal_field`, fitted on upload) and the lit
+//!   colors are filtered, as the ground truth filters shaded samples; with 0 albedo and
+//!   normals are filtered and lit per pixel (deferred).
 //! * `ewa.resolve`: normalization (eq. 3.36), coverage (a core fragment, or halo weights of at
 //!   least half an interior pixel's: the ground truth's half-coverage rule, so the prefilter
 //!   smooths silhouettes without dilating them) and, when deferred, per-pixel lighting into
@@ -84,13 +85,15 @@ pub const INFO: MethodInfo = MethodInfo {
             default: 1.0,
             min: 0.0,
             max: 1.0,
-            doc: "1: every fragment lit with its splat's normal and the lit colors filtered (the \
-                  shaded surface, as the ground truth filters it); 0: albedo and normals \
-                  filtered and lit once per pixel (deferred)",
+            doc: "1: every fragment lit with its splat's linear normal field and the lit colors \
+                  filtered (the shaded surface, as the ground truth filters it); 0: albedo and \
+                  normals filtered and lit once per pixel (deferred)",
         },
         ParamSpec {
             name: "interval",
-            default: 1.0,
+            // 2 σ = the splat's radius: the widest depth range [zmin, zmax] a disc of radius r
+            // spans (seen edge-on), the bound of Räsänen's per-splat interval.
+            default: 2.0,
             min: 0.0,
             max: 16.0,
             doc: "half-width of a fragment's depth interval in standard deviations of its splat",
@@ -100,7 +103,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
-    needs_normal_field: false,
+    needs_normal_field: true,
     build,
 };
 
