@@ -7,7 +7,7 @@ mod common;
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{upload, Extras};
+use surfel::render::{upload_with, Extras};
 use surfel::scene::{Camera, Cloud};
 
 const SIZE: u32 = 64;
@@ -47,7 +47,9 @@ fn depth_step(n: usize, step: f32) -> Cloud {
 /// centre: a first-frame render, then a read-back frame with the steady-state barriers.
 fn render(cloud: &Cloud, method: &str, post: PostOptions) -> Frame {
     let ctx = common::context();
-    let (scene, info) = upload(&ctx, cloud).expect("upload");
+    let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let options = config.method.upload_options(Default::default());
+    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
     let extras = Extras {
         post,
         ..Extras::default()

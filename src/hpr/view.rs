@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context as _, Result};
 
-use crate::render::{upload_colored, Extras, Renderer, View};
+use crate::render::{upload_for, Extras, Renderer, View};
 use crate::scene::{Camera, Cloud};
 
 /// The view HPR measures pixels in: the camera from the eye to the target and the image size.
@@ -57,12 +57,13 @@ pub fn render_once(cloud: &Cloud, view: &HprView, method: &str) -> Result<crate:
     let ctx = std::sync::Arc::new(crate::gpu::Context::new(
         &crate::gpu::ContextOptions::from_env(),
     )?);
-    let (scene, info) = upload_colored(
+    let config = crate::methods::MethodConfig::parse(method)?;
+    let (scene, info) = upload_for(
         &ctx,
         cloud,
         crate::color::Coloring::default_for(cloud.colors.is_some()),
+        config.method,
     )?;
-    let config = crate::methods::MethodConfig::parse(method)?;
     let mut renderer = Renderer::new(
         &ctx,
         &scene,
