@@ -454,6 +454,10 @@ fn phong_shading_does_not_depend_on_the_models_units() {
         small > gouraud - 0.1,
         "phong {small:.2} dB, gouraud {gouraud:.2} dB"
     );
+    eprintln!(
+        "bunny close view: x1 {small:.2} dB, x1000 {large:.2} dB, between them {same:.2} dB; \
+         gouraud {gouraud:.2} dB"
+    );
 }
 
 #[test]

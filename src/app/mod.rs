@@ -29,10 +29,11 @@ use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{upload_for, Extras, Renderer, SceneInfo, View};
+use crate::render::{upload_for, upload_with, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
+use crate::streams::UploadOptions;
 use hud::{FrameRate, Hud, Stats};
 use script::{Next, Runner, Script, ViewerKey};
 
@@ -400,22 +401,44 @@ impl Viewer {
             .scene
             .as_ref()
             .is_some_and(|(s, _)| s.indices.is_some());
-        let has_lod = self.scene.as_ref().is_some_and(|(s, _)| s.lod.is_some());
-        let has_field = self
-            .scene
-            .as_ref()
-            .is_some_and(|(s, _)| s.streams.normal_field);
         let caps = self.ctx.as_ref().map(|c| c.caps.clone());
         for _ in 0..METHODS.len() {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
             let m = &METHODS[self.method];
             let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
-            let data = (!m.needs_lod || has_lod) && (!m.needs_normal_field || has_field);
-            if supported && (!m.needs_faces || has_faces) && data {
+            if supported && (!m.needs_faces || has_faces) {
                 break;
             }
         }
+        self.upload_what_the_method_reads()?;
         self.rebuild()
+    }
+
+    /// Uploads the scene again when the method reads data it was uploaded without (the
+    /// object texture, the normal fields): an event, after waiting for the frames in flight;
+    /// what it already held is kept.
+    fn upload_what_the_method_reads(&mut self) -> Result<()> {
+        let (Some(ctx), Some((scene, info))) = (self.ctx.clone(), self.scene.as_ref()) else {
+            return Ok(());
+        };
+        let held = UploadOptions {
+            scalar: scene.streams.scalar,
+            lod: scene.lod.is_some(),
+            normal_field: scene.streams.normal_field,
+            ..UploadOptions::default()
+        };
+        let wanted = METHODS[self.method].upload_options(held);
+        if (wanted.lod, wanted.normal_field) == (held.lod, held.normal_field) {
+            return Ok(());
+        }
+        let coloring = info.coloring;
+        // SAFETY: waits for every submitted frame, which read the buffers replaced below.
+        unsafe { ctx.device.device_wait_idle()? };
+        self.scene = None;
+        let (scene, mut info) = upload_with(&ctx, &self.cloud, wanted)?;
+        info.coloring = coloring;
+        self.scene = Some((scene, info));
+        Ok(())
     }
 
     /// For a method with a `show` parameter (the pyramid's), shows the next coarser (`step` 1)
