@@ -324,14 +324,7 @@ fn a_tilted_splat_covers_its_footprint_with_the_resampling_gaussian() {
     let scale_r = px * px * tilt.cos() * sigma * sigma / (v_r * v_r_y).sqrt();
     let v_b = (sigma_b * px).powi(2) + h * h;
     let scale_b = (px * sigma_b).powi(2) / v_b;
-    let linear = |c: u8| {
-        let c = f64::from(c) / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    };
+    let linear = |c: u8| f64::from(pack::linear_component(c));
     let mut checked = 0;
     for column in 28..36u32 {
         let x = f64::from(column) + 0.5 - 32.0;

@@ -299,14 +299,7 @@ fn off_centre_pixels_take_the_ratio_of_the_two_kernel_weights() {
     let scene = overlapping(0.1);
     let size = 127;
     let k = pixels_per_unit(size) / 3.0;
-    let linear = |c: u8| {
-        let c = f64::from(c) / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    };
+    let linear = |c: u8| f64::from(pack::linear_component(c));
     let w = |rho: f64| (-2.0 * rho * rho).exp();
     for method in [
         "perspective-gouraud",

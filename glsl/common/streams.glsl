@@ -49,6 +49,24 @@ vec3 stream_normal_field(uint i) {
     return vec3(unpackHalf2x16(w.v[l]), unpackHalf2x16(w.v[l + 1u]).x);
 }
 
+// Point i's linear normal field as a view-space matrix M: the normal at a point q of the
+// splat's plane is n + M (q - p), n the stored normal in view space. With the operator
+// S = [[a, b], [b, c]] in the tangent frame (t_u, t_v) of the stored normal (the stream holds S
+// times the stored radius), M = (a t_u + b t_v) t_u^T + (b t_u + c t_v) t_v^T, the frame
+// rotated to view space. Zero for a splat without a radius.
+mat3 stream_normal_field_view(uint i) {
+    float r = stream_radius(i);
+    if (r <= 0.0) {
+        return mat3(0.0);
+    }
+    vec3 s = stream_normal_field(i) / r;
+    mat3 view = mat3(frame.u.view);
+    mat2x3 t = tangent_frame(stream_normal(i));
+    vec3 tu = view * t[0];
+    vec3 tv = view * t[1];
+    return outerProduct(s.x * tu + s.y * tv, tu) + outerProduct(s.y * tu + s.z * tv, tv);
+}
+
 // The f32 value of the scalar field uploaded for coloring (GpuSegment.scalar).
 float stream_scalar(uint i) {
     uint s = segment_of(i);

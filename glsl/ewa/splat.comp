@@ -107,17 +107,9 @@ bool setup(uint i, out Splat s) {
         s.n = -s.n;
     }
     s.field = mat3(0.0);
-    float stored_r = stream_radius(i);
     bool has_normals = (frame.u.flags & FLAG_HAS_NORMALS) != 0u;
-    if (MODE == MODE_ACCUMULATE && SHADE_FRAGMENTS && has_normals && stored_r > 0.0) {
-        // As splat/splat.vert: the operator stored in the tangent frame of the stored normal.
-        vec3 f = stream_normal_field(i) / stored_r;
-        mat3 view = mat3(frame.u.view);
-        mat2x3 t = tangent_frame(stream_normal(i));
-        vec3 fu = view * t[0];
-        vec3 fv = view * t[1];
-        s.field = (s.facing ? 1.0 : -1.0)
-            * (outerProduct(f.x * fu + f.y * fv, fu) + outerProduct(f.y * fu + f.z * fv, fv));
+    if (MODE == MODE_ACCUMULATE && SHADE_FRAGMENTS && has_normals) {
+        s.field = (s.facing ? 1.0 : -1.0) * stream_normal_field_view(i);
     }
     // Local parametrization (3.1.1): an orthonormal tangent frame of the splat's plane.
     mat2x3 frame_uv = tangent_frame(s.n);

@@ -14,8 +14,7 @@ layout(location = 5) flat out mat3 v_field;
 void main() {
     uint i = uint(gl_VertexIndex);
     vec3 p = (frame.u.view * vec4(stream_position(i), 1.0)).xyz;
-    vec3 world_n = stream_normal(i);
-    vec3 n = normalize(mat3(frame.u.view) * world_n);
+    vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
     float r = stream_radius(i) * splat.radius_scale;
     float d = -p.z;
     // Pixels per view-space unit at distance 1: h / 2 * |2n / (t - b)|.
@@ -50,18 +49,6 @@ void main() {
     v_centre = p;
     v_radius = r;
     v_size = size;
-    // Phong: the linear normal field as a view-space matrix M, n(q) = n + M (q - p). With the
-    // operator S = [[a, b], [b, c]] in the tangent frame (t_u, t_v) of the stored normal (the
-    // stream holds S times the stored radius), M = (a t_u + b t_v) t_u^T + (b t_u + c t_v) t_v^T,
-    // with the frame rotated to view space.
-    v_field = mat3(0.0);
-    float stored_r = stream_radius(i);
-    if (SHADING == SPLAT_SHADING_PHONG && stored_r > 0.0) {
-        vec3 s = stream_normal_field(i) / stored_r;
-        mat3 view = mat3(frame.u.view);
-        mat2x3 t = tangent_frame(world_n);
-        vec3 tu = view * t[0];
-        vec3 tv = view * t[1];
-        v_field = outerProduct(s.x * tu + s.y * tv, tu) + outerProduct(s.y * tu + s.z * tv, tv);
-    }
+    // Phong: the linear normal field, n(q) = n + v_field (q - p).
+    v_field = SHADING == SPLAT_SHADING_PHONG ? stream_normal_field_view(i) : mat3(0.0);
 }
