@@ -407,3 +407,48 @@ fn a_failing_script_step_stops_the_viewer_with_its_error() {
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+#[test]
+fn switching_to_ewa_and_phong_uploads_their_normal_fields() {
+    // Started on the pyramid, whose upload has no normal fields: `n` steps back to EWA, then to
+    // perspective-phong, which read them, so the viewer uploads the scene again with them
+    // (under validation); `m` twice returns to the pyramid's image.
+    let dir = tmp_dir("fields");
+    std::fs::write(
+        dir.join("t.txt"),
+        "key Tab\nscreenshot pyramid.png\nkey n\nscreenshot ewa.png\nkey n\n\
+         screenshot phong.png\nkey m\nkey m\nscreenshot back.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &[
+            "--size", "320x240", "--method", "pyramid", "--script", "t.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let switched: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("method "))
+        .collect();
+    assert_eq!(
+        switched,
+        [
+            "method ewa",
+            "method perspective-phong",
+            "method ewa",
+            "method pyramid"
+        ]
+    );
+    let shot = |name: &str| png(&dir.join(name));
+    let (pyramid, ewa, phong) = (shot("pyramid.png"), shot("ewa.png"), shot("phong.png"));
+    assert!(
+        difference(&pyramid, &ewa).0 > 100,
+        "EWA shows the pyramid's image"
+    );
+    assert!(difference(&ewa, &phong).0 > 100, "Phong shows EWA's image");
+    assert_eq!(difference(&pyramid, &shot("back.png")).0, 0);
+}

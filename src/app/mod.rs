@@ -411,6 +411,7 @@ impl Viewer {
             }
         }
         self.upload_what_the_method_reads()?;
+        println!("method {}", METHODS[self.method].name);
         self.rebuild()
     }
 
