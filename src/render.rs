@@ -57,13 +57,7 @@ pub fn upload_colored(
     cloud: &Cloud,
     coloring: Coloring,
 ) -> Result<(GpuScene, SceneInfo)> {
-    let options = UploadOptions {
-        scalar: coloring.scalar,
-        ..UploadOptions::default()
-    };
-    let (scene, mut info) = upload_with(ctx, cloud, options)?;
-    info.coloring = coloring;
-    Ok((scene, info))
+    upload_colored_with(ctx, cloud, coloring, UploadOptions::default())
 }
 
 /// `upload_colored`, with what `method` reads beyond the streams (`MethodInfo::upload_options`).
@@ -73,10 +67,21 @@ pub fn upload_for(
     coloring: Coloring,
     method: &MethodInfo,
 ) -> Result<(GpuScene, SceneInfo)> {
-    let options = method.upload_options(UploadOptions {
+    let options = method.upload_options(UploadOptions::default());
+    upload_colored_with(ctx, cloud, coloring, options)
+}
+
+/// `upload_with` `options`, the scalar field and coloring from `coloring`.
+fn upload_colored_with(
+    ctx: &Arc<Context>,
+    cloud: &Cloud,
+    coloring: Coloring,
+    options: UploadOptions,
+) -> Result<(GpuScene, SceneInfo)> {
+    let options = UploadOptions {
         scalar: coloring.scalar,
-        ..UploadOptions::default()
-    });
+        ..options
+    };
     let (scene, mut info) = upload_with(ctx, cloud, options)?;
     info.coloring = coloring;
     Ok((scene, info))
@@ -175,7 +180,7 @@ pub fn upload_with(
 }
 
 /// Builds the object texture of `cloud` (`lod::DEFAULT_LEVELS` levels) and uploads it.
-fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
+pub fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
     let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
         bail!("level of detail needs a cloud with normals and radii");
     };
@@ -188,7 +193,7 @@ fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
 
 /// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to
 /// its `normal_field::FIELD_K` nearest neighbours; flat (zero) without normals or radii.
-fn fit_normal_field(cloud: &Cloud) -> Vec<[u32; 2]> {
+pub fn fit_normal_field(cloud: &Cloud) -> Vec<[u32; 2]> {
     let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
         return vec![[0; 2]; cloud.len()];
     };

@@ -26,15 +26,7 @@ const SIZE: f32 = 512.0;
 
 /// A unit sphere of `n` points (Fibonacci spiral) with outward normals.
 fn sphere(n: usize) -> (Vec<Vec3>, Vec<f32>) {
-    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    let p = (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let s = (1.0 - y * y).sqrt();
-            let a = golden * i as f32;
-            Vec3::new(s * a.cos(), y, s * a.sin())
-        })
-        .collect();
+    let p = surfel::scene::sample::fibonacci_sphere(n);
     (p, vec![(4.0 / n as f32).sqrt(); n])
 }
 

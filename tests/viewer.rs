@@ -411,7 +411,7 @@ fn a_failing_script_step_stops_the_viewer_with_its_error() {
 #[test]
 fn switching_to_ewa_and_phong_uploads_their_normal_fields() {
     // Started on the pyramid, whose upload has no normal fields: `n` steps back to EWA, then to
-    // perspective-phong, which read them, so the viewer uploads the scene again with them
+    // perspective-phong, which read them, so the viewer adds their stream to the scene
     // (under validation); `m` twice returns to the pyramid's image.
     let dir = tmp_dir("fields");
     std::fs::write(

@@ -29,7 +29,7 @@ use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{upload_for, upload_with, Extras, Renderer, SceneInfo, View};
+use crate::render::{fit_normal_field, upload_for, upload_lod, Extras, Renderer, SceneInfo, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
@@ -415,30 +415,23 @@ impl Viewer {
         self.rebuild()
     }
 
-    /// Uploads the scene again when the method reads data it was uploaded without (the
-    /// object texture, the normal fields): an event, after waiting for the frames in flight;
-    /// what it already held is kept.
+    /// Adds to the uploaded scene what the method reads and the scene was uploaded without
+    /// (the object texture, the normal fields' stream): an event, not per frame.
     fn upload_what_the_method_reads(&mut self) -> Result<()> {
-        let (Some(ctx), Some((scene, info))) = (self.ctx.clone(), self.scene.as_ref()) else {
+        let method = &METHODS[self.method];
+        let (Some(ctx), Some((scene, _))) = (self.ctx.clone(), self.scene.as_mut()) else {
             return Ok(());
         };
-        let held = UploadOptions {
-            scalar: scene.streams.scalar,
-            lod: scene.lod.is_some(),
-            normal_field: scene.streams.normal_field,
-            ..UploadOptions::default()
-        };
-        let wanted = METHODS[self.method].upload_options(held);
-        if (wanted.lod, wanted.normal_field) == (held.lod, held.normal_field) {
-            return Ok(());
+        if method.needs_lod && scene.lod.is_none() {
+            scene.lod = Some(Arc::new(upload_lod(&ctx, &self.cloud)?));
         }
-        let coloring = info.coloring;
-        // SAFETY: waits for every submitted frame, which read the buffers replaced below.
-        unsafe { ctx.device.device_wait_idle()? };
-        self.scene = None;
-        let (scene, mut info) = upload_with(&ctx, &self.cloud, wanted)?;
-        info.coloring = coloring;
-        self.scene = Some((scene, info));
+        if method.needs_normal_field && !scene.streams.normal_field {
+            let field = fit_normal_field(&self.cloud);
+            let chunk = UploadOptions::default().chunk_bytes;
+            scene
+                .streams
+                .add_normal_field(&ctx, &self.cloud, field, chunk)?;
+        }
         Ok(())
     }
 

@@ -793,16 +793,7 @@ mod tests {
 
     /// A unit sphere of points with outward normals.
     fn sphere(n: usize) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
-        // Fibonacci sphere.
-        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-        let p: Vec<Vec3> = (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-                let s = (1.0 - y * y).sqrt();
-                let a = golden * i as f32;
-                Vec3::new(s * a.cos(), y, s * a.sin())
-            })
-            .collect();
+        let p = crate::scene::sample::fibonacci_sphere(n);
         let r = vec![(4.0 / n as f32).sqrt(); n];
         (p.clone(), p, r)
     }

@@ -131,15 +131,7 @@ mod tests {
 
     /// `n` points on a sphere of radius `radius` around `centre`, with outward normals.
     fn sphere(n: usize, radius: f32, centre: Vec3) -> (Vec<Vec3>, Vec<Vec3>) {
-        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-        let normals: Vec<Vec3> = (0..n)
-            .map(|i| {
-                let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-                let r = (1.0 - y * y).sqrt();
-                let phi = golden * i as f32;
-                Vec3::new(r * phi.cos(), y, r * phi.sin())
-            })
-            .collect();
+        let normals = crate::scene::sample::fibonacci_sphere(n);
         let positions = normals.iter().map(|&d| centre + d * radius).collect();
         (positions, normals)
     }

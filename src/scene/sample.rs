@@ -102,6 +102,20 @@ pub enum SampleError {
     },
 }
 
+/// `n` unit directions spread evenly over the sphere along a Fibonacci spiral (y from top to
+/// bottom, golden-angle steps about it): a synthetic sphere's points and outward normals.
+pub fn fibonacci_sphere(n: usize) -> Vec<Vec3> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let s = (1.0 - y * y).sqrt();
+            let a = golden * i as f32;
+            Vec3::new(s * a.cos(), y, s * a.sin())
+        })
+        .collect()
+}
+
 /// Samples `n_points` points uniformly by area from the mesh in `mesh` (its `faces` index its
 /// `positions`). The result has positions, normals, radii, colors when the mesh has them, and
 /// the mesh's origin.

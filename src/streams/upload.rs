@@ -92,6 +92,18 @@ fn stream_buffer(
     )
 }
 
+/// A `GpuSegment` entry holding the address of `stream` among `buffers` in xy (zeros without
+/// it).
+fn address_entry(buffers: &[(Stream, Buffer)], stream: Stream) -> [u32; 4] {
+    buffers
+        .iter()
+        .find(|(s, _)| *s == stream)
+        .map_or([0; 4], |(_, b)| {
+            let [lo, hi] = address_pair(b.device_address());
+            [lo, hi, 0, 0]
+        })
+}
+
 /// `GpuSegment.scalar` for the scalar stream among `buffers` (zeros without one).
 fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
     buffers
@@ -142,32 +154,7 @@ impl GpuStreams {
         if let Some(k) = scalar {
             let layout = StreamLayout::new(cloud, u64::from(self.segment_points), None)
                 .map_err(anyhow::Error::msg)?;
-            let stream = Stream::Scalar(k);
-            let chunk_points = (chunk_bytes / stream.bytes_per_point()).max(2) & !1;
-            let mut uploader = Uploader::new(ctx, chunk_points * stream.bytes_per_point())?;
-            for (s, range) in layout.segments().into_iter().enumerate() {
-                let buffer = stream_buffer(ctx, s, stream, range.end - range.start)?;
-                let mut start = range.start;
-                while start < range.end {
-                    let end = (start + chunk_points).min(range.end);
-                    let size = StreamLayout::stream_bytes(stream, end - start);
-                    uploader.upload(
-                        |staging| {
-                            layout.encode(cloud, stream, start..end, &mut staging[..size as usize]);
-                            Ok(())
-                        },
-                        &[CopyRegion {
-                            dst: buffer.raw,
-                            dst_offset: StreamLayout::stream_bytes(stream, start - range.start),
-                            src_offset: 0,
-                            size,
-                        }],
-                    )?;
-                    start = end;
-                }
-                self.segments[s].push((stream, buffer));
-            }
-            uploader.finish()?;
+            self.upload_stream(ctx, cloud, &layout, Stream::Scalar(k), chunk_bytes)?;
         }
         for (entry, buffers) in self.entries.iter_mut().zip(&self.segments) {
             entry.color_first[3] = u32::from(scalar.is_some());
@@ -176,6 +163,71 @@ impl GpuStreams {
         self.table = table_buffer(ctx, &self.entries)?;
         self.scalar = scalar;
         Ok(())
+    }
+
+    /// Adds the `NormalField` stream with the packed fields `field` of `cloud`'s points (cloud
+    /// order), when these streams were uploaded without it: an event (the viewer switching to a
+    /// method that reads it), not per frame. Waits for the device to be idle and writes a new
+    /// segment table, as `select_scalar` does.
+    pub fn add_normal_field(
+        &mut self,
+        ctx: &Arc<Context>,
+        cloud: &Cloud,
+        field: Vec<[u32; 2]>,
+        chunk_bytes: u64,
+    ) -> Result<()> {
+        if self.normal_field {
+            return Ok(());
+        }
+        // SAFETY: waits for every submitted use of the segment table replaced below.
+        unsafe { ctx.device.device_wait_idle()? };
+        let layout = StreamLayout::new(cloud, u64::from(self.segment_points), None)
+            .map_err(anyhow::Error::msg)?
+            .with_normal_field(field);
+        self.upload_stream(ctx, cloud, &layout, Stream::NormalField, chunk_bytes)?;
+        for (entry, buffers) in self.entries.iter_mut().zip(&self.segments) {
+            entry.normal_field = address_entry(buffers, Stream::NormalField);
+        }
+        self.table = table_buffer(ctx, &self.entries)?;
+        self.normal_field = true;
+        Ok(())
+    }
+
+    /// Uploads `stream` of `cloud` as `layout` orders it into one new buffer per segment,
+    /// added to `segments`.
+    fn upload_stream(
+        &mut self,
+        ctx: &Arc<Context>,
+        cloud: &Cloud,
+        layout: &StreamLayout,
+        stream: Stream,
+        chunk_bytes: u64,
+    ) -> Result<()> {
+        let chunk_points = (chunk_bytes / stream.bytes_per_point()).max(2) & !1;
+        let mut uploader = Uploader::new(ctx, chunk_points * stream.bytes_per_point())?;
+        for (s, range) in layout.segments().into_iter().enumerate() {
+            let buffer = stream_buffer(ctx, s, stream, range.end - range.start)?;
+            let mut start = range.start;
+            while start < range.end {
+                let end = (start + chunk_points).min(range.end);
+                let size = StreamLayout::stream_bytes(stream, end - start);
+                uploader.upload(
+                    |staging| {
+                        layout.encode(cloud, stream, start..end, &mut staging[..size as usize]);
+                        Ok(())
+                    },
+                    &[CopyRegion {
+                        dst: buffer.raw,
+                        dst_offset: StreamLayout::stream_bytes(stream, start - range.start),
+                        src_offset: 0,
+                        size,
+                    }],
+                )?;
+                start = end;
+            }
+            self.segments[s].push((stream, buffer));
+        }
+        uploader.finish()
     }
 }
 
@@ -253,7 +305,7 @@ pub fn upload(
                 u32::from(has_scalar),
             ],
             scalar,
-            normal_field: pair(Stream::NormalField, Stream::NormalField),
+            normal_field: address_entry(&buffers, Stream::NormalField),
         });
         segments.push(buffers);
     }
