@@ -33,7 +33,7 @@ use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
 use crate::methods::compute::storage;
-use crate::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 
 /// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
 /// after the list's `VkDrawIndirectCommand`.
@@ -102,6 +102,18 @@ pub struct Selection {
     pub list: BufferId,
     /// `COUNTER_BYTES`: the `VkDrawIndirectCommand` of the list, the vertices per level.
     pub counters: BufferId,
+}
+
+impl Selection {
+    /// The per-level sample counts in the counters, as a method publishes them
+    /// (`BuildContext::samples`) for an object texture of `lod`'s levels.
+    pub fn samples(&self, lod: &GpuLod) -> SampleCounters {
+        SampleCounters {
+            buffer: self.counters,
+            offset: PER_LEVEL_OFFSET,
+            levels: lod.levels,
+        }
+    }
 }
 
 /// The graph's ids of the frame block and of an uploaded object texture.

@@ -16,12 +16,10 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::{BuildContext, Feature, MethodInfo, ParamSpec, SampleCounters, ZBUFFER_FORMAT};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::LOD_PATCH_VERTICES;
 use crate::gpu::ImageDesc;
-use crate::lod::gpu::{
-    self, DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK, PER_LEVEL_OFFSET,
-};
+use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK};
 
 /// The default ε: the largest measured value that costs the full dragon, drawn as discs,
 /// less than 0.5 dB of PSNR against ε = 0 at every distance from 0.5 to 8 times the default
@@ -182,11 +180,7 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
         Path::Geometry => gpu::add_geometry,
     };
     let selection = add(b.ctx, b.graph, name, &lod, inputs, options, targets)?;
-    b.samples = Some(SampleCounters {
-        buffer: selection.counters,
-        offset: PER_LEVEL_OFFSET,
-        levels: lod.levels,
-    });
+    b.samples = Some(selection.samples(&lod));
     Ok(())
 }
 

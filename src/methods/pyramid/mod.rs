@@ -41,7 +41,7 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use super::compute::{project, storage, storage_image, ProjectOptions};
-use super::{BuildContext, Feature, MethodInfo, ParamSpec, SampleCounters, ZBUFFER_FORMAT};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
     PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_LOD_LIST, BINDING_LOD_VERTICES,
     BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT,
@@ -52,7 +52,7 @@ use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipel
 use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
-use crate::lod::gpu::{add_select, LodInputs, PER_LEVEL_OFFSET};
+use crate::lod::gpu::{add_select, LodInputs};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
 /// k-th nearest neighbour (4.2.1, k = 10); the clouds here carry the density spacing
@@ -490,11 +490,7 @@ fn build_lod(b: &mut BuildContext<'_>) -> Result<()> {
         epsilon,
         0,
     )?;
-    b.samples = Some(SampleCounters {
-        buffer: selection.counters,
-        offset: PER_LEVEL_OFFSET,
-        levels: lod.levels,
-    });
+    b.samples = Some(selection.samples(&lod));
     let level0 = Level0::Lod {
         vertices: inputs.vertices,
         list: selection.list,
