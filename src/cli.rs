@@ -79,7 +79,8 @@ pub struct ReportArgs {
 /// Input and preprocessing options shared by the commands that load a model.
 #[derive(Args, Debug, Clone)]
 pub struct InputArgs {
-    /// Neighbours for k-NN normals and radii.
+    /// Neighbours for k-NN normals and radii (estimated only for methods that read them);
+    /// 0 turns the estimation off.
     #[arg(long, default_value_t = preprocess::DEFAULT_K)]
     pub k: usize,
     /// Reuse/store computed normals and radii in FILE.surfel-cache.
@@ -92,10 +93,12 @@ pub struct InputArgs {
 }
 
 impl InputArgs {
-    /// The loading options these flags select.
-    pub fn options(&self) -> LoadOptions {
+    /// The loading options these flags select; `estimate`: compute the normals and radii a
+    /// file lacks (for a method with `needs_surfels`).
+    pub fn options(&self, estimate: bool) -> LoadOptions {
         LoadOptions {
             k: self.k,
+            estimate,
             cache: self.cache,
             budget: self.budget,
         }
@@ -482,13 +485,36 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
     })
 }
 
-/// Loads `file` and merges the scene's extra inputs into it (`scene::compose`).
-pub fn load_scene(file: &Path, settings: &ViewSettings, options: &LoadOptions) -> Result<Cloud> {
-    let mut cloud = load_prepared(file, options)?;
+/// Seconds [`load_scene`] spent reading files and estimating normals and radii.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadTimes {
+    pub read_s: f64,
+    pub estimate_s: f64,
+}
+
+/// Loads `file` and merges the scene's extra inputs into it (`scene::compose`), each completed
+/// by `scene::complete` before the merge.
+pub fn load_scene(
+    file: &Path,
+    settings: &ViewSettings,
+    options: &LoadOptions,
+) -> Result<(Cloud, LoadTimes)> {
+    let mut times = LoadTimes::default();
+    let mut load = |path: &Path| -> Result<Cloud> {
+        let start = std::time::Instant::now();
+        let mut cloud = crate::scene::load_with_budget(path, options.budget)?;
+        let read = std::time::Instant::now();
+        let estimated = crate::scene::complete(&mut cloud, path, options)?;
+        times.read_s += (read - start).as_secs_f64();
+        if estimated {
+            times.estimate_s += read.elapsed().as_secs_f64();
+        }
+        Ok(cloud)
+    };
+    let mut cloud = load(file)?;
     for input in &settings.inputs {
         let name = input.path.display().to_string();
-        let mut other =
-            compose::with_role(load_prepared(&input.path, options)?, input.role, &name)?;
+        let mut other = compose::with_role(load(&input.path)?, input.role, &name)?;
         compose::transform(
             &mut other,
             input.scale.unwrap_or(1.0),
@@ -496,7 +522,27 @@ pub fn load_scene(file: &Path, settings: &ViewSettings, options: &LoadOptions) -
         );
         compose::append(&mut cloud, other).with_context(|| name.clone())?;
     }
-    Ok(cloud)
+    Ok((cloud, times))
+}
+
+/// Whether normals and radii the file lacks are estimated: for a method that reads them, and
+/// for coloring by normal.
+fn estimates(method: &crate::methods::MethodInfo, settings: &ViewSettings) -> bool {
+    method.needs_surfels || settings.color_by.as_deref() == Some("normal")
+}
+
+/// The error for a method that reads normals and radii the cloud does not have (the file has
+/// none and `--k 0` turned their estimation off).
+fn check_surfels(method: &crate::methods::MethodInfo, cloud: &Cloud, file: &Path) -> Result<()> {
+    if method.needs_surfels && (cloud.normals.is_none() || cloud.radii.is_none()) {
+        bail!(
+            "{}: {} reads per-point normals and radii; the file has none and --k 0 turns their \
+             estimation off (use --k 10, or a method that draws raw positions: points, compute)",
+            file.display(),
+            method.name
+        );
+    }
+    Ok(())
 }
 
 fn context(validation: bool) -> Result<Arc<Context>> {
@@ -526,6 +572,9 @@ struct Timings<'a> {
 struct Startup {
     /// Parsing and preprocessing (normals, radii).
     load_s: f64,
+    /// Of `load_s`, estimating normals and radii (0 when the method needs none or the file
+    /// has them).
+    estimate_s: f64,
     /// Vulkan instance and device.
     device_s: f64,
     /// Morton ordering, stream encoding and upload.
@@ -555,7 +604,12 @@ fn render(a: RenderArgs) -> Result<()> {
         lap = now;
         s
     };
-    let cloud = load_scene(&file, &settings, &a.input.options())?;
+    let (cloud, times) = load_scene(
+        &file,
+        &settings,
+        &a.input.options(estimates(config.method, &settings)),
+    )?;
+    check_surfels(config.method, &cloud, &file)?;
     // The camera frames the whole cloud, also when only its visible points are rendered.
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let camera = settings.camera(centre, radius, cloud.up);
@@ -620,13 +674,19 @@ fn render(a: RenderArgs) -> Result<()> {
     let first_frame_s = since();
     let startup = Startup {
         load_s,
+        estimate_s: times.estimate_s,
         device_s,
         upload_s,
         first_frame_s,
         first_pixel_s: (lap - start).as_secs_f64(),
     };
+    let estimated = if times.estimate_s > 0.0 {
+        format!(" of which normals and radii {:.2} s", times.estimate_s)
+    } else {
+        String::new()
+    };
     eprintln!(
-        "first pixel after {:.2} s (load {:.2} s, device {:.2} s, upload {:.2} s, first frame {:.2} s)",
+        "first pixel after {:.2} s (load {:.2} s{estimated}, device {:.2} s, upload {:.2} s, first frame {:.2} s)",
         startup.first_pixel_s, load_s, device_s, upload_s, first_frame_s
     );
     if let Some(path) = &a.timings {
@@ -710,7 +770,12 @@ fn view(a: ViewArgs) -> Result<()> {
             bail!("{}: the screenshot directory does not exist", dir.display());
         }
     }
-    let cloud = load_scene(&a.file, &settings, &a.input.options())?;
+    let (cloud, _) = load_scene(
+        &a.file,
+        &settings,
+        &a.input.options(estimates(config.method, &settings)),
+    )?;
+    check_surfels(config.method, &cloud, &a.file)?;
     let coloring = settings.coloring(&a.file, &cloud)?;
     let color_by = settings
         .color_by
@@ -744,7 +809,7 @@ fn view(a: ViewArgs) -> Result<()> {
 }
 
 fn info(a: InfoArgs) -> Result<()> {
-    let cloud = load_prepared(&a.file, &a.input.options())?;
+    let cloud = load_prepared(&a.file, &a.input.options(false))?;
     println!("file              {}", a.file.display());
     println!("points            {}", cloud.len());
     println!("records in file   {}", cloud.stats.records);
@@ -784,7 +849,26 @@ fn info(a: InfoArgs) -> Result<()> {
             println!("  {:<22} {min} .. {max} ({lo} .. {hi})", s.name);
         }
     }
-    println!("color by          {}", color::fields(&cloud).join(", "));
+    let mut fields = color::fields(&cloud);
+    let normals = match (&cloud.normals, &cloud.radii, a.input.k) {
+        (Some(_), Some(_), _) => "from the file".to_owned(),
+        (_, _, 0) => "none (--k 0)".to_owned(),
+        _ => {
+            if cloud.normals.is_none() {
+                let at = fields
+                    .iter()
+                    .position(|f| f == "elevation")
+                    .map_or(0, |i| i + 1);
+                fields.insert(at, "normal".to_owned());
+            }
+            format!(
+                "estimated (k = {}) for the methods that read them and for --color-by normal",
+                a.input.k
+            )
+        }
+    };
+    println!("normals, radii    {normals}");
+    println!("color by          {}", fields.join(", "));
     if let Some((lo, hi)) = cloud.bounds() {
         let o = cloud.origin;
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
@@ -1040,7 +1124,7 @@ fn hpr(a: HprArgs) -> Result<()> {
                 .map_err(anyhow::Error::msg)
         })
         .transpose()?;
-    let cloud = load_prepared(&a.file, &a.input.options())?;
+    let cloud = load_prepared(&a.file, &a.input.options(true))?;
     let radius = match (a.radius, a.radius_factor) {
         (Some(r), _) => crate::hpr::Radius::Absolute(r),
         (None, Some(f)) => crate::hpr::Radius::Factor(f),

@@ -77,10 +77,13 @@ pub fn next_field<'a>(fields: &'a [String], current: &str) -> Option<&'a str> {
     fields.get(next).map(String::as_str)
 }
 
-/// The field `cloud` is colored by when none is named.
+/// The field `cloud` is colored by when none is named: its colours, else (as Potree does)
+/// elevation for a cloud without normals to light it, else the lit base colour.
 pub fn default_field(cloud: &Cloud) -> &'static str {
     if cloud.colors.is_some() {
         "rgb"
+    } else if cloud.normals.is_none() {
+        "elevation"
     } else {
         "none"
     }
@@ -389,7 +392,13 @@ mod tests {
         // No colors, no `rgb`.
         let plain = cloud(vec![], false);
         assert!(select(&plain, "rgb", Up::Y).is_err());
-        assert_eq!(default_field(&plain), "none");
+        // Without normals to light it, elevation (as Potree); with them, the lit base colour.
+        assert_eq!(default_field(&plain), "elevation");
+        let lit = Cloud {
+            normals: Some(vec![Vec3::Z; plain.len()]),
+            ..plain
+        };
+        assert_eq!(default_field(&lit), "none");
     }
 
     #[test]

@@ -529,7 +529,8 @@ impl Renderer {
             FLAG_HAS_NORMALS
         } else {
             0
-        } | if colored && coloring.unlit {
+        } | if (colored && coloring.unlit) || !self.info.has_normals {
+            // Without normals there is nothing to light: the albedo as it is.
             FLAG_UNLIT
         } else {
             0

@@ -602,6 +602,8 @@ fn a_directory_as_input_reports_the_os_error_once() {
         vec![
             "render".into(),
             cloud.into(),
+            "--method".into(),
+            "perspective-deferred".into(),
             "--cache".into(),
             "-o".into(),
             png.into(),
@@ -638,8 +640,8 @@ fn an_unknown_color_field_lists_the_fields_of_the_file() {
     assert!(
         e.contains(&format!(
             "{}: --color-by 'bogus': no such field; this file has: rgb, none, elevation, \
-             normal, intensity, classification, return_number, number_of_returns, \
-             point_source_id, gps_time\n",
+             intensity, classification, return_number, number_of_returns, point_source_id, \
+             gps_time\n",
             las.display()
         )),
         "{e}"
@@ -1002,4 +1004,56 @@ fn hpr_on_the_gpu_agrees_with_the_cpu_and_scores_against_the_mesh() {
     // An explicit k and a fixed gather.
     let fixed = run(&["--k", "65536", "--m", "3", "--gpu"]);
     assert_eq!(f(&fixed, &["sqrt_k"]), 256.0);
+}
+
+#[test]
+fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
+    let las = data("lidar/autzen_trim.las");
+    let las = las.to_str().expect("utf8");
+    let out = tmp("lazy.png");
+    let out = out.to_str().expect("utf8");
+    let render = |args: &[&str]| {
+        let mut all = vec!["render", las, "--size", "64x64", "--out", out];
+        all.extend_from_slice(args);
+        let o = surfel(&all);
+        (o.status.code(), stderr(&o))
+    };
+    // The compute rasterizer draws the raw positions, unlit, colored by the file's RGB.
+    let (code, e) = render(&["--method", "compute"]);
+    assert_eq!(code, Some(0), "{e}");
+    assert!(
+        e.contains("first pixel after") && !e.contains("normals and radii"),
+        "{e}"
+    );
+    // Splats read both: estimated first, and the time is reported.
+    let (code, e) = render(&["--method", "perspective-deferred"]);
+    assert_eq!(code, Some(0), "{e}");
+    assert!(e.contains(" of which normals and radii "), "{e}");
+    // Coloring by normal estimates them for any method.
+    let (code, e) = render(&["--method", "compute", "--color-by", "normal"]);
+    assert_eq!(code, Some(0), "{e}");
+    assert!(e.contains(" of which normals and radii "), "{e}");
+    // --k 0 turns the estimation off: a method that needs it says so.
+    let (code, e) = render(&["--method", "ewa", "--k", "0"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.ends_with(&format!(
+            "error: {las}: ewa reads per-point normals and radii; the file has none and --k 0 \
+             turns their estimation off (use --k 10, or a method that draws raw positions: \
+             points, compute)\n"
+        )),
+        "{e}"
+    );
+    let o = surfel(&["info", las, "--no-device"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains(
+            "normals, radii    estimated (k = 10) for the methods that read them and for \
+             --color-by normal\n"
+        ),
+        "{s}"
+    );
+    let o = surfel(&["info", las, "--no-device", "--k", "0"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("normals, radii    none (--k 0)\n"), "{s}");
 }

@@ -104,6 +104,7 @@ pub const COMPUTE_INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: true,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_compute,
 };
 
@@ -116,6 +117,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: true,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_mesh,
 };
 
@@ -128,6 +130,7 @@ pub const GEOMETRY_INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: true,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_geometry,
 };
 

@@ -56,6 +56,10 @@ pub struct MethodInfo {
     pub needs_lod: bool,
     /// Reads the linear normal fields of Phong splatting (`Stream::NormalField`).
     pub needs_normal_field: bool,
+    /// Reads per-point normals and splat radii: a cloud without them gets them estimated
+    /// (k nearest neighbours, `scene::preprocess`) before the method's first frame. A method
+    /// without this draws from the raw positions, unlit where the cloud has no normals.
+    pub needs_surfels: bool,
     pub build: fn(&mut BuildContext<'_>) -> Result<()>,
 }
 

@@ -28,6 +28,7 @@ pub const INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: false,
     build,
 };
 

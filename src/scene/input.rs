@@ -1,5 +1,5 @@
-//! Loading a model ready to render: the file, then what every method needs (normals and
-//! radii), shared by the command line, the benchmark and anything else that loads input.
+//! Loading a model ready to render: the file, then what the methods to be run need (normals
+//! and radii), shared by the command line, the benchmark and anything else that loads input.
 
 use std::path::Path;
 
@@ -11,8 +11,11 @@ use super::{pack, Cloud};
 /// How [`load_prepared`] completes a loaded model.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LoadOptions {
-    /// Neighbours for k-NN normals and radii (at least 1 is used).
+    /// Neighbours for k-NN normals and radii; 0 turns the estimation off.
     pub k: usize,
+    /// Estimate the normals and radii the file lacks (a method with `needs_surfels` reads
+    /// them); without it only a mesh's vertex normals are computed (from its faces, cheap).
+    pub estimate: bool,
     /// Reuse and store computed normals and radii in `FILE.surfel-cache`.
     pub cache: bool,
     /// Read at most about this many points from a COPC file: whole octree levels from the root
@@ -24,25 +27,34 @@ impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
             k: preprocess::DEFAULT_K,
+            estimate: true,
             cache: false,
             budget: None,
         }
     }
 }
 
-/// Loads `path` and completes what the methods need: normals (from faces for meshes, else PCA
-/// over k-NN) and radii (k-NN), optionally cached next to the input.
+/// Loads `path` and completes it ([`complete`]).
 pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
     let mut cloud = super::load_with_budget(path, options.budget)?;
+    complete(&mut cloud, path, options)?;
+    Ok(cloud)
+}
+
+/// Completes a cloud loaded from `path`: a mesh's vertex normals from its faces; then, when
+/// `options.estimate` and `options.k` > 0, the normals (PCA over k-NN) and radii (k-NN) it
+/// lacks, from `FILE.surfel-cache` when `options.cache` and the cache is valid, else computed
+/// (and written to the cache when `options.cache`). Returns whether it estimated or read them.
+pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result<bool> {
     if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
         cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
     }
     let preprocess_options = PreprocessOptions {
-        k: options.k.max(1),
+        k: options.k,
         ..Default::default()
     };
-    if cloud.normals.is_some() && cloud.radii.is_some() {
-        return Ok(cloud);
+    if !options.estimate || options.k == 0 || (cloud.normals.is_some() && cloud.radii.is_some()) {
+        return Ok(false);
     }
     if options.cache {
         if let Some((normals, radii)) =
@@ -50,10 +62,10 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
         {
             cloud.normals.get_or_insert(normals);
             cloud.radii.get_or_insert(radii);
-            return Ok(cloud);
+            return Ok(true);
         }
     }
-    preprocess::preprocess(&mut cloud, &preprocess_options);
+    preprocess::preprocess(cloud, &preprocess_options);
     if options.cache {
         if let (Some(n), Some(r)) = (&cloud.normals, &cloud.radii) {
             preprocess::save_cache(path, &preprocess_options, n, r).with_context(|| {
@@ -64,5 +76,5 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
             })?;
         }
     }
-    Ok(cloud)
+    Ok(true)
 }

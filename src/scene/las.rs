@@ -308,15 +308,22 @@ impl Layout {
     /// The layout of `header`'s records, which start at byte `at` of a file of `size` bytes.
     /// Fails before anything is allocated when the declared points cannot fit in the file.
     fn new(file: &str, header: &las::Header, at: usize, size: usize) -> Result<Self, LoadError> {
-        let format = header.point_format();
-        let extra = extra_fields(file, header)?;
-        let stride = usize::from(format.len()).max(1);
+        let stride = usize::from(header.point_format().len()).max(1);
         let declared = header.number_of_points();
         let needed = u128::from(declared) * stride as u128 + at as u128;
         if needed > size as u128 {
             let whole = (size.saturating_sub(at) / stride) as u64;
             return Err(LoadError::whole(file, truncated(whole, declared, size)));
         }
+        Self::at(file, header, at)
+    }
+
+    /// The layout of `header`'s records starting at byte `at` of a buffer that holds them all.
+    fn at(file: &str, header: &las::Header, at: usize) -> Result<Self, LoadError> {
+        let format = header.point_format();
+        let extra = extra_fields(file, header)?;
+        let stride = usize::from(format.len()).max(1);
+        let declared = header.number_of_points();
         // Fixed part: X, Y, Z, intensity, flags (2 bytes, or 3 in formats 6-10), then scan
         // angle, user data and point source id; GPS time and colors follow.
         let base = if format.is_extended { 22 } else { 20 };
@@ -641,10 +648,16 @@ fn io_error(file: &str, source: std::io::Error) -> LoadError {
     }
 }
 
-/// Reads a LAZ file of `size` bytes with `header`, from the first point record. The chunk table
-/// is written after the points; when it lies past the end (a truncated file), the file is read
-/// into memory with an empty chunk table appended, so the points that are there decode and the
-/// error names the first that is not.
+/// Decompressed records larger than this multiple of the file are not allocated at once: such a
+/// file is read point by point, its vectors growing as points decode.
+const MAX_EXPANSION: u128 = 64;
+
+/// Reads a LAZ file of `size` bytes with `header`, from the first point record: into memory,
+/// then its chunks decompressed in parallel ([`read_chunks`]); a file whose chunk table is
+/// missing, inconsistent or past the end (a truncated file), or whose chunks do not decode,
+/// is read point by point instead. A chunk table past the end is replaced by an empty one
+/// appended to the data, so the points that are there decode and the error names the first
+/// that is not.
 fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
     file: &str,
     mut read: R,
@@ -654,28 +667,151 @@ fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
     let at = read
         .stream_position()
         .map_err(|source| io_error(file, source))? as usize;
-    let mut offset = [0; 8];
-    read.read_exact(&mut offset).map_err(|source| {
-        if source.kind() == ErrorKind::UnexpectedEof {
-            LoadError::whole(file, truncated(0, header.number_of_points(), size))
-        } else {
-            io_error(file, source)
-        }
-    })?;
-    let table = i64::from_le_bytes(offset);
-    let table_past_end = table > at as i64 && table.saturating_add(8) > size as i64;
     read.rewind().map_err(|source| io_error(file, source))?;
-    if !table_past_end {
-        return read_with_crate(file, read, size, false);
-    }
-    let mut data = Vec::with_capacity(size + 8);
+    let mut data = Vec::with_capacity(size + 16);
     read.read_to_end(&mut data)
         .map_err(|source| io_error(file, source))?;
+    let Some(offset) = data.get(at..at + 8) else {
+        return Err(LoadError::whole(
+            file,
+            truncated(0, header.number_of_points(), size),
+        ));
+    };
+    let table = i64::from_le_bytes(offset.try_into().unwrap_or_default());
+    let table_past_end = table > at as i64 && table.saturating_add(8) > size as i64;
+    if !table_past_end {
+        if let Some(cloud) = read_chunks(file, &data, header, at)? {
+            return Ok(cloud);
+        }
+        return read_with_crate(file, Cursor::new(data), size, false);
+    }
     let end = data.len() as i64;
     data[at..at + 8].copy_from_slice(&end.to_le_bytes());
     // Chunk table version 0 with no chunks.
     data.extend_from_slice(&[0; 8]);
     read_with_crate(file, Cursor::new(data), size, true)
+}
+
+/// The chunks of a LAZ file held in `data` (point data from byte `at`) decompressed in
+/// parallel by the `laz` crate into uncompressed records, decoded as a LAS file's are. An
+/// error when the chunk table does not describe the declared points within the file; `None`
+/// when the chunks cannot be read this way: no LAZ VLR or chunk table, a record size that is
+/// not the format's, more than [`MAX_EXPANSION`] times the file in records, or a chunk that
+/// fails to decode.
+fn read_chunks(
+    file: &str,
+    data: &[u8],
+    header: &las::Header,
+    at: usize,
+) -> Result<Option<Cloud>, LoadError> {
+    let Ok(vlr) = header.laz_vlr() else {
+        return Ok(None);
+    };
+    let stride = usize::from(header.point_format().len());
+    let declared = header.number_of_points();
+    let bytes = u128::from(declared) * stride as u128;
+    // The table is checked whichever reader goes on: the crate's would trust it.
+    let Some(table) =
+        chunk_table(data, at, &vlr, declared).map_err(|e| LoadError::whole(file, e))?
+    else {
+        return Ok(None);
+    };
+    if stride == 0
+        || vlr.items_size() != stride as u64
+        || bytes > MAX_EXPANSION * data.len() as u128
+    {
+        return Ok(None);
+    }
+    let mut records = vec![0u8; bytes as usize];
+    if laz::par_decompress(&data[at + 8..], &mut records, &vlr, &table).is_err() {
+        return Ok(None);
+    }
+    let layout = Layout::at(file, header, 0)?;
+    let mut columns = layout.columns();
+    columns.decode_block(&layout, 0, &records);
+    Ok(Some(columns.finish(&layout, declared)))
+}
+
+/// The chunk table of the LAZ data at byte `at` of `data`, checked before the `laz` crate
+/// trusts it (it allocates what the table's chunk count says): the table lies after the
+/// points and inside the file, it holds at least one and at most as many chunks as the file
+/// has points and bytes, the chunks' bytes fit between the points' start and the table, and
+/// their points add up to `declared` (for fixed-size chunks, every chunk but the last holds
+/// the VLR's chunk size). `Ok(None)` when the file has no chunk table (a writer that could
+/// not seek back leaves its offset unset); an error says what is inconsistent.
+fn chunk_table(
+    data: &[u8],
+    at: usize,
+    vlr: &laz::LazVlr,
+    declared: u64,
+) -> Result<Option<Vec<laz::laszip::ChunkTableEntry>>, String> {
+    let word = |from: usize| -> Option<i64> {
+        Some(i64::from_le_bytes(
+            data.get(from..from.checked_add(8)?)?.try_into().ok()?,
+        ))
+    };
+    let start = at + 8;
+    // As the crate looks for it: after the points, else in the file's last 8 bytes.
+    let offset = match word(at) {
+        Some(o) if o > at as i64 => o,
+        _ => match data.len().checked_sub(8).and_then(word) {
+            Some(o) if o > at as i64 => o,
+            _ => return Ok(None),
+        },
+    };
+    let invalid = |what: String| Err(format!("invalid LAZ chunk table at byte {offset}: {what}"));
+    let table_at = usize::try_from(offset).unwrap_or(usize::MAX);
+    let Some(head) = data.get(table_at..table_at.saturating_add(8)) else {
+        return invalid(format!("the file ends at byte {}", data.len()));
+    };
+    let chunks = u64::from(u32::from_le_bytes([head[4], head[5], head[6], head[7]]));
+    if table_at < start || chunks == 0 || chunks > declared || chunks > data.len() as u64 {
+        return invalid(format!(
+            "{chunks} chunks for {declared} points in a file of {} bytes",
+            data.len()
+        ));
+    }
+    let mut cursor = Cursor::new(data);
+    cursor.set_position(at as u64);
+    let mut entries = match laz::laszip::ChunkTable::read_from(&mut cursor, vlr) {
+        Ok(table) if table.as_ref().len() as u64 == chunks => table.as_ref().to_vec(),
+        Ok(_) => return invalid(format!("fewer than the {chunks} chunks it declares")),
+        Err(e) => return invalid(e.to_string()),
+    };
+    let bytes = entries
+        .iter()
+        .try_fold(0u64, |sum, e| sum.checked_add(e.byte_count));
+    if bytes.is_none_or(|b| b > (table_at - start) as u64) {
+        return invalid(format!(
+            "its chunks hold more than the {} bytes before it",
+            table_at - start
+        ));
+    }
+    if !vlr.uses_variable_size_chunks() {
+        let size = u64::from(vlr.chunk_size());
+        let last = (chunks - 1)
+            .checked_mul(size)
+            .and_then(|before| declared.checked_sub(before))
+            .filter(|&last| last > 0 && last <= size);
+        match (last, entries.last_mut()) {
+            (Some(last), Some(entry)) => entry.point_count = last,
+            _ => {
+                return invalid(format!(
+                    "{chunks} chunks of {size} points cannot hold the {declared} points declared"
+                ))
+            }
+        }
+    }
+    let points = entries
+        .iter()
+        .try_fold(0u64, |sum, e| sum.checked_add(e.point_count));
+    if points != Some(declared) {
+        return invalid(format!(
+            "its chunks hold {} points, the header declares {declared}",
+            points.map_or_else(|| "more than 2^64".to_owned(), |p| p.to_string())
+        ));
+    }
+    Ok(Some(entries))
 }
 
 /// Reads the points with the `las` crate (used for LAZ), from the start of a file of `size`
@@ -778,9 +914,17 @@ mod tests {
     /// color channels exceed 255 only from point `wide_from` on. Every fifth point has the
     /// overlap class (with flag bits set in formats 0-5).
     fn las_file(format: u8, n: usize, wide_from: usize) -> Vec<u8> {
+        written(format, n, wide_from, false)
+    }
+
+    /// [`las_file`], LAZ-compressed when `compressed` (then without overlap classes: those
+    /// are set in the written records; and with coordinates jittered, so the points do not
+    /// compress beyond [`MAX_EXPANSION`]).
+    fn written(format: u8, n: usize, wide_from: usize, compressed: bool) -> Vec<u8> {
         let mut builder = Builder::from((1, 4));
         builder.point_format = Format::new(format).unwrap();
         builder.point_format.extra_bytes = 3;
+        builder.point_format.is_compressed = compressed;
         builder.transforms = Vector {
             x: Transform {
                 scale: 0.01,
@@ -798,8 +942,14 @@ mod tests {
         let point_format = builder.point_format;
         let mut writer =
             Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
+        let mut rng = crate::rng::SplitMix64::new(3);
         for i in 0..n {
-            let f = i as f64;
+            let f = i as f64
+                + if compressed {
+                    rng.next_f64() * 100.0
+                } else {
+                    0.0
+                };
             let channel = if i >= wide_from {
                 (i * 997 % 65_536) as u16
             } else {
@@ -822,6 +972,9 @@ mod tests {
             writer.write_point(point).unwrap();
         }
         let mut bytes = writer.into_inner().unwrap().into_inner();
+        if compressed {
+            return bytes;
+        }
         let at = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
         let stride = usize::from(u16::from_le_bytes([bytes[105], bytes[106]]));
         for record in bytes[at..].chunks_exact_mut(stride).step_by(5) {
@@ -1018,11 +1171,81 @@ mod tests {
     }
 
     #[test]
+    fn compressed_chunks_decode_as_the_las_crate_reads_them() {
+        for format in [0, 1, 3, 6, 7, 8] {
+            let bytes = written(format, 120_000, 70_000, true);
+            let name = format!("f{format}.laz");
+            let size = bytes.len();
+            let mut cursor = Cursor::new(&bytes);
+            let header = read_header(&name, &mut cursor, size).unwrap();
+            let at = cursor.position() as usize;
+            let chunks = read_chunks(&name, &bytes, &header, at).unwrap();
+            let reference = read_with_crate(&name, Cursor::new(bytes), size, false).unwrap();
+            let chunks = chunks.expect("chunked");
+            assert_eq!(chunks.len(), reference.len(), "{name}");
+            assert_eq!(chunks.positions, reference.positions, "{name}");
+            assert_eq!(chunks.origin, reference.origin, "{name}");
+            assert_eq!(chunks.colors, reference.colors, "{name}");
+            for (a, b) in chunks.scalars.iter().zip(&reference.scalars) {
+                let first = a.values.iter().zip(&b.values).position(|(x, y)| x != y);
+                assert!(
+                    first.is_none(),
+                    "{name} {} at {first:?}: {} vs {}",
+                    a.name,
+                    a.values[first.unwrap_or(0)],
+                    b.values[first.unwrap_or(0)]
+                );
+            }
+            assert_eq!(chunks.stats, reference.stats, "{name}");
+        }
+    }
+
+    #[test]
+    fn inconsistent_chunk_tables_are_errors_before_anything_is_allocated() {
+        let root = std::env::var_os("SURFEL_DATA")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+        let good = std::fs::read(root.join("lidar/autzen_trim.laz")).unwrap();
+        let at = u32::from_le_bytes(good[96..100].try_into().unwrap()) as usize;
+        let table = i64::from_le_bytes(good[at..at + 8].try_into().unwrap()) as usize;
+        let changed = |edit: &dyn Fn(&mut Vec<u8>)| {
+            let mut bytes = good.clone();
+            edit(&mut bytes);
+            parse("bad.laz", bytes)
+                .err()
+                .map_or_else(String::new, |e| e.to_string())
+        };
+        // A chunk count the file cannot hold (the crate would reserve 64 GiB for it).
+        let m = changed(&|b| b[table + 4..table + 8].copy_from_slice(&u32::MAX.to_le_bytes()));
+        assert_eq!(
+            m,
+            format!(
+                "bad.laz: invalid LAZ chunk table at byte {table}: 4294967295 chunks for 110000 \
+                 points in a file of {} bytes",
+                good.len()
+            )
+        );
+        // Fixed-size chunks of 50,000 points: 3 hold 110,000, 2 do not.
+        let m = changed(&|b| b[table + 4..table + 8].copy_from_slice(&2u32.to_le_bytes()));
+        assert!(
+            m.ends_with("2 chunks of 50000 points cannot hold the 110000 points declared"),
+            "{m}"
+        );
+        // A damaged chunk: the crate's reader names the record it stops at.
+        let m = changed(&|b| {
+            for x in &mut b[at + 30_000..at + 30_100] {
+                *x ^= 0x5a;
+            }
+        });
+        assert!(m.starts_with("bad.laz: point record "), "{m}");
+    }
+
+    #[test]
     fn shared_files_match_the_las_crate() {
         let root = std::env::var_os("SURFEL_DATA")
             .map(PathBuf::from)
             .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
-        for file in ["autzen_trim.las", "vegetation_1_3.las"] {
+        for file in ["autzen_trim.las", "autzen_trim.laz", "vegetation_1_3.las"] {
             let bytes = std::fs::read(root.join("lidar").join(file)).unwrap();
             assert_matches_crate(file, bytes);
         }

@@ -8,6 +8,7 @@ pub mod copc;
 pub mod e57;
 pub mod error;
 pub mod input;
+pub mod knn;
 pub mod las;
 pub mod lights;
 pub mod lines;
@@ -29,7 +30,7 @@ use std::path::Path;
 pub use camera::{Camera, Pose, Up};
 pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar};
 pub use error::{LoadError, Location};
-pub use input::{load_prepared, LoadOptions};
+pub use input::{complete, load_prepared, LoadOptions};
 pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):

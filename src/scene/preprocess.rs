@@ -1,5 +1,5 @@
-//! Preprocessing for clouds without normals or splat radii: one k-nearest-neighbour query per
-//! point (k-d tree, rayon-parallel), shared by
+//! Preprocessing for clouds without normals or splat radii: one exact k-nearest-neighbour
+//! search per point on a uniform grid ([`super::knn`], rayon-parallel, in cell order), shared by
 //!
 //! * **normals** by PCA: the eigenvector of the smallest eigenvalue of the covariance of the
 //!   point and its k neighbours. Orientation: towards [`Cloud::sensor`] when the file recorded
@@ -29,6 +29,7 @@ use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
 
 use super::cloud::Cloud;
+use super::knn::Grid;
 use super::progress::Progress;
 
 /// Default neighbourhood size.
@@ -78,6 +79,8 @@ const CHUNK: usize = 2048;
 #[derive(Clone, Debug)]
 pub struct Neighbours {
     k: usize,
+    /// The row of each point in `indices`, `dist2` and `counts`.
+    rows: Vec<u32>,
     indices: Vec<u32>,
     dist2: Vec<f32>,
     counts: Vec<u32>,
@@ -85,8 +88,49 @@ pub struct Neighbours {
 
 impl Neighbours {
     /// Finds the `k` nearest neighbours of each point (fewer when the cloud has at most `k`
-    /// finite points). Non-finite points have no neighbours and are never anyone's neighbour.
+    /// finite points) on a grid ([`Grid`]). Non-finite points have no neighbours and are never
+    /// anyone's neighbour. Rows are stored in the grid's cell order.
     pub fn compute(positions: &[Vec3], k: usize, progress: bool) -> Self {
+        let k = k.max(1);
+        let n = positions.len();
+        let grid = Grid::build(positions, k);
+        let bar = Progress::new("k-NN", n, progress && n >= PROGRESS_MIN_POINTS);
+        // Non-finite points share one empty row after the sorted ones.
+        let mut found = vec![(u32::MAX, 0f32); (grid.len() + 1) * k];
+        grid.for_each(
+            k,
+            &mut found[..grid.len() * k],
+            k,
+            |_, near, row| {
+                for (slot, &(d2, t)) in row.iter_mut().zip(near) {
+                    *slot = (grid.input_index(t), d2);
+                }
+            },
+            &|done| bar.advance(done),
+        );
+        bar.finish();
+        let mut rows = vec![grid.len() as u32; n];
+        for s in 0..grid.len() as u32 {
+            rows[grid.input_index(s) as usize] = s;
+        }
+        let counts = found
+            .par_chunks(k)
+            .map(|row| row.iter().take_while(|e| e.0 != u32::MAX).count() as u32)
+            .collect();
+        let indices = found.par_iter().map(|e| e.0).collect();
+        let dist2 = found.par_iter().map(|e| e.1).collect();
+        Neighbours {
+            k,
+            rows,
+            indices,
+            dist2,
+            counts,
+        }
+    }
+
+    /// The reference [`Neighbours::compute`] is measured and tested against: one query of a
+    /// k-d tree per point, rows in input order.
+    pub fn compute_with_tree(positions: &[Vec3], k: usize) -> Self {
         let k = k.max(1);
         let n = positions.len();
         let finite: Vec<u32> = (0..n as u32)
@@ -102,7 +146,6 @@ impl Neighbours {
         if coords.len() >= 2 {
             let tree: ImmutableKdTree<f32, u32, 3, 32> = ImmutableKdTree::new_from_slice(&coords);
             let want = NonZeroUsize::new((k + 1).min(coords.len())).unwrap_or(NonZeroUsize::MIN);
-            let bar = Progress::new("k-NN", n, progress && n >= PROGRESS_MIN_POINTS);
             indices
                 .par_chunks_mut(CHUNK * k)
                 .zip(dist2.par_chunks_mut(CHUNK * k))
@@ -132,12 +175,11 @@ impl Neighbours {
                         }
                         *count = m as u32;
                     }
-                    bar.advance(cnt.len());
                 });
-            bar.finish();
         }
         Neighbours {
             k,
+            rows: (0..n as u32).collect(),
             indices,
             dist2,
             counts,
@@ -151,18 +193,19 @@ impl Neighbours {
 
     /// Number of points.
     pub fn len(&self) -> usize {
-        self.counts.len()
+        self.rows.len()
     }
 
     /// Whether there are no points.
     pub fn is_empty(&self) -> bool {
-        self.counts.is_empty()
+        self.rows.is_empty()
     }
 
     /// Indices and squared distances of the neighbours of point `i`, nearest first.
     pub fn of(&self, i: usize) -> (&[u32], &[f32]) {
-        let m = self.counts[i] as usize;
-        let start = i * self.k;
+        let row = self.rows[i] as usize;
+        let m = self.counts[row] as usize;
+        let start = row * self.k;
         (
             &self.indices[start..start + m],
             &self.dist2[start..start + m],
@@ -239,13 +282,54 @@ fn fallback_normal(p: Vec3, sensor: Option<Vec3>, centroid: Vec3) -> Vec3 {
     }
 }
 
-/// PCA normal of the point and its neighbours, or `None` when they span no plane direction.
-fn pca_normal(positions: &[Vec3], i: usize, neighbours: &[u32]) -> Option<Vec3> {
-    let p = positions[i].as_dvec3();
-    let count = (neighbours.len() + 1) as f64;
+/// The eigenvalues (ascending) of symmetric `c` and the unit eigenvector of the smallest, in
+/// closed form: the trigonometric solution of the characteristic cubic, then the largest cross
+/// product of two rows of `c - λ0 I`. `None` where that is ill-conditioned (the two smallest
+/// eigenvalues within 1e-6 of the largest, or no cross product left), for
+/// [`symmetric_eigen3`] to decide.
+fn smallest_eigenpair(c: &[[f64; 3]; 3]) -> Option<([f64; 3], DVec3)> {
+    let off = c[0][1] * c[0][1] + c[0][2] * c[0][2] + c[1][2] * c[1][2];
+    let q = (c[0][0] + c[1][1] + c[2][2]) / 3.0;
+    let (a, b, d) = (c[0][0] - q, c[1][1] - q, c[2][2] - q);
+    let p = ((a * a + b * b + d * d + 2.0 * off) / 6.0).sqrt();
+    if !(p > 0.0 && p.is_finite()) {
+        return None;
+    }
+    // det((c - q I) / p) / 2 = cos 3φ.
+    let det = a * (b * d - c[1][2] * c[1][2]) - c[0][1] * (c[0][1] * d - c[1][2] * c[0][2])
+        + c[0][2] * (c[0][1] * c[1][2] - b * c[0][2]);
+    let phi = (det / (2.0 * p * p * p)).clamp(-1.0, 1.0).acos() / 3.0;
+    let high = q + 2.0 * p * phi.cos();
+    let low = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+    let mid = 3.0 * q - high - low;
+    if mid - low <= 1e-6 * high.abs() {
+        return None;
+    }
+    let rows = [
+        DVec3::new(c[0][0] - low, c[0][1], c[0][2]),
+        DVec3::new(c[0][1], c[1][1] - low, c[1][2]),
+        DVec3::new(c[0][2], c[1][2], c[2][2] - low),
+    ];
+    let v = [
+        rows[0].cross(rows[1]),
+        rows[0].cross(rows[2]),
+        rows[1].cross(rows[2]),
+    ]
+    .into_iter()
+    .max_by(|x, y| x.length_squared().total_cmp(&y.length_squared()))?;
+    let len2 = v.length_squared();
+    (len2 > 0.0 && len2.is_finite()).then(|| ([low, mid, high], v / len2.sqrt()))
+}
+
+/// PCA normal of point `p` and its neighbours, or `None` when they span no plane direction.
+fn pca_normal(p: Vec3, neighbours: impl Iterator<Item = Vec3> + Clone) -> Option<Vec3> {
+    let p = p.as_dvec3();
     // Work relative to the point itself: small numbers, no cancellation.
-    let rel = |j: u32| positions[j as usize].as_dvec3() - p;
-    let mean = neighbours.iter().map(|&j| rel(j)).sum::<DVec3>() / count;
+    let rel = |q: Vec3| q.as_dvec3() - p;
+    let (sum, count) = neighbours
+        .clone()
+        .fold((DVec3::ZERO, 1.0), |(s, c), q| (s + rel(q), c + 1.0));
+    let mean = sum / count;
     let mut c = [[0.0f64; 3]; 3];
     let mut add = |d: DVec3| {
         let d = d.to_array();
@@ -256,19 +340,36 @@ fn pca_normal(positions: &[Vec3], i: usize, neighbours: &[u32]) -> Option<Vec3> 
         }
     };
     add(-mean);
-    for &j in neighbours {
-        add(rel(j) - mean);
+    for q in neighbours {
+        add(rel(q) - mean);
     }
     c[1][0] = c[0][1];
     c[2][0] = c[0][2];
     c[2][1] = c[1][2];
-    let (values, vectors) = symmetric_eigen3(c);
+    let (values, normal) = smallest_eigenpair(&c).unwrap_or_else(|| {
+        let (values, vectors) = symmetric_eigen3(c);
+        (values, vectors[0])
+    });
     // Needs spread in at least two directions; a line or a single repeated point has no normal.
     if !(values[1] > values[2] * 1e-12 && values[2] > 0.0) {
         return None;
     }
-    let n = vectors[0].as_vec3();
+    let n = normal.as_vec3();
     (n.is_finite() && n != Vec3::ZERO).then_some(n)
+}
+
+/// The normal of `p` from its PCA normal (oriented by the reference direction) or the fallback.
+fn oriented_normal(pca: Option<Vec3>, p: Vec3, sensor: Option<Vec3>, centre: Vec3) -> Vec3 {
+    let normal = match pca {
+        Some(n) if n.dot(reference_direction(p, sensor, centre)) < 0.0 => -n,
+        Some(n) => n,
+        None => fallback_normal(p, sensor, centre),
+    };
+    if normal.is_finite() {
+        normal
+    } else {
+        Vec3::Z
+    }
 }
 
 fn centroid(positions: &[Vec3]) -> Vec3 {
@@ -307,14 +408,8 @@ pub fn estimate_normals(
                 let i = chunk * CHUNK + j;
                 let p = positions[i];
                 let (idx, _) = neighbours.of(i);
-                *normal = match pca_normal(positions, i, idx) {
-                    Some(n) if n.dot(reference_direction(p, sensor, centre)) < 0.0 => -n,
-                    Some(n) => n,
-                    None => fallback_normal(p, sensor, centre),
-                };
-                if !normal.is_finite() {
-                    *normal = Vec3::Z;
-                }
+                let near = idx.iter().map(|&j| positions[j as usize]);
+                *normal = oriented_normal(pca_normal(p, near), p, sensor, centre);
             }
             bar.advance(out.len());
         });
@@ -344,15 +439,28 @@ pub fn estimate_radii(positions: &[Vec3], neighbours: &Neighbours, mode: RadiusM
     let mut radii: Vec<f32> = (0..neighbours.len())
         .into_par_iter()
         .map(|i| {
-            let (_, d2) = neighbours.of(i);
-            let Some(&last) = d2.last() else { return 0.0 };
-            let r_k = last.max(0.0).sqrt();
-            match mode {
-                RadiusMode::KthNeighbour => r_k,
-                RadiusMode::DensitySpacing => r_k * (std::f32::consts::PI / d2.len() as f32).sqrt(),
-            }
+            let d2 = neighbours.of(i).1;
+            radius_of(d2.last().copied(), d2.len(), mode)
         })
         .collect();
+    floor_radii(positions, &mut radii);
+    radii
+}
+
+/// The radius of a point with `count` neighbours, the farthest at squared distance `last`
+/// (0 without any).
+fn radius_of(last: Option<f32>, count: usize, mode: RadiusMode) -> f32 {
+    let Some(last) = last else { return 0.0 };
+    let r_k = last.max(0.0).sqrt();
+    match mode {
+        RadiusMode::KthNeighbour => r_k,
+        RadiusMode::DensitySpacing => r_k * (std::f32::consts::PI / count as f32).sqrt(),
+    }
+}
+
+/// Raises every radius to at least [`MIN_RADIUS_FRACTION`] of the median positive radius
+/// ([`fallback_radius`] when there is none).
+fn floor_radii(positions: &[Vec3], radii: &mut [f32]) {
     let mut positive: Vec<f32> = radii
         .iter()
         .copied()
@@ -365,35 +473,60 @@ pub fn estimate_radii(positions: &[Vec3], neighbours: &Neighbours, mode: RadiusM
         let (_, median, _) = positive.select_nth_unstable_by(mid, f32::total_cmp);
         *median * MIN_RADIUS_FRACTION
     };
-    for r in &mut radii {
+    for r in radii.iter_mut() {
         if r.is_nan() || *r < floor {
             *r = floor;
         }
     }
-    radii
 }
 
 /// Computes what the cloud lacks: normals (when `cloud.normals` is `None`) and radii (when
-/// `cloud.radii` is `None`), from one shared k-NN query.
+/// `cloud.radii` is `None`), from one k-NN search per point, in the grid's cell order; the
+/// same results as [`estimate_normals`] and [`estimate_radii`] over [`Neighbours::compute`],
+/// without storing the neighbours.
 pub fn preprocess(cloud: &mut Cloud, options: &PreprocessOptions) {
-    if cloud.normals.is_some() && cloud.radii.is_some() {
+    let (want_normals, want_radii) = (cloud.normals.is_none(), cloud.radii.is_none());
+    if !want_normals && !want_radii {
         return;
     }
-    let neighbours = Neighbours::compute(&cloud.positions, options.k, options.progress);
-    if cloud.normals.is_none() {
-        cloud.normals = Some(estimate_normals(
-            &cloud.positions,
-            &neighbours,
-            cloud.sensor,
-            options.progress,
-        ));
+    let k = options.k.max(1);
+    let positions = &cloud.positions;
+    let n = positions.len();
+    let grid = Grid::build(positions, k);
+    let centre = centroid(positions);
+    let sensor = cloud.sensor.filter(|s| s.is_finite());
+    let label = if want_normals { "normals" } else { "radii" };
+    let bar = Progress::new(label, n, options.progress && n >= PROGRESS_MIN_POINTS);
+    let mut found = vec![(Vec3::Z, 0f32); grid.len()];
+    grid.for_each(
+        k,
+        &mut found,
+        1,
+        |s, near, out| {
+            let p = grid.position(s);
+            if want_normals {
+                let pca = pca_normal(p, near.iter().map(|e| grid.position(e.1)));
+                out[0].0 = oriented_normal(pca, p, sensor, centre);
+            }
+            out[0].1 = radius_of(near.last().map(|e| e.0), near.len(), options.radius);
+        },
+        &|done| bar.advance(done),
+    );
+    bar.finish();
+    // Non-finite points keep +Z and get the radius floor, as without neighbours.
+    let mut normals = vec![Vec3::Z; n];
+    let mut radii = vec![0f32; n];
+    for (s, (normal, radius)) in found.into_iter().enumerate() {
+        let i = grid.input_index(s as u32) as usize;
+        normals[i] = normal;
+        radii[i] = radius;
     }
-    if cloud.radii.is_none() {
-        cloud.radii = Some(estimate_radii(
-            &cloud.positions,
-            &neighbours,
-            options.radius,
-        ));
+    if want_normals {
+        cloud.normals = Some(normals);
+    }
+    if want_radii {
+        floor_radii(positions, &mut radii);
+        cloud.radii = Some(radii);
     }
 }
 

@@ -40,6 +40,7 @@ pub const COMPUTE: MethodInfo = MethodInfo {
     culls_batches: true,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: false,
     build: build_nearest,
 };
 
@@ -61,6 +62,7 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
     culls_batches: true,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: false,
     build: build_high_quality,
 };
 

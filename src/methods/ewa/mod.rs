@@ -104,6 +104,7 @@ pub const INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: false,
     needs_normal_field: true,
+    needs_surfels: true,
     build,
 };
 

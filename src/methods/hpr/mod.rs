@@ -653,6 +653,7 @@ pub const INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: false,
     build: build_points,
 };
 
@@ -665,6 +666,7 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_mesh,
 };
 

@@ -77,6 +77,7 @@ pub const KERNEL3: MethodInfo = MethodInfo {
     needs_faces: false,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: true,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
     build: build3,

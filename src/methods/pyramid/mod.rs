@@ -147,6 +147,7 @@ pub const INFO: MethodInfo = MethodInfo {
     culls_batches: true,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: true,
     build,
 };
 
@@ -160,6 +161,7 @@ pub const HYBRID_INFO: MethodInfo = MethodInfo {
     culls_batches: true,
     needs_lod: false,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_hybrid,
 };
 
@@ -173,6 +175,7 @@ pub const LOD_INFO: MethodInfo = MethodInfo {
     culls_batches: false,
     needs_lod: true,
     needs_normal_field: false,
+    needs_surfels: true,
     build: build_lod,
 };
 

@@ -78,6 +78,7 @@ const fn info(
         culls_batches: false,
         needs_lod: false,
         needs_normal_field: false,
+        needs_surfels: true,
         build,
     }
 }
@@ -90,6 +91,7 @@ const fn phong(
 ) -> MethodInfo {
     MethodInfo {
         needs_normal_field: true,
+        needs_surfels: true,
         ..info(name, summary, params)
     }
 }
