@@ -776,6 +776,12 @@ fn view(a: ViewArgs) -> Result<()> {
         &a.input.options(estimates(config.method, &settings)),
     )?;
     check_surfels(config.method, &cloud, &a.file)?;
+    // What the first method does not read is estimated while the viewer shows the raw points.
+    let lacking = cloud.normals.is_none() || cloud.radii.is_none();
+    let estimate = (lacking && a.input.k > 0).then(|| crate::app::estimate::EstimateOptions {
+        k: a.input.k,
+        cache: (a.input.cache && settings.inputs.is_empty()).then(|| a.file.clone()),
+    });
     let coloring = settings.coloring(&a.file, &cloud)?;
     let color_by = settings
         .color_by
@@ -804,6 +810,7 @@ fn view(a: ViewArgs) -> Result<()> {
             script,
             camera_file: a.camera_file,
             screenshot_dir: a.screenshot_dir,
+            estimate,
         },
     )
 }

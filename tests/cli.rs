@@ -1018,13 +1018,16 @@ fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
         let o = surfel(&all);
         (o.status.code(), stderr(&o))
     };
-    // The compute rasterizer draws the raw positions, unlit, colored by the file's RGB.
-    let (code, e) = render(&["--method", "compute"]);
+    // The compute rasterizer draws the raw positions unlit: the base color alone.
+    let (code, e) = render(&["--method", "compute", "--color-by", "none"]);
     assert_eq!(code, Some(0), "{e}");
     assert!(
         e.contains("first pixel after") && !e.contains("normals and radii"),
         "{e}"
     );
+    let img = image::open(out).expect("png").to_rgba8();
+    let colors: std::collections::BTreeSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+    assert_eq!(colors.len(), 2, "background and base color: {colors:?}");
     // Splats read both: estimated first, and the time is reported.
     let (code, e) = render(&["--method", "perspective-deferred"]);
     assert_eq!(code, Some(0), "{e}");

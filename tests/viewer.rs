@@ -452,3 +452,45 @@ fn switching_to_ewa_and_phong_uploads_their_normal_fields() {
     assert!(difference(&ewa, &phong).0 > 100, "Phong shows EWA's image");
     assert_eq!(difference(&pyramid, &shot("back.png")).0, 0);
 }
+
+#[test]
+fn a_raw_cloud_is_drawn_at_once_and_lit_when_its_normals_are_estimated() {
+    // A LAS file without normals, started on the compute rasterizer: the viewer draws the raw
+    // points and estimates normals and radii in the background. `m` twice reaches the first
+    // splat method, which reads them, so the viewer waits for them there; `n` twice returns to
+    // compute, now lit: the plain base color turns into shades.
+    let dir = tmp_dir("estimate");
+    std::fs::write(
+        dir.join("t.txt"),
+        "key Tab\nkey m\nkey m\nkey n\nkey n\nscreenshot lit.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("lidar/autzen_trim.las"),
+        &[
+            "--size",
+            "320x240",
+            "--method",
+            "compute",
+            "--color-by",
+            "none",
+            "--script",
+            "t.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let ready = stdout
+        .lines()
+        .position(|l| l.starts_with("normals and radii ready after "));
+    let splats = stdout.lines().position(|l| l == "method points-flat");
+    assert!(
+        ready.is_some() && splats.is_some() && ready < splats,
+        "{stdout}"
+    );
+    let lit = png(&dir.join("lit.png"));
+    let shades: std::collections::BTreeSet<u8> = lit.pixels().map(|p| p.0[1]).collect();
+    assert!(shades.len() > 20, "{} shades of grey", shades.len());
+}

@@ -5,6 +5,7 @@
 //! Keys are listed in `hud::KEYS` (the help panel shows them); real key events and script
 //! `key` steps go through the same handler, `Viewer::press`.
 
+pub mod estimate;
 pub mod hud;
 pub mod script;
 
@@ -34,6 +35,7 @@ use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
 use crate::streams::UploadOptions;
+use estimate::{EstimateOptions, Estimation};
 use hud::{FrameRate, Hud, Stats};
 use script::{Next, Runner, Script, ViewerKey};
 
@@ -63,6 +65,9 @@ pub struct ViewerOptions {
     pub camera_file: PathBuf,
     /// Where `P` writes `surfel-<n>.png` (the current directory when `None`).
     pub screenshot_dir: Option<PathBuf>,
+    /// Estimate the normals and radii the cloud lacks in the background, drawing the raw
+    /// points meanwhile (a method that reads them waits for them).
+    pub estimate: Option<EstimateOptions>,
 }
 
 /// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
@@ -158,6 +163,8 @@ struct Viewer {
     frames: u64,
     start: Instant,
     error: Option<anyhow::Error>,
+    /// Normals and radii being estimated in the background.
+    estimation: Option<Estimation>,
 }
 
 /// The HUD's classification legend: the classes present while coloring by classification.
@@ -178,6 +185,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
         .position(|m| m.name == opts.method.method.name)
         .unwrap_or(0);
     let script = opts.script.take().map(Runner::new);
+    let estimation = opts.estimate.as_ref().map(|o| Estimation::start(&cloud, o));
     let mut viewer = Viewer {
         orbit: Orbit::from_camera(&opts.camera, opts.up),
         post: opts.post,
@@ -205,6 +213,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
         frames: 0,
         start: Instant::now(),
         error: None,
+        estimation,
     };
     event_loop.run_app(&mut viewer)?;
     if let Some(ctx) = &viewer.ctx {
@@ -402,11 +411,14 @@ impl Viewer {
             .as_ref()
             .is_some_and(|(s, _)| s.indices.is_some());
         let caps = self.ctx.as_ref().map(|c| c.caps.clone());
+        // Normals and radii the cloud has or will have (none with `--k 0`).
+        let surfels = (self.cloud.normals.is_some() && self.cloud.radii.is_some())
+            || self.estimation.is_some();
         for _ in 0..METHODS.len() {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
             let m = &METHODS[self.method];
             let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
-            if supported && (!m.needs_faces || has_faces) {
+            if supported && (!m.needs_faces || has_faces) && (!m.needs_surfels || surfels) {
                 break;
             }
         }
@@ -419,6 +431,9 @@ impl Viewer {
     /// (the object texture, the normal fields' stream): an event, not per frame.
     fn upload_what_the_method_reads(&mut self) -> Result<()> {
         let method = &METHODS[self.method];
+        if method.needs_surfels {
+            self.poll_estimation(true)?;
+        }
         let (Some(ctx), Some((scene, _))) = (self.ctx.clone(), self.scene.as_mut()) else {
             return Ok(());
         };
@@ -433,6 +448,40 @@ impl Viewer {
                 .add_normal_field(&ctx, &self.cloud, field, chunk)?;
         }
         Ok(())
+    }
+
+    /// Takes the background estimate when it is done (waiting for it when `wait`): the cloud
+    /// gets its normals and radii and is uploaded again, lit from then on.
+    fn poll_estimation(&mut self, wait: bool) -> Result<()> {
+        let Some(done) = self
+            .estimation
+            .as_ref()
+            .map(|e| e.poll(wait))
+            .transpose()?
+            .flatten()
+        else {
+            return Ok(());
+        };
+        self.estimation = None;
+        self.cloud.normals = Some(done.normals);
+        self.cloud.radii = Some(done.radii);
+        if let (Some(ctx), Some((_, info))) = (self.ctx.clone(), self.scene.as_ref()) {
+            let coloring = info.coloring;
+            self.scene = Some(upload_for(
+                &ctx,
+                &self.cloud,
+                coloring,
+                &METHODS[self.method],
+            )?);
+            self.rebuild()?;
+        }
+        if let Some(e) = done.cache_error {
+            self.outcome(Err(anyhow::anyhow!(e)))?;
+        }
+        self.outcome(Ok(format!(
+            "normals and radii ready after {:.2} s: lit shading",
+            done.seconds
+        )))
     }
 
     /// For a method with a `show` parameter (the pyramid's), shows the next coarser (`step` 1)
@@ -569,6 +618,13 @@ impl Viewer {
 
     /// Rebuilds the HUD's panels and the window title from the newest figures.
     fn refresh_hud(&mut self) {
+        if let Some(e) = &self.estimation {
+            self.status = format!(
+                "estimating normals and radii (k = {}): {} %",
+                e.k,
+                e.percent()
+            );
+        }
         let Some(gpu) = self.gpu.as_mut() else {
             return;
         };
@@ -687,6 +743,7 @@ impl Viewer {
             self.quit = true;
             return Ok(());
         }
+        self.poll_estimation(false)?;
         let Some(gpu) = self.gpu.as_ref() else {
             return Ok(());
         };

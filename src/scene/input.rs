@@ -42,9 +42,10 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
 }
 
 /// Completes a cloud loaded from `path`: a mesh's vertex normals from its faces; then, when
-/// `options.estimate` and `options.k` > 0, the normals (PCA over k-NN) and radii (k-NN) it
-/// lacks, from `FILE.surfel-cache` when `options.cache` and the cache is valid, else computed
-/// (and written to the cache when `options.cache`). Returns whether it estimated or read them.
+/// `options.k` > 0, the normals (PCA over k-NN) and radii (k-NN) it lacks: from
+/// `FILE.surfel-cache` when `options.cache` and the cache is valid (whether or not
+/// `options.estimate`: reading it is cheap), else computed when `options.estimate` (and
+/// written to the cache when `options.cache`). Returns whether it estimated or read them.
 pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result<bool> {
     if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
         cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
@@ -53,7 +54,7 @@ pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result
         k: options.k,
         ..Default::default()
     };
-    if !options.estimate || options.k == 0 || (cloud.normals.is_some() && cloud.radii.is_some()) {
+    if options.k == 0 || (cloud.normals.is_some() && cloud.radii.is_some()) {
         return Ok(false);
     }
     if options.cache {
@@ -64,6 +65,9 @@ pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result
             cloud.radii.get_or_insert(radii);
             return Ok(true);
         }
+    }
+    if !options.estimate {
+        return Ok(false);
     }
     preprocess::preprocess(cloud, &preprocess_options);
     if options.cache {

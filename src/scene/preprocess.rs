@@ -485,6 +485,16 @@ fn floor_radii(positions: &[Vec3], radii: &mut [f32]) {
 /// same results as [`estimate_normals`] and [`estimate_radii`] over [`Neighbours::compute`],
 /// without storing the neighbours.
 pub fn preprocess(cloud: &mut Cloud, options: &PreprocessOptions) {
+    preprocess_with(cloud, options, &|_| {});
+}
+
+/// [`preprocess`], calling `progress` with the number of points each step finished (from the
+/// worker threads), for a caller that shows its own progress (the viewer's HUD).
+pub fn preprocess_with(
+    cloud: &mut Cloud,
+    options: &PreprocessOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) {
     let (want_normals, want_radii) = (cloud.normals.is_none(), cloud.radii.is_none());
     if !want_normals && !want_radii {
         return;
@@ -510,7 +520,10 @@ pub fn preprocess(cloud: &mut Cloud, options: &PreprocessOptions) {
             }
             out[0].1 = radius_of(near.last().map(|e| e.0), near.len(), options.radius);
         },
-        &|done| bar.advance(done),
+        &|done| {
+            bar.advance(done);
+            progress(done);
+        },
     );
     bar.finish();
     // Non-finite points keep +Z and get the radius floor, as without neighbours.
