@@ -723,9 +723,27 @@ fn read_chunks(
         return Ok(None);
     }
     let mut records = vec![0u8; bytes as usize];
-    if laz::par_decompress(&data[at + 8..], &mut records, &vlr, &table).is_err() {
-        return Ok(None);
+    let progress = Progress::new(
+        "loading",
+        records.len(),
+        records.len() >= records::PROGRESS_MIN_BYTES,
+    );
+    // Groups of chunks, each decompressed in parallel, between progress updates.
+    let group = 4 * rayon::current_num_threads().max(1);
+    let (mut input, mut output) = (&data[at + 8..], records.as_mut_slice());
+    for entries in table.chunks(group) {
+        let compressed: u64 = entries.iter().map(|e| e.byte_count).sum();
+        let points: u64 = entries.iter().map(|e| e.point_count).sum();
+        let (chunk_in, rest_in) = input.split_at(compressed as usize);
+        let (chunk_out, rest_out) = output.split_at_mut(points as usize * stride);
+        if laz::par_decompress(chunk_in, chunk_out, &vlr, entries).is_err() {
+            progress.finish();
+            return Ok(None);
+        }
+        progress.advance(chunk_out.len());
+        (input, output) = (rest_in, rest_out);
     }
+    progress.finish();
     let layout = Layout::at(file, header, 0)?;
     let mut columns = layout.columns();
     columns.decode_block(&layout, 0, &records);

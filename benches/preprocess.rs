@@ -1,0 +1,80 @@
+//! Normals and radii throughput: the grid estimation (`scene::preprocess`) against the k-d tree
+//! reference it replaced (one tree query per point, then the Jacobi eigen solve per point), on
+//! the dragon sampled to 1 M and 10 M points without normals, with 1 thread and with all
+//! threads. Prints a Markdown table of points per second (the median of `RUNS` runs; the tree
+//! at 10 M once).
+//!
+//! `cargo bench --bench preprocess`; `SURFEL_DATA` overrides the data folder.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use surfel::scene::preprocess::{self, Neighbours, PreprocessOptions, RadiusMode};
+use surfel::scene::{self, sample, Cloud};
+
+const RUNS: usize = 3;
+
+fn data(rel: &str) -> PathBuf {
+    let root = std::env::var_os("SURFEL_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    root.join(rel)
+}
+
+/// Median seconds of `runs` calls of `f`.
+fn seconds(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut times: Vec<f64> = (0..runs)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+fn main() {
+    let dragon = scene::load(&data("stanford/dragon_vrip.ply")).expect("dragon");
+    let all = rayon::current_num_threads();
+    println!("| points | threads | grid (points/s) | k-d tree reference (points/s) | speed-up |");
+    println!("|---:|---:|---:|---:|---:|");
+    for n in [1_000_000, 10_000_000] {
+        let cloud = Cloud {
+            normals: None,
+            radii: None,
+            ..sample::sample_mesh(&dragon, n, 1).expect("sampling")
+        };
+        for threads in [1, all] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("thread pool");
+            let options = PreprocessOptions {
+                progress: false,
+                ..Default::default()
+            };
+            let grid = pool.install(|| {
+                seconds(RUNS, || {
+                    let mut c = cloud.clone();
+                    preprocess::preprocess(&mut c, &options);
+                })
+            });
+            let tree_runs = if n > 1_000_000 { 1 } else { RUNS };
+            let tree = pool.install(|| {
+                seconds(tree_runs, || {
+                    let p = &cloud.positions;
+                    let nb = Neighbours::compute_with_tree(p, preprocess::DEFAULT_K);
+                    preprocess::estimate_normals(p, &nb, None, false);
+                    preprocess::estimate_radii(p, &nb, RadiusMode::DensitySpacing);
+                })
+            });
+            println!(
+                "| {n} | {threads} | {:.2} M | {:.2} M | {:.1}× |",
+                n as f64 / grid / 1e6,
+                n as f64 / tree / 1e6,
+                tree / grid
+            );
+        }
+    }
+}
