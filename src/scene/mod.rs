@@ -18,7 +18,7 @@ pub mod pack;
 pub mod pcd;
 pub mod ply;
 pub mod preprocess;
-mod progress;
+pub(crate) mod progress;
 mod records;
 pub mod sample;
 pub mod scene_file;

@@ -11,6 +11,7 @@ use super::{Stream, StreamLayout};
 use crate::gpu::layout::{GpuBatch, GpuSegment};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
+use crate::scene::progress::Progress;
 use crate::scene::Cloud;
 
 /// Upload settings.
@@ -250,6 +251,12 @@ pub fn upload(
     let mut uploader = Uploader::new(ctx, chunk_points * per_point + 8)?;
     let mut segments = Vec::new();
     let mut table = Vec::new();
+    let points = usize::try_from(layout.len()).unwrap_or(usize::MAX);
+    let progress = Progress::new(
+        "uploading",
+        points,
+        points >= crate::scene::preprocess::PROGRESS_MIN_POINTS * 10,
+    );
     for (s, range) in layout.segments().into_iter().enumerate() {
         let points = range.end - range.start;
         let buffers = layout
@@ -279,6 +286,7 @@ pub fn upload(
                 },
                 &copies,
             )?;
+            progress.advance((end - start) as usize);
             start = end;
         }
         let address = |stream: Stream| {
@@ -310,6 +318,7 @@ pub fn upload(
         segments.push(buffers);
     }
     uploader.finish()?;
+    progress.finish();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     Ok(GpuStreams {
         segments,
