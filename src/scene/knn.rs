@@ -1,10 +1,12 @@
 //! Exact k nearest neighbours on a uniform grid: the finite points are sorted by cell (one
 //! parallel sort of 64-bit cell keys, z-major so the three cells of a row are adjacent), and the
 //! neighbours of a point are searched in the 3×3×3 block of cells around its own, nine
-//! contiguous runs of the sorted array that every point of the cell shares. A result is exact
-//! when the k-th distance is no larger than the distance from the point to the block's
-//! boundary; otherwise the 5×5×5 block is searched, and a point still unresolved there (an
-//! outlier far from the rest) asks a k-d tree built over the sorted points on first use.
+//! contiguous runs of the sorted array that every point of the cell shares (copied out once per
+//! cell). Only candidates within the distance from the point to the block's boundary are
+//! kept, so the result is exact when k of them remain; otherwise the 5×5×5 block is searched
+//! the same way, and a point still unresolved there (an outlier far from the rest) asks a k-d
+//! tree built over the sorted points on first use. Ties are broken by sorted index, so the
+//! result does not depend on the threads.
 //!
 //! The cell is sized from a strided sample of the cloud: the median k-th neighbour distance in
 //! the sample, scaled to the full cloud's density as for a surface (distances shrink with the
@@ -53,12 +55,13 @@ pub struct Grid {
     tree: OnceLock<Tree>,
 }
 
-/// Per-thread state of a search: the runs of the last cell's 3×3×3 block and the best
+/// Per-thread state of a search: the points of the last cell's 3×3×3 block and the best
 /// neighbours found, `(squared distance, sorted index)`, nearest first.
 #[derive(Default)]
 pub struct Search {
-    /// The grid ([`Grid::id`]) and cell `runs` belong to.
+    /// The grid ([`Grid::id`]) and cell whose block `near` holds.
     cell: Option<(u64, [u32; 3])>,
+    /// The runs of the block being gathered.
     runs: Vec<(u32, u32)>,
     /// Per row of the 3×3×3 block, the first occupied cell at or after the row's start when
     /// `runs` was last built: rows only move forward while cells are visited in order.
