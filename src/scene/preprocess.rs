@@ -672,6 +672,51 @@ mod tests {
     }
 
     #[test]
+    fn the_closed_form_eigenpair_matches_jacobi() {
+        let mut rng = crate::rng::SplitMix64::new(11);
+        let mut solved = 0;
+        for case in 0..2000 {
+            // Covariances of flat, elongated and round neighbourhoods at scales 1e-4 .. 1e4.
+            let scale = 10f64.powi(case % 9 - 4);
+            let spread = [
+                1.0,
+                0.3 + rng.next_f64(),
+                [1e-6, 1e-3, 0.1, 0.9][case as usize % 4],
+            ];
+            let rotation = glam::DQuat::from_euler(
+                glam::EulerRot::XYZ,
+                rng.next_f64() * 6.3,
+                rng.next_f64() * 6.3,
+                rng.next_f64() * 6.3,
+            );
+            let axes = glam::DMat3::from_quat(rotation);
+            let mut c = [[0.0; 3]; 3];
+            for (k, s) in spread.iter().enumerate() {
+                let v = axes.col(k);
+                for r in 0..3 {
+                    for t in 0..3 {
+                        c[r][t] += s * scale * v[r] * v[t];
+                    }
+                }
+            }
+            let (values, vectors) = symmetric_eigen3(c);
+            let Some((fast, normal)) = smallest_eigenpair(&c) else {
+                continue;
+            };
+            solved += 1;
+            for (a, b) in fast.iter().zip(values) {
+                assert!(
+                    (a - b).abs() <= 1e-9 * values[2],
+                    "{case}: {fast:?} vs {values:?}"
+                );
+            }
+            assert!(normal.dot(vectors[0]).abs() > 1.0 - 1e-9, "{case}");
+        }
+        // Only near-equal smallest eigenvalues are left to Jacobi.
+        assert!(solved > 1900, "{solved}");
+    }
+
+    #[test]
     fn eigen_known_matrices() {
         let (values, vectors) =
             symmetric_eigen3([[2.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 1.0]]);
