@@ -455,10 +455,10 @@ fn switching_to_ewa_and_phong_uploads_their_normal_fields() {
 
 #[test]
 fn a_raw_cloud_is_drawn_at_once_and_lit_when_its_normals_are_estimated() {
-    // A LAS file without normals, started on the compute rasterizer: the viewer draws the raw
-    // points and estimates normals and radii in the background. `m` twice reaches the first
-    // splat method, which reads them, so the viewer waits for them there; `n` twice returns to
-    // compute, now lit: the plain base color turns into shades.
+    // A LAS file without normals, started on the compute rasterizer: the viewer estimates
+    // normals and radii in the background (a script waits for them before its first step),
+    // then uploads the cloud again, lit: the plain base color turns into shades. `m` twice
+    // reaches the first splat method, which reads them; `n` twice returns to compute.
     let dir = tmp_dir("estimate");
     std::fs::write(
         dir.join("t.txt"),

@@ -1,6 +1,7 @@
 //! Normals and radii estimated on a worker thread while the viewer draws the raw points: the
 //! viewer polls it every frame, shows its progress in the HUD and, once it is done, uploads
-//! the completed cloud, which turns on lit shading.
+//! the completed cloud, which turns on lit shading. A scripted tour waits for it before its
+//! first step, so that its screenshots do not depend on the worker's speed.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};

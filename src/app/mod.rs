@@ -739,11 +739,13 @@ impl Viewer {
         if self.quit || self.gpu.is_none() {
             return Ok(());
         }
+        // A scripted tour waits for the estimate before its first step: its screenshots do not
+        // depend on how fast the worker is.
+        self.poll_estimation(self.script.is_some())?;
         if !self.run_script()? {
             self.quit = true;
             return Ok(());
         }
-        self.poll_estimation(false)?;
         let Some(gpu) = self.gpu.as_ref() else {
             return Ok(());
         };
