@@ -485,29 +485,19 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
     })
 }
 
-/// Seconds [`load_scene`] spent reading files and estimating normals and radii.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct LoadTimes {
-    pub read_s: f64,
-    pub estimate_s: f64,
-}
-
 /// Loads `file` and merges the scene's extra inputs into it (`scene::compose`), each completed
-/// by `scene::complete` before the merge.
+/// by `scene::complete` before the merge; also the seconds spent estimating normals and radii.
 pub fn load_scene(
     file: &Path,
     settings: &ViewSettings,
     options: &LoadOptions,
-) -> Result<(Cloud, LoadTimes)> {
-    let mut times = LoadTimes::default();
+) -> Result<(Cloud, f64)> {
+    let mut estimate_s = 0.0;
     let mut load = |path: &Path| -> Result<Cloud> {
-        let start = std::time::Instant::now();
         let mut cloud = crate::scene::load_with_budget(path, options.budget)?;
-        let read = std::time::Instant::now();
-        let estimated = crate::scene::complete(&mut cloud, path, options)?;
-        times.read_s += (read - start).as_secs_f64();
-        if estimated {
-            times.estimate_s += read.elapsed().as_secs_f64();
+        let start = std::time::Instant::now();
+        if crate::scene::complete(&mut cloud, path, options)? {
+            estimate_s += start.elapsed().as_secs_f64();
         }
         Ok(cloud)
     };
@@ -522,7 +512,7 @@ pub fn load_scene(
         );
         compose::append(&mut cloud, other).with_context(|| name.clone())?;
     }
-    Ok((cloud, times))
+    Ok((cloud, estimate_s))
 }
 
 /// Whether normals and radii the file lacks are estimated: for a method that reads them, and
@@ -604,7 +594,7 @@ fn render(a: RenderArgs) -> Result<()> {
         lap = now;
         s
     };
-    let (cloud, times) = load_scene(
+    let (cloud, estimate_s) = load_scene(
         &file,
         &settings,
         &a.input.options(estimates(config.method, &settings)),
@@ -674,14 +664,14 @@ fn render(a: RenderArgs) -> Result<()> {
     let first_frame_s = since();
     let startup = Startup {
         load_s,
-        estimate_s: times.estimate_s,
+        estimate_s,
         device_s,
         upload_s,
         first_frame_s,
         first_pixel_s: (lap - start).as_secs_f64(),
     };
-    let estimated = if times.estimate_s > 0.0 {
-        format!(" of which normals and radii {:.2} s", times.estimate_s)
+    let estimated = if estimate_s > 0.0 {
+        format!(" of which normals and radii {estimate_s:.2} s")
     } else {
         String::new()
     };

@@ -64,7 +64,7 @@ pub struct Search {
     /// The runs of the block being gathered.
     runs: Vec<(u32, u32)>,
     /// Per row of the 3×3×3 block, the first occupied cell at or after the row's start when
-    /// `runs` was last built: rows only move forward while cells are visited in order.
+    /// `near` was last gathered ([`Grid::block`]).
     cursors: [usize; 9],
     best: Vec<(f32, u32)>,
     keys: Vec<u64>,
@@ -211,70 +211,50 @@ impl Grid {
         self.cell
     }
 
-    /// The sorted point runs of the `(2 r + 1)³` block of cells around `c`.
-    fn block(&self, c: [u32; 3], r: u32, runs: &mut Vec<(u32, u32)>) {
+    /// The sorted point runs of the `(2 r + 1)³` block of cells around `c`. `cursors` holds
+    /// one entry per row of the block (`(2 r + 1)²`): where the search for the row's first
+    /// cell starts, updated to what it found. Cells visited in ascending order move every row
+    /// forward, so the search gallops a few steps from the last position (zeros: from the
+    /// start).
+    fn block(&self, c: [u32; 3], r: u32, cursors: &mut [usize], runs: &mut Vec<(u32, u32)>) {
         runs.clear();
         let span = |a: u32, d: u32| a.saturating_sub(r)..=(a + r).min(d - 1);
         let xs = span(c[0], self.dims[0]);
-        for z in span(c[2], self.dims[2]) {
-            for y in span(c[1], self.dims[1]) {
-                let lo = key([*xs.start(), y, z]);
-                let hi = key([*xs.end(), y, z]);
-                let a = self.keys.partition_point(|&k| k < lo);
-                let b = a + self.keys[a..].partition_point(|&k| k <= hi);
-                if a < b {
-                    runs.push((self.starts[a], self.starts[b]));
-                }
+        let side = (2 * r + 1) as usize;
+        for (row, cursor) in cursors.iter_mut().enumerate().take(side * side) {
+            let (dz, dy) = ((row / side) as u32, (row % side) as u32);
+            let (Some(z), Some(y)) = ((c[2] + dz).checked_sub(r), (c[1] + dy).checked_sub(r))
+            else {
+                continue;
+            };
+            if z >= self.dims[2] || y >= self.dims[1] {
+                continue;
+            }
+            let lo = key([*xs.start(), y, z]);
+            let hi = key([*xs.end(), y, z]);
+            let a = self.first_at_least(lo, *cursor);
+            *cursor = a;
+            let b = a + self.keys[a..].iter().take_while(|&&k| k <= hi).count();
+            if a < b {
+                runs.push((self.starts[a], self.starts[b]));
             }
         }
     }
 
-    /// [`Grid::block`] for radius 1, each row's first cell found by galloping forward from
-    /// the row's cursor (cells visited in ascending order keep every row's start ascending).
-    fn block1(
-        &self,
-        c: [u32; 3],
-        cursors: &mut [usize; 9],
-        fresh: bool,
-        runs: &mut Vec<(u32, u32)>,
-    ) {
-        runs.clear();
-        let x0 = c[0].saturating_sub(1);
-        let x1 = (c[0] + 1).min(self.dims[0] - 1);
-        let mut row = 0;
-        for dz in 0..3u32 {
-            for dy in 0..3u32 {
-                let cursor = &mut cursors[row];
-                row += 1;
-                let (Some(z), Some(y)) = ((c[2] + dz).checked_sub(1), (c[1] + dy).checked_sub(1))
-                else {
-                    continue;
-                };
-                if z >= self.dims[2] || y >= self.dims[1] {
-                    continue;
-                }
-                let lo = key([x0, y, z]);
-                let hi = key([x1, y, z]);
-                let mut a = if fresh { 0 } else { *cursor };
-                if a > 0 && self.keys[a - 1] >= lo {
-                    a = 0;
-                }
-                let mut step = 1;
-                while a + step < self.keys.len() && self.keys[a + step - 1] < lo {
-                    a += step;
-                    step *= 2;
-                }
-                a += self.keys[a..(a + step).min(self.keys.len())].partition_point(|&k| k < lo);
-                *cursor = a;
-                let mut b = a;
-                while b < self.keys.len() && self.keys[b] <= hi {
-                    b += 1;
-                }
-                if a < b {
-                    runs.push((self.starts[a], self.starts[b]));
-                }
-            }
+    /// The first occupied cell whose key is at least `lo`, galloping forward from `from` (from
+    /// the start when `from` is already past it).
+    fn first_at_least(&self, lo: u64, from: usize) -> usize {
+        let keys = &self.keys;
+        let mut a = from.min(keys.len());
+        if a > 0 && keys[a - 1] >= lo {
+            a = 0;
         }
+        let mut step = 1;
+        while a + step < keys.len() && keys[a + step - 1] < lo {
+            a += step;
+            step *= 2;
+        }
+        a + keys[a..(a + step).min(keys.len())].partition_point(|&k| k < lo)
     }
 
     /// Whether the block of radius `r` around `c` holds every cell.
@@ -374,8 +354,7 @@ impl Grid {
         let p = self.points[s as usize];
         let at = Some((self.id, c));
         if search.cell != at {
-            let fresh = search.cell.is_none_or(|(id, _)| id != self.id);
-            self.block1(c, &mut search.cursors, fresh, &mut search.runs);
+            self.block(c, 1, &mut search.cursors, &mut search.runs);
             search.near.gather(self, &search.runs);
             search.cell = at;
         }
@@ -396,7 +375,8 @@ impl Grid {
             return;
         }
         let mut far = std::mem::take(&mut search.far);
-        self.block(c, 2, &mut search.runs);
+        let mut cursors = [0; 25];
+        self.block(c, 2, &mut cursors, &mut search.runs);
         far.gather(self, &search.runs);
         self.scan(s, k, &mut far, limit(2), search);
         search.far = far;
