@@ -1,14 +1,19 @@
 //! Normals and radii throughput: the grid estimation (`scene::preprocess`) against the k-d tree
 //! reference it replaced (one tree query per point, then the Jacobi eigen solve per point), on
 //! the dragon sampled to 1 M and 10 M points without normals, with 1 thread and with all
-//! threads. Prints a Markdown table of points per second (the median of `RUNS` runs; the tree
-//! at 10 M once).
+//! threads; then the GPU estimate (`estimate`) on the first Vulkan device (`SURFEL_DEVICE`
+//! chooses), whole (pipelines, grid frame, upload, passes, read-back and the CPU's finish) and
+//! its submission alone. Prints Markdown tables of points per second (the median of `RUNS`
+//! runs; the tree at 10 M once).
 //!
 //! `cargo bench --bench preprocess`; `SURFEL_DATA` overrides the data folder.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use std::sync::Arc;
+
+use surfel::gpu::{Context, ContextOptions};
 use surfel::scene::preprocess::{self, Neighbours, PreprocessOptions, RadiusMode};
 use surfel::scene::{self, sample, Cloud};
 
@@ -76,5 +81,50 @@ fn main() {
                 tree / grid
             );
         }
+    }
+    gpu(&dragon);
+}
+
+/// The GPU table: median whole and submission throughput over `RUNS` runs.
+fn gpu(dragon: &Cloud) {
+    let ctx = match Context::new(&ContextOptions::from_env()) {
+        Ok(ctx) => Arc::new(ctx),
+        Err(e) => {
+            println!("\nno GPU estimate: {e:#}");
+            return;
+        }
+    };
+    println!(
+        "\n{} ({}):\n\n| points | GPU estimate, whole (points/s) | its submission (points/s) | unresolved |",
+        ctx.caps.device_name, ctx.caps.driver
+    );
+    println!("|---:|---:|---:|---:|");
+    let options = PreprocessOptions {
+        progress: false,
+        ..Default::default()
+    };
+    for n in [1_000_000, 10_000_000] {
+        let cloud = Cloud {
+            normals: None,
+            radii: None,
+            ..sample::sample_mesh(dragon, n, 1).expect("sampling")
+        };
+        let mut runs: Vec<(f64, f64, usize)> = (0..RUNS)
+            .map(|_| {
+                let mut c = cloud.clone();
+                let start = Instant::now();
+                let t = surfel::estimate::estimate(&ctx, &mut c, &options)
+                    .expect("GPU estimate")
+                    .expect("estimated");
+                (start.elapsed().as_secs_f64(), t.gpu_s, t.unresolved)
+            })
+            .collect();
+        runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (whole, submission, unresolved) = runs[runs.len() / 2];
+        println!(
+            "| {n} | {:.2} M | {:.2} M | {unresolved} |",
+            n as f64 / whole / 1e6,
+            n as f64 / submission / 1e6
+        );
     }
 }

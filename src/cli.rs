@@ -8,6 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
 use crate::color::{self, Coloring};
+use crate::estimate::EstimateOn;
 use crate::gpu::{Context, ContextOptions, ScopeStats};
 use crate::methods::{MethodConfig, METHODS};
 use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
@@ -16,7 +17,7 @@ use crate::scene::camera::{parse_vec3, Pose, Up};
 use crate::scene::compose::{self, SceneInput};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
-use crate::scene::{load_prepared, Cloud, Light, LoadOptions};
+use crate::scene::{load_prepared, Cloud, Estimator, Light, LoadOptions};
 
 /// surfel: a Vulkan point-cloud renderer.
 #[derive(Parser, Debug)]
@@ -197,6 +198,10 @@ pub struct RenderArgs {
     /// Enable the Vulkan validation layers.
     #[arg(long)]
     pub validation: bool,
+    /// Where normals and radii are estimated when the method reads them: `auto` on the GPU
+    /// unless the device is a CPU implementation (lavapipe).
+    #[arg(long, value_enum, default_value_t = EstimateOn::Auto)]
+    pub estimate_on: EstimateOn,
     #[command(flatten)]
     pub input: InputArgs,
     #[command(flatten)]
@@ -486,17 +491,19 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
 }
 
 /// Loads `file` and merges the scene's extra inputs into it (`scene::compose`), each completed
-/// by `scene::complete` before the merge; also the seconds spent estimating normals and radii.
+/// by `scene::complete_with` and `estimate` before the merge; also the seconds spent
+/// estimating normals and radii.
 pub fn load_scene(
     file: &Path,
     settings: &ViewSettings,
     options: &LoadOptions,
+    estimate: Estimator,
 ) -> Result<(Cloud, f64)> {
     let mut estimate_s = 0.0;
     let mut load = |path: &Path| -> Result<Cloud> {
         let mut cloud = crate::scene::load_with_budget(path, options.budget)?;
         let start = std::time::Instant::now();
-        if crate::scene::complete(&mut cloud, path, options)? {
+        if crate::scene::complete_with(&mut cloud, path, options, estimate)? {
             estimate_s += start.elapsed().as_secs_f64();
         }
         Ok(cloud)
@@ -513,6 +520,12 @@ pub fn load_scene(
         compose::append(&mut cloud, other).with_context(|| name.clone())?;
     }
     Ok((cloud, estimate_s))
+}
+
+/// The CPU's estimate of normals and radii, for [`load_scene`].
+fn on_cpu(cloud: &mut Cloud, options: &preprocess::PreprocessOptions) -> Result<()> {
+    preprocess::preprocess(cloud, options);
+    Ok(())
 }
 
 /// Whether normals and radii the file lacks are estimated: for a method that reads them, and
@@ -565,6 +578,8 @@ struct Startup {
     /// Of `load_s`, estimating normals and radii (0 when the method needs none or the file
     /// has them).
     estimate_s: f64,
+    /// Where they were estimated: "gpu" or "cpu".
+    estimate_on: &'static str,
     /// Vulkan instance and device.
     device_s: f64,
     /// Morton ordering, stream encoding and upload.
@@ -594,10 +609,19 @@ fn render(a: RenderArgs) -> Result<()> {
         lap = now;
         s
     };
+    // The device first: normals and radii may be estimated on it.
+    let ctx = context(a.validation)?;
+    let device_s = since();
+    let on_gpu = a.estimate_on.uses_gpu(&ctx);
+    let gpu_estimate = |cloud: &mut Cloud, options: &preprocess::PreprocessOptions| {
+        crate::estimate::estimate(&ctx, cloud, options).map(drop)
+    };
+    let estimator: Estimator = if on_gpu { &gpu_estimate } else { &on_cpu };
     let (cloud, estimate_s) = load_scene(
         &file,
         &settings,
         &a.input.options(estimates(config.method, &settings)),
+        estimator,
     )?;
     check_surfels(config.method, &cloud, &file)?;
     // The camera frames the whole cloud, also when only its visible points are rendered.
@@ -633,8 +657,6 @@ fn render(a: RenderArgs) -> Result<()> {
     };
     let coloring = settings.coloring(&file, &cloud)?;
     let load_s = since();
-    let ctx = context(a.validation)?;
-    let device_s = since();
     let (scene, info) = upload_for(&ctx, &cloud, coloring, config.method)?;
     let upload_s = since();
     let mut renderer = Renderer::new(
@@ -665,19 +687,21 @@ fn render(a: RenderArgs) -> Result<()> {
     let startup = Startup {
         load_s,
         estimate_s,
+        estimate_on: if on_gpu { "gpu" } else { "cpu" },
         device_s,
         upload_s,
         first_frame_s,
         first_pixel_s: (lap - start).as_secs_f64(),
     };
     let estimated = if estimate_s > 0.0 {
-        format!(" of which normals and radii {estimate_s:.2} s")
+        let on = if on_gpu { "GPU" } else { "CPU" };
+        format!(" of which normals and radii {estimate_s:.2} s on the {on}")
     } else {
         String::new()
     };
     eprintln!(
-        "first pixel after {:.2} s (load {:.2} s{estimated}, device {:.2} s, upload {:.2} s, first frame {:.2} s)",
-        startup.first_pixel_s, load_s, device_s, upload_s, first_frame_s
+        "first pixel after {:.2} s (device {:.2} s, load {:.2} s{estimated}, upload {:.2} s, first frame {:.2} s)",
+        startup.first_pixel_s, device_s, load_s, upload_s, first_frame_s
     );
     if let Some(path) = &a.timings {
         for _ in 0..3 {
@@ -764,6 +788,7 @@ fn view(a: ViewArgs) -> Result<()> {
         &a.file,
         &settings,
         &a.input.options(estimates(config.method, &settings)),
+        &on_cpu,
     )?;
     check_surfels(config.method, &cloud, &a.file)?;
     // What the first method does not read is estimated while the viewer shows the raw points.

@@ -3,6 +3,7 @@
 pub mod app;
 pub mod cli;
 pub mod color;
+pub mod estimate;
 pub mod eval;
 pub mod frame;
 pub mod gpu;

@@ -1028,10 +1028,33 @@ fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
     let img = image::open(out).expect("png").to_rgba8();
     let colors: std::collections::BTreeSet<[u8; 4]> = img.pixels().map(|p| p.0).collect();
     assert_eq!(colors.len(), 2, "background and base color: {colors:?}");
-    // Splats read both: estimated first, and the time is reported.
+    // Splats read both: estimated first, and the time is reported; on lavapipe `auto`
+    // estimates on the CPU.
     let (code, e) = render(&["--method", "perspective-deferred"]);
     assert_eq!(code, Some(0), "{e}");
     assert!(e.contains(" of which normals and radii "), "{e}");
+    assert!(e.contains(" on the CPU"), "{e}");
+    let cpu = image::open(out).expect("png").to_rgba8();
+    // On the GPU, under validation: the same image up to the last bits of a few normals.
+    let (code, e) = render(&[
+        "--method",
+        "perspective-deferred",
+        "--estimate-on",
+        "gpu",
+        "--validation",
+    ]);
+    assert_eq!(code, Some(0), "{e}");
+    assert!(e.contains(" on the GPU"), "{e}");
+    let gpu = image::open(out).expect("png").to_rgba8();
+    let differing = cpu
+        .pixels()
+        .zip(gpu.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0).any(|(x, y)| x.abs_diff(y) > 2))
+        .count();
+    assert!(
+        differing <= 4,
+        "{differing} pixels differ by more than 2 levels"
+    );
     // Coloring by normal estimates them for any method.
     let (code, e) = render(&["--method", "compute", "--color-by", "normal"]);
     assert_eq!(code, Some(0), "{e}");

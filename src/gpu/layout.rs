@@ -123,6 +123,20 @@ pub struct PyramidParams {
     pub falloff: f32,
 }
 
+/// Push constants of the GPU k-NN passes (`KnnParams` in GLSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct KnnParams {
+    pub origin_cell: Vec4,
+    pub dims_count: [u32; 4],
+    pub sensor: Vec4,
+    pub mean: Vec4,
+    pub hash_bits: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+
 /// Push constants of the HPR passes (`HprParams` in GLSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -346,6 +360,16 @@ pub fn mirrors() -> Vec<Mirror> {
             patch_count,
             max_point_size,
             budget
+        }),
+        mirror!(KnnParams {
+            origin_cell,
+            dims_count,
+            sensor,
+            mean,
+            hash_bits,
+            pad0,
+            pad1,
+            pad2
         }),
         mirror!(HprParams {
             sqrt_k_max,

@@ -47,6 +47,22 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
 /// `options.estimate`: reading it is cheap), else computed when `options.estimate` (and
 /// written to the cache when `options.cache`). Returns whether it estimated or read them.
 pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result<bool> {
+    complete_with(cloud, path, options, &|cloud, options| {
+        preprocess::preprocess(cloud, options);
+        Ok(())
+    })
+}
+
+/// How normals and radii are estimated: [`preprocess::preprocess`], or elsewhere (the GPU).
+pub type Estimator<'a> = &'a dyn Fn(&mut Cloud, &PreprocessOptions) -> Result<()>;
+
+/// [`complete`], estimating with `estimate`.
+pub fn complete_with(
+    cloud: &mut Cloud,
+    path: &Path,
+    options: &LoadOptions,
+    estimate: Estimator,
+) -> Result<bool> {
     if let (None, Some(faces)) = (&cloud.normals, &cloud.faces) {
         cloud.normals = Some(pack::vertex_normals(&cloud.positions, faces));
     }
@@ -69,7 +85,7 @@ pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result
     if !options.estimate {
         return Ok(false);
     }
-    preprocess::preprocess(cloud, &preprocess_options);
+    estimate(cloud, &preprocess_options)?;
     if options.cache {
         if let (Some(n), Some(r)) = (&cloud.normals, &cloud.radii) {
             preprocess::save_cache(path, &preprocess_options, n, r).with_context(|| {

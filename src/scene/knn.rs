@@ -36,6 +36,71 @@ const CELL_FACTOR: f32 = 1.5;
 
 type Tree = ImmutableKdTree<f32, u32, 3, 32>;
 
+/// The cells of a grid: cubes of edge `cell` from `origin`, `dims` of them per axis; a point
+/// lies in the cell `floor((p - origin) / cell)` clamped to `[0, dims)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridFrame {
+    pub origin: Vec3,
+    pub cell: f32,
+    pub dims: [u32; 3],
+}
+
+impl GridFrame {
+    /// The frame for `k` neighbours over the points of `positions` listed in `finite` (see
+    /// the module documentation for the cell size).
+    pub fn new(positions: &[Vec3], finite: &[u32], k: usize) -> Self {
+        let (lo, hi) = finite
+            .par_iter()
+            .map(|&i| (positions[i as usize], positions[i as usize]))
+            .reduce(
+                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
+        let extent = if finite.is_empty() {
+            Vec3::ZERO
+        } else {
+            hi - lo
+        };
+        let mut cell = cell_size(positions, finite, extent, k);
+        // Every axis fits its key bits, and the cell is never zero or subnormal.
+        let widest = extent.max_element();
+        cell = cell
+            .max(widest / (AXIS_CELLS - 2) as f32)
+            .max(f32::MIN_POSITIVE * 1e6);
+        if !cell.is_finite() {
+            cell = 1.0;
+        }
+        let origin = if finite.is_empty() { Vec3::ZERO } else { lo };
+        let dims = ((extent / cell).floor().as_uvec3() + 1).min(glam::UVec3::splat(AXIS_CELLS - 1));
+        GridFrame {
+            origin,
+            cell,
+            dims: dims.to_array(),
+        }
+    }
+
+    /// The cell of `p`.
+    pub fn cell_of(&self, p: Vec3) -> [u32; 3] {
+        let c = ((p - self.origin) / self.cell)
+            .floor()
+            .max(Vec3::ZERO)
+            .as_uvec3();
+        [
+            c.x.min(self.dims[0] - 1),
+            c.y.min(self.dims[1] - 1),
+            c.z.min(self.dims[2] - 1),
+        ]
+    }
+}
+
+/// The indices of the finite points of `positions`, ascending.
+pub fn finite_indices(positions: &[Vec3]) -> Vec<u32> {
+    (0..positions.len() as u32)
+        .into_par_iter()
+        .filter(|&i| positions[i as usize].is_finite())
+        .collect()
+}
+
 /// The finite points of a cloud sorted by grid cell.
 pub struct Grid {
     /// Distinct for every grid built in this process.
@@ -115,42 +180,10 @@ fn key([x, y, z]: [u32; 3]) -> u64 {
 impl Grid {
     /// Sorts the finite points of `positions` into cells sized for `k` neighbours.
     pub fn build(positions: &[Vec3], k: usize) -> Self {
-        let finite: Vec<u32> = (0..positions.len() as u32)
-            .into_par_iter()
-            .filter(|&i| positions[i as usize].is_finite())
-            .collect();
-        let (lo, hi) = finite
-            .par_iter()
-            .map(|&i| (positions[i as usize], positions[i as usize]))
-            .reduce(
-                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
-                |a, b| (a.0.min(b.0), a.1.max(b.1)),
-            );
-        let extent = if finite.is_empty() {
-            Vec3::ZERO
-        } else {
-            hi - lo
-        };
-        let mut cell = cell_size(positions, &finite, extent, k);
-        // Every axis fits its key bits, and the cell is never zero or subnormal.
-        let widest = extent.max_element();
-        cell = cell
-            .max(widest / (AXIS_CELLS - 2) as f32)
-            .max(f32::MIN_POSITIVE * 1e6);
-        if !cell.is_finite() {
-            cell = 1.0;
-        }
-        let origin = if finite.is_empty() { Vec3::ZERO } else { lo };
-        let dims = ((extent / cell).floor().as_uvec3() + 1).min(glam::UVec3::splat(AXIS_CELLS - 1));
-        let dims = dims.to_array();
-        let cell_of = |p: Vec3| -> [u32; 3] {
-            let c = ((p - origin) / cell).floor().max(Vec3::ZERO).as_uvec3();
-            [
-                c.x.min(dims[0] - 1),
-                c.y.min(dims[1] - 1),
-                c.z.min(dims[2] - 1),
-            ]
-        };
+        let finite = finite_indices(positions);
+        let frame = GridFrame::new(positions, &finite, k);
+        let GridFrame { origin, cell, dims } = frame;
+        let cell_of = |p: Vec3| frame.cell_of(p);
         let mut order: Vec<(u64, u32)> = finite
             .par_iter()
             .map(|&i| (key(cell_of(positions[i as usize])), i))

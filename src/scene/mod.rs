@@ -30,7 +30,7 @@ use std::path::Path;
 pub use camera::{Camera, Pose, Up};
 pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar};
 pub use error::{LoadError, Location};
-pub use input::{complete, load_prepared, LoadOptions};
+pub use input::{complete, complete_with, load_prepared, Estimator, LoadOptions};
 pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):

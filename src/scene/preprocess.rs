@@ -133,50 +133,26 @@ impl Neighbours {
     pub fn compute_with_tree(positions: &[Vec3], k: usize) -> Self {
         let k = k.max(1);
         let n = positions.len();
-        let finite: Vec<u32> = (0..n as u32)
-            .filter(|&i| positions[i as usize].is_finite())
-            .collect();
-        let coords: Vec<[f32; 3]> = finite
-            .iter()
-            .map(|&i| positions[i as usize].to_array())
-            .collect();
+        let tree = FiniteTree::new(positions);
         let mut indices = vec![0u32; n * k];
         let mut dist2 = vec![0f32; n * k];
         let mut counts = vec![0u32; n];
-        if coords.len() >= 2 {
-            let tree: ImmutableKdTree<f32, u32, 3, 32> = ImmutableKdTree::new_from_slice(&coords);
-            let want = NonZeroUsize::new((k + 1).min(coords.len())).unwrap_or(NonZeroUsize::MIN);
-            indices
-                .par_chunks_mut(CHUNK * k)
-                .zip(dist2.par_chunks_mut(CHUNK * k))
-                .zip(counts.par_chunks_mut(CHUNK))
-                .enumerate()
-                .for_each(|(chunk, ((idx, d2), cnt))| {
-                    for (j, count) in cnt.iter_mut().enumerate() {
-                        let i = chunk * CHUNK + j;
-                        let p = positions[i];
-                        if !p.is_finite() {
-                            continue;
-                        }
-                        let found = tree.nearest_n::<SquaredEuclidean>(&p.to_array(), want);
-                        let mut m = 0;
-                        let mut skipped_self = false;
-                        for nb in &found {
-                            let original = finite[nb.item as usize];
-                            if original as usize == i && !skipped_self {
-                                skipped_self = true;
-                                continue;
-                            }
-                            if m < k {
-                                idx[j * k + m] = original;
-                                d2[j * k + m] = nb.distance;
-                                m += 1;
-                            }
-                        }
-                        *count = m as u32;
+        indices
+            .par_chunks_mut(CHUNK * k)
+            .zip(dist2.par_chunks_mut(CHUNK * k))
+            .zip(counts.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, ((idx, d2), cnt))| {
+                let mut found = Vec::with_capacity(k);
+                for (j, count) in cnt.iter_mut().enumerate() {
+                    tree.nearest(positions, chunk * CHUNK + j, k, &mut found);
+                    for (m, &(i, d)) in found.iter().enumerate() {
+                        idx[j * k + m] = i;
+                        d2[j * k + m] = d;
                     }
-                });
-        }
+                    *count = found.len() as u32;
+                }
+            });
         Neighbours {
             k,
             rows: (0..n as u32).collect(),
@@ -210,6 +186,48 @@ impl Neighbours {
             &self.indices[start..start + m],
             &self.dist2[start..start + m],
         )
+    }
+}
+
+/// A k-d tree over the finite points of a cloud.
+struct FiniteTree {
+    /// Input index of each tree item.
+    finite: Vec<u32>,
+    tree: Option<ImmutableKdTree<f32, u32, 3, 32>>,
+}
+
+impl FiniteTree {
+    fn new(positions: &[Vec3]) -> Self {
+        let finite = super::knn::finite_indices(positions);
+        let coords: Vec<[f32; 3]> = finite
+            .par_iter()
+            .map(|&i| positions[i as usize].to_array())
+            .collect();
+        let tree = (coords.len() >= 2).then(|| ImmutableKdTree::new_from_slice(&coords));
+        FiniteTree { finite, tree }
+    }
+
+    /// The `k` nearest neighbours of point `i` (fewer when the cloud has no more), excluding
+    /// the point itself, as `(input index, squared distance)`, nearest first, into `found`.
+    fn nearest(&self, positions: &[Vec3], i: usize, k: usize, found: &mut Vec<(u32, f32)>) {
+        found.clear();
+        let p = positions[i];
+        let Some(tree) = &self.tree else { return };
+        if !p.is_finite() {
+            return;
+        }
+        let want = NonZeroUsize::new((k + 1).min(self.finite.len())).unwrap_or(NonZeroUsize::MIN);
+        let mut skipped_self = false;
+        for nb in tree.nearest_n::<SquaredEuclidean>(&p.to_array(), want) {
+            let original = self.finite[nb.item as usize];
+            if original as usize == i && !skipped_self {
+                skipped_self = true;
+                continue;
+            }
+            if found.len() < k {
+                found.push((original, nb.distance));
+            }
+        }
     }
 }
 
@@ -372,7 +390,9 @@ fn oriented_normal(pca: Option<Vec3>, p: Vec3, sensor: Option<Vec3>, centre: Vec
     }
 }
 
-fn centroid(positions: &[Vec3]) -> Vec3 {
+/// The mean of the finite points (the origin when there is none): normals without a sensor
+/// point away from it.
+pub fn centroid(positions: &[Vec3]) -> Vec3 {
     let (sum, count) = positions
         .iter()
         .filter(|p| p.is_finite())
@@ -533,6 +553,60 @@ pub fn preprocess_with(
         let i = grid.input_index(s as u32) as usize;
         normals[i] = normal;
         radii[i] = radius;
+    }
+    if want_normals {
+        cloud.normals = Some(normals);
+    }
+    if want_radii {
+        floor_radii(positions, &mut radii);
+        cloud.radii = Some(radii);
+    }
+}
+
+/// Completes `cloud` from an estimate made elsewhere (the GPU path): per point in input order,
+/// `xyz` its oriented unit normal and `w` the squared distance to its k-th nearest neighbour,
+/// or `w < 0` for a point the estimate left unresolved, which is searched here exactly (a k-d
+/// tree over the finite points). Writes what the cloud lacks, as [`preprocess`] does: the same
+/// radii rule and floor, non-finite points +Z and the floor.
+pub fn complete_from(cloud: &mut Cloud, options: &PreprocessOptions, estimate: &[glam::Vec4]) {
+    let (want_normals, want_radii) = (cloud.normals.is_none(), cloud.radii.is_none());
+    if !want_normals && !want_radii {
+        return;
+    }
+    let positions = &cloud.positions;
+    assert_eq!(estimate.len(), positions.len(), "one estimate per point");
+    let k = options.k.max(1);
+    let unresolved: Vec<u32> = (0..positions.len() as u32)
+        .into_par_iter()
+        .filter(|&i| estimate[i as usize].w < 0.0 && positions[i as usize].is_finite())
+        .collect();
+    let mut normals: Vec<Vec3> = estimate.par_iter().map(|e| e.truncate()).collect();
+    let mut radii: Vec<f32> = estimate
+        .par_iter()
+        .map(|e| {
+            let far2 = (e.w >= 0.0).then_some(e.w);
+            radius_of(far2, k, options.radius)
+        })
+        .collect();
+    if !unresolved.is_empty() {
+        let tree = FiniteTree::new(positions);
+        let centre = centroid(positions);
+        let sensor = cloud.sensor.filter(|s| s.is_finite());
+        let exact: Vec<(Vec3, f32)> = unresolved
+            .par_iter()
+            .map_init(Vec::new, |found, &i| {
+                tree.nearest(positions, i as usize, k, found);
+                let p = positions[i as usize];
+                let near = found.iter().map(|&(j, _)| positions[j as usize]);
+                let normal = oriented_normal(pca_normal(p, near), p, sensor, centre);
+                let far2 = found.last().map(|e| e.1);
+                (normal, radius_of(far2, found.len(), options.radius))
+            })
+            .collect();
+        for (&i, (normal, radius)) in unresolved.iter().zip(exact) {
+            normals[i as usize] = normal;
+            radii[i as usize] = radius;
+        }
     }
     if want_normals {
         cloud.normals = Some(normals);

@@ -163,13 +163,14 @@ fn fold(groups: u32) -> (u32, u32) {
 }
 
 /// Declares a compute pass binding `pipeline` with `descriptors` (all storage buffers, whose
-/// accesses `uses` declares) and dispatching `groups` workgroups.
-fn compute_pass(
+/// accesses `uses` declares), pushing `push` and dispatching `groups` workgroups, folded into
+/// 2D past 65,535 (the shader derives its index from `gl_NumWorkGroups.x`).
+pub(crate) fn compute_pass(
     g: &mut GraphBuilder,
     name: &str,
     pipeline: &Arc<Pipeline>,
     uses: &[(u32, BufferId, Access)],
-    push: Push,
+    push: &[u8],
     groups: u32,
 ) {
     let mut pass = g.pass(name);
@@ -181,7 +182,7 @@ fn compute_pass(
         .map(|&(binding, id, _)| Descriptor::Buffer(binding, id))
         .collect();
     let pipeline = pipeline.clone();
-    let push = push.bytes();
+    let push = push.to_vec();
     let (x, y) = fold(groups);
     pass.record(move |ctx| {
         ctx.bind(&pipeline, &descriptors);
@@ -245,7 +246,7 @@ pub fn add_sort(
                 (BINDING_SORT_KEYS, src.0, read),
                 (BINDING_SORT_HIST, hist, write),
             ],
-            push,
+            &push.bytes(),
             tiles,
         );
         compute_pass(
@@ -256,7 +257,7 @@ pub fn add_sort(
                 (BINDING_SORT_HIST, hist, read),
                 (BINDING_SORT_SUMS, sums, write),
             ],
-            push,
+            &push.bytes(),
             blocks,
         );
         compute_pass(
@@ -264,7 +265,7 @@ pub fn add_sort(
             &format!("sort.scan.{digit}"),
             &p.scan,
             &[(BINDING_SORT_SUMS, sums, read_write)],
-            push,
+            &push.bytes(),
             1,
         );
         compute_pass(
@@ -275,7 +276,7 @@ pub fn add_sort(
                 (BINDING_SORT_HIST, hist, read_write),
                 (BINDING_SORT_SUMS, sums, read),
             ],
-            push,
+            &push.bytes(),
             blocks,
         );
         compute_pass(
@@ -289,7 +290,7 @@ pub fn add_sort(
                 (BINDING_SORT_VALUES_OUT, dst.1, write),
                 (BINDING_SORT_HIST, hist, read),
             ],
-            push,
+            &push.bytes(),
             tiles,
         );
         std::mem::swap(&mut src, &mut dst);
@@ -334,7 +335,7 @@ pub fn add_segmented_max(
                 Access::StorageReadWrite(Stages::Compute),
             ),
         ],
-        push,
+        &push.bytes(),
         count.div_ceil(SEGMAX_GROUP),
     );
 }
