@@ -16,14 +16,14 @@
 
 pub mod approx;
 pub mod hulls;
+pub mod prefilter;
 pub mod truth;
 pub mod view;
-
-use std::collections::HashMap;
 
 use anyhow::{bail, Result};
 use glam::{DVec3, Vec3};
 use qhull::Qh;
+use rayon::prelude::*;
 
 use crate::scene::Cloud;
 
@@ -119,8 +119,16 @@ pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f
     Ok(r)
 }
 
-/// Exact HPR of `points` seen from `viewpoint`.
+/// Exact HPR of `points` seen from `viewpoint`: the hull of the flipped points that
+/// [`prefilter::hull_candidates`] keeps (the same hull as of all of them, see there).
 pub fn exact(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibility> {
+    let flip = Flip::new(points, viewpoint, radius)?;
+    Ok(flip.hull_of(&prefilter::hull_candidates(&flip.points)))
+}
+
+/// [`exact`] with every flipped point given to the hull: the reference its prefilter is tested
+/// against.
+pub fn exact_reference(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Visibility> {
     let flip = Flip::new(points, viewpoint, radius)?;
     let all: Vec<usize> = (0..flip.points.len()).collect();
     Ok(flip.hull_of(&all))
@@ -147,32 +155,47 @@ impl Flip {
     pub(crate) fn new(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<Self> {
         let eye = viewpoint.as_dvec3();
         let r = flip_radius(points, viewpoint, radius)?;
-        let mut first_of: HashMap<[u64; 3], u32> = HashMap::new();
-        let mut flip = Flip {
-            radius: r,
-            points: Vec::new(),
-            original: Vec::new(),
-            representative: vec![0; points.len()],
-            flippable: vec![false; points.len()],
-            at_viewpoint: 0,
-        };
-        for (i, p) in points.iter().enumerate() {
-            let p = p.as_dvec3() - eye;
-            let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());
-            let rep = *first_of.entry(key).or_insert(i as u32);
-            flip.representative[i] = rep;
-            let n = p.length();
-            if n == 0.0 {
-                flip.at_viewpoint += 1;
-                continue;
+        let n = points.len();
+        // Exact duplicates (relative to the eye, -0 as +0): sorted by position, each takes the
+        // first index of its run as its representative.
+        let mut order: Vec<([u64; 3], u32)> = (0..n as u32)
+            .into_par_iter()
+            .map(|i| {
+                let p = points[i as usize].as_dvec3() - eye;
+                ([p.x, p.y, p.z].map(|c| (c + 0.0).to_bits()), i)
+            })
+            .collect();
+        order.par_sort_unstable();
+        let mut representative = vec![0u32; n];
+        let mut run = 0;
+        for (k, &(key, i)) in order.iter().enumerate() {
+            if k == 0 || order[k - 1].0 != key {
+                run = i;
             }
-            flip.flippable[i] = true;
-            if rep == i as u32 {
-                flip.points.push(p + 2.0 * (r - n) * p / n);
-                flip.original.push(i as u32);
-            }
+            representative[i as usize] = run;
         }
-        Ok(flip)
+        drop(order);
+        let flippable: Vec<bool> = points.par_iter().map(|p| p.as_dvec3() != eye).collect();
+        let original: Vec<u32> = (0..n as u32)
+            .into_par_iter()
+            .filter(|&i| flippable[i as usize] && representative[i as usize] == i)
+            .collect();
+        let flipped = original
+            .par_iter()
+            .map(|&i| {
+                let p = points[i as usize].as_dvec3() - eye;
+                let d = p.length();
+                p + 2.0 * (r - d) * p / d
+            })
+            .collect();
+        Ok(Flip {
+            radius: r,
+            points: flipped,
+            original,
+            representative,
+            at_viewpoint: flippable.iter().filter(|&&f| !f).count(),
+            flippable,
+        })
     }
 
     /// The visibility given by the convex hull of the flipped points `subset` (indices into
@@ -284,7 +307,7 @@ pub fn visible_cloud(cloud: &Cloud, v: &Visibility) -> Cloud {
 /// its vertices and its triangles (`Qt`/`QJ` give simplicial facets).
 fn hull(coords: &[f64], option: &str) -> Result<(Vec<usize>, Vec<[usize; 3]>)> {
     let qh = Qh::builder()
-        .qhull_args([option])?
+        .qhull_args(option.split(' '))?
         .build_managed(3, coords.to_vec())
         .map_err(|e| anyhow::anyhow!("qhull: {e}"))?;
     let vertices = qh.vertices().filter_map(|v| v.index(&qh)).collect();
