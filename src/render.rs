@@ -165,6 +165,7 @@ pub fn upload_with(
             point_count,
             index_count,
             hpr_density: (crate::hpr::DENSITY_KAPPA / crate::hpr::spacing(cloud)) as f32,
+            diagonal: crate::hpr::diagonal(&cloud.positions) as f32,
             lod,
         },
         SceneInfo {

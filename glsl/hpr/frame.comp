@@ -36,9 +36,7 @@ void main() {
         s = clamp(uint(ceil(2.0 * half_phi / pixel)), 1u, p.sqrt_k_max);
     }
     float far = d + r;
-    float radius = p.radius > 0.0 ? p.radius
-        : p.density > 0.0 ? p.density * d * d
-        : p.radius_factor * 2.0 * r;
+    float radius = p.radius > 0.0 ? p.radius : p.density * d * d;
     h.axis_x = vec4(x, 0.0);
     h.axis_y = vec4(y, 0.0);
     h.axis_z = vec4(z, 0.0);

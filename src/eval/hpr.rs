@@ -159,8 +159,7 @@ fn approximate(
 
 /// The radius factor (of the bounding sphere's diameter, as `hpr` takes it) equal to `r`.
 fn factor_of(cloud: &Cloud, r: f64) -> f64 {
-    let (_, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
-    r / (2.0 * f64::from(radius))
+    r / crate::hpr::diagonal(&cloud.positions)
 }
 
 /// Runs the study; returns the rows and writes nothing.

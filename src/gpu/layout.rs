@@ -145,9 +145,9 @@ pub struct HprParams {
     pub sqrt_k: u32,
     pub point_count: u32,
     pub max_rounds: u32,
-    pub radius_factor: f32,
     pub radius: f32,
     pub density: f32,
+    pub pad0: f32,
     pub max_edge: f32,
 }
 
@@ -376,9 +376,9 @@ pub fn mirrors() -> Vec<Mirror> {
             sqrt_k,
             point_count,
             max_rounds,
-            radius_factor,
             radius,
             density,
+            pad0,
             max_edge
         }),
         mirror!(HprFrame {

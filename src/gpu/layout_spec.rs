@@ -453,12 +453,12 @@ pub const STRUCTS: &[StructSpec] = &[
             f("uint", "point_count"),
             // Adaptive propagation: the most rounds recorded.
             f("uint", "max_rounds"),
-            // R = radius_factor x the bounding sphere's diameter, unless `radius` > 0 (scene
-            // units) or `density` > 0 (R = density x |C - C_e|^2: R from the sampling density
-            // and noise, src/hpr/mod.rs); raised to 1.01 x the farthest point's distance.
-            f("float", "radius_factor"),
+            // R = `radius` (scene units) when > 0, else density x |C - C_e|^2 (R from the
+            // sampling density and noise, src/hpr/mod.rs); raised to 1.01 x the farthest
+            // point's distance.
             f("float", "radius"),
             f("float", "density"),
+            f("float", "pad0"),
             // Partial reconstruction: the longest projected edge kept, in pixels.
             f("float", "max_edge"),
         ],

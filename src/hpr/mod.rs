@@ -84,6 +84,23 @@ pub struct Visibility {
     pub joggled: bool,
 }
 
+/// The cloud's diameter [`Radius::Factor`] multiplies: its bounding box's diagonal (Open3D's
+/// `diameter` in its HPR example), 0 for no points.
+pub fn diagonal(points: &[Vec3]) -> f64 {
+    let (lo, hi) = points
+        .par_iter()
+        .map(|p| (p.as_dvec3(), p.as_dvec3()))
+        .reduce(
+            || (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |a, b| (a.0.min(b.0), a.1.max(b.1)),
+        );
+    if points.is_empty() {
+        0.0
+    } else {
+        (hi - lo).length()
+    }
+}
+
 /// The flipping radius for `points` seen from `viewpoint`; an error unless it exceeds every
 /// point's distance from the viewpoint.
 pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f64> {
@@ -96,13 +113,7 @@ pub fn flip_radius(points: &[Vec3], viewpoint: Vec3, radius: Radius) -> Result<f
         .map(|p| (p.as_dvec3() - eye).length())
         .fold(0.0, f64::max);
     let r = match radius {
-        Radius::Factor(f) => {
-            let (lo, hi) = points.iter().fold(
-                (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-                |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())),
-            );
-            f * (hi - lo).length()
-        }
+        Radius::Factor(f) => f * diagonal(points),
         Radius::Absolute(r) => r,
         Radius::Density { spacing } => {
             let centre = points.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / points.len() as f64;

@@ -276,6 +276,8 @@ pub struct GpuScene {
     /// R / D² of hidden point removal's flipping radius from the sampling density
     /// (`hpr::Radius::Density`: κ / the sample spacing).
     pub hpr_density: f32,
+    /// The bounding box's diagonal: hidden point removal's `radius` factor multiplies it.
+    pub diagonal: f32,
     /// The object texture of level of detail (000 ch. 7), when uploaded
     /// (`UploadOptions::lod`).
     pub lod: Option<Arc<crate::lod::gpu::GpuLod>>,

@@ -608,7 +608,7 @@ const RADIUS: ParamSpec = ParamSpec {
     default: 0.0,
     min: 0.0,
     max: 1e9,
-    doc: "R as a factor of the bounding sphere's diameter; 0: from the sampling density",
+    doc: "R as a factor of the bounding box's diagonal (as `surfel hpr --radius-factor` and Open3D's diameter); 0: from the sampling density",
 };
 const SORT: ParamSpec = ParamSpec {
     name: "sort",
@@ -681,7 +681,7 @@ fn settings(b: &BuildContext<'_>) -> Settings {
         params: HprParams {
             sqrt_k: cfg.get("sectors").round() as u32,
             max_rounds: cfg.get("rounds").round() as u32,
-            radius_factor: factor,
+            radius: factor * b.scene.diagonal,
             density: if factor > 0.0 {
                 0.0
             } else {
