@@ -310,10 +310,11 @@ pub struct HprArgs {
     /// The point the view looks at (default: the bounding sphere's centre).
     #[arg(long)]
     pub target: Option<String>,
-    /// The approximation's reconstruction drops triangles with an edge longer than this many
-    /// pixels of the `--size` view (003 §4.4).
-    #[arg(long, default_value_t = 10.0)]
-    pub max_edge: f32,
+    /// Drop triangles with an edge longer than this many pixels of the `--size` view: the
+    /// approximation's reconstruction (003 §4.4; default 10) and, when given, exact HPR's hull
+    /// triangles (003 §2.2; default: all of them).
+    #[arg(long)]
+    pub max_edge: Option<f32>,
     /// The view from the eye towards the target that sectors, edge lengths, true visibility
     /// and `--out *.png` are measured in (the thesis' 900 x 900).
     #[arg(long, default_value = "900x900")]
@@ -637,10 +638,7 @@ fn render(a: RenderArgs) -> Result<()> {
                 width,
                 height,
             };
-            let options = SectorOptions {
-                max_edge: f32::INFINITY,
-                ..Default::default()
-            };
+            let options = SectorOptions::default();
             let found = visible_points(&cloud, &view, mode, radius, options)?;
             let v = found.visibility;
             let note = found.note;
@@ -984,8 +982,12 @@ struct SectorOptions {
     rounds: Option<u32>,
     gpu: bool,
     sort: bool,
-    max_edge: f32,
+    /// The reconstruction's longest projected edge in pixels (`None`: no limit).
+    max_edge: Option<f32>,
 }
+
+/// The approximation's reconstruction drops edges longer than this many pixels by default.
+const DEFAULT_MAX_EDGE: f32 = 10.0;
 
 /// The largest √k the approximation allocates when k comes from the view.
 const MAX_SQRT_K: u32 = 4096;
@@ -1000,9 +1002,17 @@ fn visible_points(
 ) -> Result<Found> {
     use crate::hpr::approx::{self, Params, Propagation};
     let eye = view.camera.eye;
+    let pixel = |i: u32| view.pixel(cloud.positions[i as usize]);
+    let max_edge = options.max_edge.unwrap_or(f32::INFINITY);
     if mode == Visibility::HprExact {
+        let mut visibility = crate::hpr::exact(&cloud.positions, eye, radius)?;
+        if options.max_edge.is_some() {
+            visibility
+                .triangles
+                .retain(|&t| approx::short_in_view(t, &pixel, max_edge));
+        }
         return Ok(Found {
-            visibility: crate::hpr::exact(&cloud.positions, eye, radius)?,
+            visibility,
             note: "method            exact HPR".into(),
             sectors: None,
         });
@@ -1035,8 +1045,7 @@ fn visible_points(
         "the bounding sphere's cone"
     };
     let capped = if found.capped { " (the cap)" } else { "" };
-    let pixel = |i: u32| view.pixel(cloud.positions[i as usize]);
-    let triangles = approx::triangulate(&found.max, sqrt_k, pixel, options.max_edge);
+    let triangles = approx::triangulate(&found.max, sqrt_k, pixel, max_edge);
     Ok(Found {
         visibility: crate::hpr::Visibility {
             visible: found.visible,
@@ -1069,7 +1078,7 @@ fn gpu_visible_points(
     let order = crate::streams::morton_order(&cloud.positions);
     let mut settings =
         crate::methods::hpr::Settings::grid(sqrt_k, radius, propagation, options.sort);
-    settings.params.max_edge = options.max_edge;
+    settings.params.max_edge = options.max_edge.unwrap_or(f32::INFINITY);
     let found = crate::methods::hpr::evaluate(
         &ctx,
         &scene,
@@ -1176,7 +1185,7 @@ fn hpr(a: HprArgs) -> Result<()> {
                 rounds: a.rounds,
                 gpu: a.gpu,
                 sort: a.sort,
-                max_edge: a.max_edge,
+                max_edge: a.max_edge.or((!a.exact).then_some(DEFAULT_MAX_EDGE)),
             };
             visible_points(&cloud, &view, mode, radius, options)
         }

@@ -822,7 +822,47 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
     assert!((5_000..15_000).contains(&visible), "{visible}");
     let cloud = surfel::scene::load(&out).expect("written PLY");
     assert_eq!(cloud.len(), visible);
-    assert!(cloud.faces.as_ref().is_some_and(|f| !f.is_empty()));
+    let all = cloud.faces.as_ref().map_or(0, Vec::len);
+    assert!(all > 0);
+    // The projected-edge filter (003 §2.2) on the hull's triangles: fewer, none longer than
+    // 10 pixels of the 900 × 900 view from the eye towards the centre.
+    let o = surfel(&[
+        "hpr",
+        bunny.to_str().expect("utf8"),
+        "--eye",
+        "0.3,0.15,0.3",
+        "--exact",
+        "--radius-factor",
+        "100",
+        "--max-edge",
+        "10",
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let short = surfel::scene::load(&out).expect("written PLY");
+    assert_eq!(short.len(), visible);
+    let faces = short.faces.as_ref().expect("triangles");
+    assert!(
+        (all / 10..all).contains(&faces.len()),
+        "{} of {all}",
+        faces.len()
+    );
+    let whole = surfel::scene::load(&bunny).expect("bunny");
+    let view =
+        surfel::hpr::view::HprView::new(&whole, glam::Vec3::new(0.3, 0.15, 0.3), None, (900, 900));
+    let longest = faces
+        .iter()
+        .flat_map(|t| {
+            let p = t.map(|v| view.pixel(short.positions[v as usize]).expect("projects"));
+            [
+                p[0].distance(p[1]),
+                p[1].distance(p[2]),
+                p[2].distance(p[0]),
+            ]
+        })
+        .fold(0f32, f32::max);
+    assert!(longest <= 10.001, "{longest} px");
     std::fs::remove_file(&out).unwrap();
     // The sector approximation (003 ch. 4) finds a subset; from inside the bounding sphere it
     // uses the full-sphere partition; a radius inside the cloud is an error.

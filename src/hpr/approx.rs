@@ -343,6 +343,19 @@ pub fn approximate(points: &[DVec3], eye: DVec3, params: Params) -> Result<Appro
     approximate_in(points, eye, sphere, params)
 }
 
+/// Whether every vertex of `t` projects (`pixel`) and every edge spans at most `max_edge`
+/// pixels: the reconstruction's filter (003 §4.4), also applied to exact HPR's hull (§2.2).
+pub fn short_in_view(
+    t: [u32; 3],
+    pixel: &impl Fn(u32) -> Option<glam::Vec2>,
+    max_edge: f32,
+) -> bool {
+    let Some(p) = t.iter().map(|&v| pixel(v)).collect::<Option<Vec<_>>>() else {
+        return false;
+    };
+    (0..3).all(|e| p[e].distance(p[(e + 1) % 3]) <= max_edge)
+}
+
 /// Partial surface reconstruction (003 §4.4): for each 2 × 2 block of sectors with extremes
 /// a = MAX[i, j], b = MAX[i + 1, j], c = MAX[i, j + 1], d = MAX[i + 1, j + 1], the triangles
 /// (a, b, d) and (a, d, c); a triangle is dropped when a corner has no extreme, a vertex
@@ -360,10 +373,7 @@ pub fn triangulate(
         if t.contains(&u32::MAX) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
             return false;
         }
-        let Some(p) = t.iter().map(|&v| pixel(v)).collect::<Option<Vec<_>>>() else {
-            return false;
-        };
-        (0..3).all(|e| p[e].distance(p[(e + 1) % 3]) <= max_edge)
+        short_in_view(t, &pixel, max_edge)
     };
     for i in 0..s.saturating_sub(1) {
         for j in 0..s - 1 {
