@@ -288,6 +288,12 @@ pub struct HprArgs {
     /// grid cells (bfp) or sphere sectors (kavan, hybrid).
     #[arg(long, value_enum, conflicts_with_all = ["exact", "m"])]
     pub hull: Option<HullKind>,
+    /// The complete approximate visible set (`hpr::complete`, beyond 003): every point not
+    /// certified inside a tetrahedron of the eye and three sector extremes on six grids, the
+    /// finest `--sectors` (rounded up to a multiple of 32 per angle; default about four sectors
+    /// per point).
+    #[arg(long, conflicts_with_all = ["exact", "hull", "m", "gpu"])]
+    pub complete: bool,
     /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k);
     /// by default one sector per pixel of the bounding sphere's projection in the `--size`
     /// view (`--hull`: 65,536).
@@ -1172,6 +1178,22 @@ fn hpr(a: HprArgs) -> Result<()> {
     };
     let found = match a.hull {
         Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors.unwrap_or(65_536)),
+        None if a.complete => {
+            let side = a.sectors.map_or_else(
+                || crate::hpr::complete_side(cloud.len()),
+                |k| crate::hpr::complete_grid((k as f64).sqrt().round() as u32),
+            );
+            crate::hpr::complete(&cloud.positions, eye, radius, Some(side)).map(|visibility| {
+                Found {
+                    note: format!(
+                        "method            complete visible set, {side} sectors per angle, {} grids",
+                        crate::hpr::prefilter::LEVELS
+                    ),
+                    visibility,
+                    sectors: Some(side),
+                }
+            })
+        }
         None => {
             let sqrt_k = a.sectors.map(|k| {
                 (k as f64)

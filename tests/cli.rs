@@ -884,6 +884,21 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!((1_000..visible).contains(&count(&o)), "{}", count(&o));
+    // The complete visible set holds every exactly visible point.
+    let o = surfel(&[
+        "hpr",
+        bunny.to_str().expect("utf8"),
+        "--eye",
+        "0.25,0.3,0.35",
+        "--complete",
+        "--compare",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {:?}", o.stdout));
+    assert_eq!(v["exact"]["recall"].as_f64(), Some(1.0), "{v}");
+    assert!(v["exact"]["f1"].as_f64().is_some_and(|f| f >= 0.95), "{v}");
     let o = surfel(&["hpr", bunny.to_str().expect("utf8"), "--eye", "0,0.1,0"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("full sphere"));

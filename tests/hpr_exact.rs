@@ -4,7 +4,8 @@
 //! inside), every point of a plane (whose spherical flip is strictly convex, so all of it is
 //! on the hull), and the hull of every flipped point (`exact_reference`), whose result the
 //! prefilter must not change, on scans, shells seen from inside and outside, and both radius
-//! rules.
+//! rules; and the complete approximate visible set (`hpr::complete`), which must hold every
+//! point exact HPR finds.
 
 use std::path::PathBuf;
 
@@ -181,4 +182,53 @@ fn the_prefilter_leaves_out_most_hidden_points() {
         kept.len(),
         visible.len()
     );
+}
+
+#[test]
+fn the_complete_set_holds_every_exactly_visible_point() {
+    // Open3D's sets: nothing it finds is missing.
+    let dragon = scene::load(&here("tests/data/dragon-8k.ply")).expect("cloud");
+    for case in open3d_cases() {
+        let v = hpr::complete(
+            &dragon.positions,
+            case.eye,
+            Radius::Absolute(case.radius),
+            None,
+        )
+        .expect("complete");
+        let (_, recall, _) = hpr::agreement(&v.visible, &case.visible);
+        assert_eq!(recall, 1.0, "{}", case.name);
+    }
+    // Scans at the default R: recall 1 and F1 at least `f1` against exact HPR.
+    for (rel, eye, f1) in [
+        ("stanford/bun_zipper.ply", Vec3::new(0.25, 0.3, 0.35), 0.95),
+        ("lidar/autzen_trim.laz", Vec3::new(0.0, 0.0, 600.0), 0.95),
+        (
+            "stanford/armadillo_50k.obj",
+            Vec3::new(200.0, 150.0, 300.0),
+            0.9,
+        ),
+    ] {
+        let cloud = scene::load(&data(rel)).unwrap_or_else(|e| panic!("{e}"));
+        let radius = Radius::Density {
+            spacing: hpr::spacing(&cloud),
+        };
+        let exact = hpr::exact(&cloud.positions, eye, radius).expect("exact");
+        let complete = hpr::complete(&cloud.positions, eye, radius, None).expect("complete");
+        let (p, r, f) = hpr::agreement(&complete.visible, &exact.visible);
+        assert_eq!(r, 1.0, "{rel}: recall");
+        assert!(f >= f1, "{rel}: precision {p}, F1 {f}");
+    }
+    // A plane: all of it.
+    let plane: Vec<Vec3> = (0..100)
+        .flat_map(|j| (0..100).map(move |i| Vec3::new(i as f32 * 0.01, j as f32 * 0.01, 0.0)))
+        .collect();
+    let v = hpr::complete(
+        &plane,
+        Vec3::new(0.4, 0.6, 1.0),
+        Radius::Factor(100.0),
+        None,
+    )
+    .expect("complete");
+    assert_eq!(v.visible.len(), plane.len());
 }

@@ -1,12 +1,15 @@
 //! The points exact HPR can leave out of the convex hull without changing it: a flipped point
 //! strictly inside the tetrahedron spanned by the viewpoint (the origin) and three other
 //! flipped points is inside the hull of all of them, so it is no hull vertex and no facet
-//! touches it. The three points come from a grid of angular sectors (`approx::Sectors`, about
-//! [`POINTS_PER_SECTOR`] points each): each sector's farthest flipped point (the original
-//! nearest the eye, on the front surface), and for a point the triangles of the 2 × 2 blocks
-//! of sectors around its own (both diagonals of each, sixteen triangles). Points behind the
-//! front surface, the hidden majority, fall inside one of them; the hull then partitions only
-//! the rest, which is where Qhull spends its time.
+//! touches it. The three points come from grids of angular sectors (`approx::Sectors`, the
+//! finest about [`POINTS_PER_SECTOR`] points per sector, then [`LEVELS`] − 1 grids each half
+//! as fine): each sector's farthest flipped point (the original nearest the eye, on the front
+//! surface; a coarse sector's is the farthest of its children's), and for a point the 2 × 2
+//! blocks of sectors around its own on every grid, each split along the diagonal that makes
+//! its outer surface (two triangles). Points behind the front surface, the hidden majority,
+//! fall inside one of them; the hull then partitions only the rest, which is where Qhull
+//! spends its time. The same test, with a finer grid, is the complete approximate visible
+//! set (`hpr::complete`).
 //!
 //! A point is left out only when the orientation tests that put it inside the tetrahedron
 //! clear their rounding error bounds by [`TOLERANCE`] (see [`strictly_inside`]): the decision
@@ -77,54 +80,94 @@ impl Level {
     }
 }
 
+/// For every flipped point (viewpoint at the origin) in sector `cells[t]` of a `side` × `side`
+/// grid (`side` a multiple of 2^(`levels` − 1)), whether it lies strictly inside a tetrahedron
+/// of the origin and the extremes of three corners of a 2 × 2 block of sectors around its own,
+/// on that grid or one of the `levels` − 1 grids each half as fine (coarsest first). A
+/// sector's extreme is its farthest flipped point (the original nearest the eye; ties: the
+/// lower index), a coarse sector's the farthest of its four children's.
+pub fn certified_hidden(
+    points: &[DVec3],
+    cells: &[(u32, u32)],
+    side: u32,
+    levels: u32,
+) -> Vec<bool> {
+    let side = side as usize;
+    let farther = |a: u32, b: u32| -> u32 {
+        match (a, b) {
+            (u32::MAX, _) => b,
+            (_, u32::MAX) => a,
+            _ => {
+                let (ra, rb) = (
+                    points[a as usize].length_squared(),
+                    points[b as usize].length_squared(),
+                );
+                if rb > ra || (rb == ra && b < a) {
+                    b
+                } else {
+                    a
+                }
+            }
+        }
+    };
+    let mut finest = vec![u32::MAX; side * side];
+    for (t, &(i, j)) in cells.iter().enumerate() {
+        let cell = i as usize * side + j as usize;
+        finest[cell] = farther(finest[cell], t as u32);
+    }
+    let mut grids = vec![Level {
+        side,
+        extremes: finest,
+    }];
+    for _ in 1..levels {
+        let fine = grids.last().expect("a level");
+        let s = fine.side / 2;
+        let extremes = (0..s * s)
+            .map(|c| {
+                let (i, j) = (c / s, c % s);
+                [(0, 0), (0, 1), (1, 0), (1, 1)]
+                    .iter()
+                    .map(|(di, dj)| fine.extremes[(2 * i + di) * fine.side + 2 * j + dj])
+                    .fold(u32::MAX, farther)
+            })
+            .collect();
+        grids.push(Level { side: s, extremes });
+    }
+    (0..points.len())
+        .into_par_iter()
+        .map(|t| {
+            let (i, j) = cells[t];
+            let q = points[t];
+            grids.iter().enumerate().rev().any(|(l, level)| {
+                let (i, j) = (i >> l, j >> l);
+                level.covers(points, q, i64::from(i), i64::from(j))
+            })
+        })
+        .collect()
+}
+
+/// The finest grid's side for `n` points at about `per_point` sectors per point (over the
+/// square of angles; the object covers part of it): a multiple of 2^(`levels` − 1), at most
+/// 2^(17 − levels) × 2^(levels − 1) = 65,536 per angle.
+pub fn finest_side(n: usize, per_point: f64, levels: u32) -> u32 {
+    let coarsest = (n as f64 * per_point).sqrt() as u32 >> (levels - 1);
+    coarsest.clamp(2, 1 << (17 - levels)) << (levels - 1)
+}
+
 /// Indices of the flipped `points` (viewpoint at the origin) the hull needs: all but those
-/// strictly inside a tetrahedron of the origin and three others.
+/// [`certified_hidden`] puts strictly inside a tetrahedron of the origin and three others.
 pub fn hull_candidates(points: &[DVec3]) -> Vec<usize> {
     let n = points.len();
     let Some((centre, r)) = bounding_sphere(points).filter(|_| n >= 64) else {
         return (0..n).collect();
     };
-    // The finest grid's side is a multiple of 2^(LEVELS - 1), so a sector's index on a
-    // coarser grid is its index on the finest shifted right.
-    let coarsest = ((n / POINTS_PER_SECTOR) as f64).sqrt() as u32 >> (LEVELS - 1);
-    let sqrt_k = coarsest.max(2) << (LEVELS - 1);
-    let finest = Sectors::new(centre, r, DVec3::ZERO, sqrt_k);
-    let cells: Vec<(u32, u32)> = points.par_iter().map(|&p| finest.sector(p)).collect();
-    let levels: Vec<Level> = (0..LEVELS)
-        .map(|l| {
-            let side = (sqrt_k >> l) as usize;
-            let sectors = Sectors::new(centre, r, DVec3::ZERO, side as u32);
-            // The extreme of a sector: the point furthest along its direction (ties: the
-            // lower index), as the approximation's MAX.
-            let directions: Vec<DVec3> = (0..side * side)
-                .map(|c| sectors.direction((c / side) as u32, (c % side) as u32))
-                .collect();
-            let mut extremes = vec![u32::MAX; side * side];
-            let mut best = vec![f64::NEG_INFINITY; side * side];
-            for (t, (&(i, j), p)) in cells.iter().zip(points).enumerate() {
-                let cell = (i >> l) as usize * side + (j >> l) as usize;
-                let along = p.dot(directions[cell]);
-                if along > best[cell] {
-                    best[cell] = along;
-                    extremes[cell] = t as u32;
-                }
-            }
-            Level { side, extremes }
-        })
-        .collect();
-    (0..n)
-        .into_par_iter()
-        .filter(|&t| {
-            let (i, j) = cells[t];
-            let q = points[t];
-            !levels.iter().enumerate().rev().any(|(l, level)| {
-                let (i, j) = (i >> l, j >> l);
-                level.extremes[i as usize * level.side + j as usize] != t as u32
-                    && level.covers(points, q, i64::from(i), i64::from(j))
-            })
-        })
-        .collect()
+    let side = finest_side(n, 1.0 / POINTS_PER_SECTOR as f64, LEVELS);
+    let sectors = Sectors::new(centre, r, DVec3::ZERO, side);
+    let cells: Vec<(u32, u32)> = points.par_iter().map(|&p| sectors.sector(p)).collect();
+    let hidden = certified_hidden(points, &cells, side, LEVELS);
+    (0..n).filter(|&t| !hidden[t]).collect()
 }
+
 /// Whether `q` lies strictly inside the tetrahedron (origin, `a`, `b`, `c`), decided only
 /// where rounding cannot change the answer: each of the four orientation determinants (`q`
 /// against a face) must have the sign of the tetrahedron's own by more than [`TOLERANCE`]
