@@ -292,7 +292,7 @@ pub struct HprArgs {
     /// certified inside a tetrahedron of the eye and three sector extremes on six grids, the
     /// finest `--sectors` (rounded up to a multiple of 32 per angle; default about four sectors
     /// per point).
-    #[arg(long, conflicts_with_all = ["exact", "hull", "m", "gpu"])]
+    #[arg(long, conflicts_with_all = ["exact", "hull", "m"])]
     pub complete: bool,
     /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k);
     /// by default one sector per pixel of the bounding sphere's projection in the `--size`
@@ -990,6 +990,9 @@ struct SectorOptions {
     sort: bool,
     /// The reconstruction's longest projected edge in pixels (`None`: no limit).
     max_edge: Option<f32>,
+    /// On the GPU, the complete visible set with this many sectors per angle on its finest
+    /// grid in place of the distinct extremes.
+    complete: Option<u32>,
 }
 
 /// The approximation's reconstruction drops edges longer than this many pixels by default.
@@ -1085,6 +1088,7 @@ fn gpu_visible_points(
     let mut settings =
         crate::methods::hpr::Settings::grid(sqrt_k, radius, propagation, options.sort);
     settings.params.max_edge = options.max_edge.unwrap_or(f32::INFINITY);
+    settings.params.complete_side = options.complete.unwrap_or(0);
     let found = crate::methods::hpr::evaluate(
         &ctx,
         &scene,
@@ -1178,7 +1182,7 @@ fn hpr(a: HprArgs) -> Result<()> {
     };
     let found = match a.hull {
         Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors.unwrap_or(65_536)),
-        None if a.complete => {
+        None if a.complete && !a.gpu => {
             let side = a.sectors.map_or_else(
                 || crate::hpr::complete_side(cloud.len()),
                 |k| crate::hpr::complete_grid((k as f64).sqrt().round() as u32),
@@ -1208,6 +1212,12 @@ fn hpr(a: HprArgs) -> Result<()> {
                 gpu: a.gpu,
                 sort: a.sort,
                 max_edge: a.max_edge.or((!a.exact).then_some(DEFAULT_MAX_EDGE)),
+                complete: a.complete.then(|| {
+                    a.sectors.map_or_else(
+                        || crate::hpr::complete_side(cloud.len()),
+                        |k| crate::hpr::complete_grid((k as f64).sqrt().round() as u32),
+                    )
+                }),
             };
             visible_points(&cloud, &view, mode, radius, options)
         }

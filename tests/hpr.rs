@@ -1,5 +1,6 @@
 //! GPU hidden point removal (003 ch. 4, `methods::hpr`) against its CPU reference
-//! (`hpr::approx`), and the `hpr` and `hpr-mesh` methods.
+//! (`hpr::approx`), the complete visible set on the GPU against exact HPR and its CPU
+//! reference (`hpr::complete`), and the `hpr` and `hpr-mesh` methods.
 
 mod common;
 
@@ -264,11 +265,48 @@ fn a_viewpoint_inside_the_cloud_uses_the_full_sphere_partition() {
 }
 
 #[test]
+fn the_gpu_complete_set_holds_every_exactly_visible_point() {
+    let ctx = common::context();
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/stanford/bun_zipper.ply");
+    let bunny = surfel::scene::load(&path).expect("bunny");
+    let eye = Vec3::new(0.25, 0.3, 0.35);
+    let side = surfel::hpr::complete_side(bunny.len());
+    let (scene, _) = surfel::render::upload(&ctx, &bunny).expect("upload");
+    let order = surfel::streams::morton_order(&bunny.positions);
+    let spacing = surfel::hpr::spacing(&bunny);
+    let density = surfel::hpr::Radius::Density { spacing };
+    let radius = surfel::hpr::flip_radius(&bunny.positions, eye, density).expect("R");
+    let mut settings = Settings::grid(128, radius, Propagation::Fixed(3), false);
+    settings.params.complete_side = side;
+    let view = Mat4::look_at_rh(eye, Vec3::new(-0.017, 0.11, 0.0), Vec3::Y);
+    let proj = Mat4::perspective_rh(0.8, 1.0, 0.01, 10.0);
+    let found = gpu_hpr::evaluate(&ctx, &scene, (view, proj), (64, 64), &settings, false)
+        .expect("evaluate");
+    common::assert_clean(&ctx);
+    let mut gpu: Vec<u32> = found.visible.iter().map(|&i| order[i as usize]).collect();
+    gpu.sort_unstable();
+    assert_eq!(found.state.visible as usize, gpu.len());
+    // The flip the GPU used: its eye and R, both f32.
+    let r = surfel::hpr::Radius::Absolute(f64::from(found.state.eye_radius.w));
+    let exact = surfel::hpr::exact(&bunny.positions, eye, r).expect("exact");
+    let cpu = surfel::hpr::complete(&bunny.positions, eye, r, Some(side)).expect("complete");
+    let (_, recall, f1) = surfel::hpr::agreement(&gpu, &exact.visible);
+    let (_, _, cpu_f1) = surfel::hpr::agreement(&cpu.visible, &exact.visible);
+    assert_eq!(recall, 1.0, "no exactly visible point is dropped");
+    assert!(f1 >= 0.9, "F1 {f1}");
+    // The CPU reference decides on its own (f64) sector frame: nearly the same set.
+    assert!((f1 - cpu_f1).abs() < 0.01, "GPU F1 {f1}, CPU {cpu_f1}");
+}
+
+#[test]
 fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
-    // A sphere seen from outside: `hpr` shows about the facing cap's points, `hpr-mesh` its
+    // A sphere seen from outside: `hpr` with the sector extremes alone (003) shows about the
+    // facing cap's points, the complete set (the default) at least those, `hpr-mesh` the
     // reconstruction, which covers the disc much like the points' splats would.
     let sphere = cloud_of(&shell(20_000, 1.0));
-    let points = common::render(&sphere, "hpr", 128);
+    let points = common::render(&sphere, "hpr:complete=0", 128);
+    let complete = common::render(&sphere, "hpr", 128);
     let mesh = common::render(&sphere, "hpr-mesh:max_edge=4", 128);
     let covered = |f: &surfel::eval::Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
     // Measured: the points cover 2,964 pixels, the reconstruction 3,757 (its triangles span
@@ -283,6 +321,12 @@ fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
         (3_300..4_300).contains(&covered(&mesh)),
         "{}",
         covered(&mesh)
+    );
+    assert!(
+        covered(&complete) >= covered(&points),
+        "{} < {}",
+        covered(&complete),
+        covered(&points)
     );
     let pyramid = common::render(&sphere, "hpr-mesh:max_edge=4,pyramid=1", 128);
     assert!(covered(&pyramid) >= covered(&mesh), "{}", covered(&pyramid));

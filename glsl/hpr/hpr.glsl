@@ -80,4 +80,25 @@ uint empty_cell(uint i, uint j) {
     return (i / h.coarse) * h.coarse_side + j / h.coarse;
 }
 
+// The complete visible set's grids (src/hpr/prefilter.rs): level l has complete_side >> l
+// sectors per angle over the sector frame's angles, stored after the finer levels.
+uint complete_offset(uint level) {
+    uint offset = 0u;
+    for (uint l = 0u; l < level; ++l) {
+        uint s = p.complete_side >> l;
+        offset += s * s;
+    }
+    return offset;
+}
+
+// The finest complete grid's sector of `v` (relative to the eye, length `n` > 0).
+uvec2 complete_cell(vec3 v, float n) {
+    vec3 l = vec3(dot(h.axis_x.xyz, v), dot(h.axis_y.xyz, v), dot(h.axis_z.xyz, v));
+    float phi = atan(l.y, l.x);
+    float theta = acos(clamp(l.z / n, -1.0, 1.0));
+    vec2 step = h.grid.zw * float(h.sqrt_k) / float(p.complete_side);
+    float last = float(p.complete_side - 1u);
+    return uvec2(clamp(floor((vec2(phi, theta) - h.grid.xy) / step), vec2(0.0), vec2(last)));
+}
+
 #endif

@@ -54,6 +54,8 @@ pub struct Capabilities {
     pub task_shader: bool,
     /// shaderInt64 and shaderBufferInt64Atomics.
     pub buffer_int64_atomics: bool,
+    /// `shaderFloat64`: double precision in shaders.
+    pub float64: bool,
     /// `multiDrawIndirect`: indirect draws with a draw count above 1.
     pub multi_draw_indirect: bool,
     /// `drawIndirectCount`: `PassContext::draw_indirect_count`.
@@ -104,6 +106,7 @@ impl fmt::Display for Capabilities {
             yes(self.task_shader)
         )?;
         writeln!(f, "int64 atomics     {}", yes(self.buffer_int64_atomics))?;
+        writeln!(f, "float64           {}", yes(self.float64))?;
         writeln!(
             f,
             "subgroups         {} invocations, compute ballot {}",
@@ -319,6 +322,7 @@ impl Context {
             )
             .large_points(core_q.large_points != 0)
             .shader_int64(core_q.shader_int64 != 0)
+            .shader_float64(core_q.shader_float64 != 0)
             .fragment_stores_and_atomics(core_q.fragment_stores_and_atomics != 0)
             .vertex_pipeline_stores_and_atomics(core_q.vertex_pipeline_stores_and_atomics != 0)
             .independent_blend(core_q.independent_blend != 0)
@@ -653,6 +657,7 @@ unsafe fn capabilities(
         mesh_shader: mesh.is_some_and(|m| m.mesh_shader != 0),
         task_shader: mesh.is_some_and(|m| m.task_shader != 0),
         buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0 && core.shader_int64 != 0,
+        float64: core.shader_float64 != 0,
         multi_draw_indirect: core.multi_draw_indirect != 0,
         draw_indirect_count: v12.draw_indirect_count != 0,
         shader_draw_parameters: v11.shader_draw_parameters != 0,

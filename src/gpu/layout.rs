@@ -147,7 +147,7 @@ pub struct HprParams {
     pub max_rounds: u32,
     pub radius: f32,
     pub density: f32,
-    pub pad0: f32,
+    pub complete_side: u32,
     pub max_edge: f32,
 }
 
@@ -378,7 +378,7 @@ pub fn mirrors() -> Vec<Mirror> {
             max_rounds,
             radius,
             density,
-            pad0,
+            complete_side,
             max_edge
         }),
         mirror!(HprFrame {

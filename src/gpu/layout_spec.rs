@@ -176,6 +176,11 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("BINDING_HPR_VALUES", 48),
     ("BINDING_HPR_TRIANGLES", 49),
     ("BINDING_HPR_PARTIALS", 50),
+    // The complete visible set (beyond 003; src/hpr/prefilter.rs is its CPU reference): the
+    // nearest point per sector as a 64-bit (distance bits, index) minimum on HPR_COMPLETE_LEVELS
+    // grids, the finest first, each half as fine as the one before.
+    ("BINDING_HPR_COMPLETE", 51),
+    ("HPR_COMPLETE_LEVELS", 6),
     // Specialization constant ids: the sphere pass's step (HPR_SPHERE_*), the sector pass's
     // output (atomic maximum or sort keys), a propagation pass's gather reach (0: extract
     // only), whether it reads the 64-bit extremes, whether it flags changes (adaptive).
@@ -458,7 +463,9 @@ pub const STRUCTS: &[StructSpec] = &[
             // point's distance.
             f("float", "radius"),
             f("float", "density"),
-            f("float", "pad0"),
+            // The complete visible set (src/hpr/prefilter.rs): sectors per angle of its
+            // finest grid (a multiple of 2^(HPR_COMPLETE_LEVELS - 1)); 0: off.
+            f("uint", "complete_side"),
             // Partial reconstruction: the longest projected edge kept, in pixels.
             f("float", "max_edge"),
         ],

@@ -31,12 +31,12 @@ use gpu_allocator::MemoryLocation;
 use super::compute::{self, storage, ProjectOptions};
 use super::{BuildContext, Feature, GpuScene, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
-    FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_DST, BINDING_HPR_EMPTY,
-    BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX, BINDING_HPR_PARTIALS,
-    BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES, BINDING_HPR_VALUES,
-    BINDING_SEGMENTS, HPR_GROUP, HPR_SECTOR_ATOMIC, HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE,
-    HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH, HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS,
-    HPR_SPHERE_SUM,
+    FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_COMPLETE, BINDING_HPR_DST,
+    BINDING_HPR_EMPTY, BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
+    BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
+    BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_COMPLETE_LEVELS, HPR_GROUP, HPR_SECTOR_ATOMIC,
+    HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE, HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH,
+    HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM,
 };
 use crate::gpu::{Buffer, Context, Pipeline};
 use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, Stages};
@@ -478,6 +478,14 @@ pub fn add(
         }
     };
 
+    if params.complete_side > 0 {
+        add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
+        return Ok(Hpr {
+            state,
+            extremes: result,
+            hidden,
+        });
+    }
     let visible = pipeline(
         ctx,
         "hpr/visible.comp",
@@ -504,6 +512,119 @@ pub fn add(
         extremes: result,
         hidden,
     })
+}
+
+/// The complete visible set's passes (beyond 003; `hpr::prefilter` is their CPU reference):
+/// the nearest point per sector of the finest grid (`hpr.complete.nearest`), the coarser
+/// grids (`hpr.complete.reduce.L`) and the per-point test in double precision
+/// (`hpr.complete.classify`), which clears the hidden bit of every point it cannot certify
+/// hidden and counts it.
+fn add_complete(
+    g: &mut GraphBuilder,
+    ctx: &Arc<Context>,
+    params: &HprParams,
+    (frame, segments, state): (BufferId, BufferId, BufferId),
+    hidden: BufferId,
+) -> Result<()> {
+    if !ctx.caps.float64 {
+        bail!(
+            "{} lacks double precision in shaders (shaderFloat64): the complete visible set \
+             needs it (complete=0 runs the sector approximation alone)",
+            ctx.caps.device_name
+        );
+    }
+    let side = u64::from(params.complete_side);
+    let cells: u64 = (0..HPR_COMPLETE_LEVELS).map(|l| (side >> l).pow(2)).sum();
+    let nearest = g.buffer("hpr.complete", cells * 8, vk::BufferUsageFlags::empty());
+    g.fill_buffer("hpr.complete.clear", nearest, BufferRange::WHOLE, u32::MAX);
+    let c = Stages::Compute;
+    let push = bytemuck::bytes_of(params).to_vec();
+    let points = groups(u64::from(params.point_count));
+    let extremes = pipeline(
+        ctx,
+        "hpr/complete_extremes.comp",
+        &[
+            BINDING_FRAME,
+            BINDING_SEGMENTS,
+            BINDING_HPR_FRAME,
+            BINDING_HPR_COMPLETE,
+        ],
+        &[],
+    )?;
+    {
+        let push = push.clone();
+        g.pass("hpr.complete.nearest")
+            .buffer(frame, Access::StorageRead(c))
+            .buffer(segments, Access::StorageRead(c))
+            .buffer(state, Access::StorageRead(c))
+            .buffer(nearest, Access::StorageReadWrite(c))
+            .record(move |ctx| {
+                ctx.bind(
+                    &extremes,
+                    &[
+                        Descriptor::Buffer(BINDING_FRAME, frame),
+                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                        Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest),
+                    ],
+                );
+                ctx.push(&extremes, &push);
+                ctx.dispatch(points.0, points.1, 1);
+            });
+    }
+    for level in 1..HPR_COMPLETE_LEVELS {
+        let reduce = pipeline(
+            ctx,
+            "hpr/complete_reduce.comp",
+            &[BINDING_HPR_COMPLETE],
+            &[(HPR_SPEC_MODE, level)],
+        )?;
+        let push = push.clone();
+        let (gx, gy) = groups((side >> level).pow(2));
+        g.pass(&format!("hpr.complete.reduce.{level}"))
+            .buffer(nearest, Access::StorageReadWrite(c))
+            .record(move |ctx| {
+                ctx.bind(
+                    &reduce,
+                    &[Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest)],
+                );
+                ctx.push(&reduce, &push);
+                ctx.dispatch(gx, gy, 1);
+            });
+    }
+    let classify = pipeline(
+        ctx,
+        "hpr/complete_classify.comp",
+        &[
+            BINDING_FRAME,
+            BINDING_SEGMENTS,
+            BINDING_HPR_FRAME,
+            BINDING_HPR_COMPLETE,
+            BINDING_HPR_MASK,
+        ],
+        &[],
+    )?;
+    g.pass("hpr.complete.classify")
+        .buffer(frame, Access::StorageRead(c))
+        .buffer(segments, Access::StorageRead(c))
+        .buffer(state, Access::StorageReadWrite(c))
+        .buffer(nearest, Access::StorageRead(c))
+        .buffer(hidden, Access::StorageReadWrite(c))
+        .record(move |ctx| {
+            ctx.bind(
+                &classify,
+                &[
+                    Descriptor::Buffer(BINDING_FRAME, frame),
+                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
+                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
+                    Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest),
+                    Descriptor::Buffer(BINDING_HPR_MASK, hidden),
+                ],
+            );
+            ctx.push(&classify, &push);
+            ctx.dispatch(points.0, points.1, 1);
+        });
+    Ok(())
 }
 
 /// Bytes of `HprFrame` holding the propagation rounds' indirect dispatch.
@@ -618,7 +739,15 @@ const SORT: ParamSpec = ParamSpec {
     doc: "1: radix sort by sector and segmented maximum (the thesis); 0: 64-bit atomicMax",
 };
 
-const PARAMS: &[ParamSpec] = &[SECTORS, MAX_SECTORS, M, ROUNDS, RADIUS, SORT];
+const COMPLETE: ParamSpec = ParamSpec {
+    name: "complete",
+    default: 1.0,
+    min: 0.0,
+    max: 1.0,
+    doc: "1: the complete visible set (every point decided, beyond 003; needs shaderFloat64); 0: the distinct sector extremes (003 4.2)",
+};
+
+const PARAMS: &[ParamSpec] = &[SECTORS, MAX_SECTORS, M, ROUNDS, RADIUS, SORT, COMPLETE];
 
 const MESH_PARAMS: &[ParamSpec] = &[
     SECTORS,
@@ -627,6 +756,7 @@ const MESH_PARAMS: &[ParamSpec] = &[
     ROUNDS,
     RADIUS,
     SORT,
+    COMPLETE,
     ParamSpec {
         name: "max_edge",
         default: 8.0,
@@ -688,6 +818,11 @@ fn settings(b: &BuildContext<'_>) -> Settings {
                 b.scene.hpr_density
             },
             max_edge: cfg.get("max_edge"),
+            complete_side: if cfg.get("complete") >= 0.5 {
+                crate::hpr::complete_side(b.scene.point_count as usize)
+            } else {
+                0
+            },
             ..Default::default()
         },
         propagation: if m == 0 {
