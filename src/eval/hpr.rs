@@ -81,7 +81,7 @@ fn method(sqrt_k: u32, radius_factor: f64, propagation: Propagation, sort: bool)
         Propagation::Fixed(m) => (m, 1),
     };
     format!(
-        "hpr:sectors={sqrt_k},max_sectors={sqrt_k},m={m},rounds={rounds},radius={radius_factor},sort={}",
+        "hpr:sectors={sqrt_k},max_sectors={sqrt_k},m={m},rounds={rounds},radius={radius_factor},sort={},complete=0",
         u32::from(sort)
     )
 }

@@ -818,7 +818,10 @@ fn settings(b: &BuildContext<'_>) -> Settings {
                 b.scene.hpr_density
             },
             max_edge: cfg.get("max_edge"),
-            complete_side: if cfg.get("complete") >= 0.5 {
+            // `hpr-mesh` reads the hidden mask only through the pyramid.
+            complete_side: if cfg.get("complete") >= 0.5
+                && (cfg.method.name != MESH_INFO.name || cfg.get("pyramid") >= 0.5)
+            {
                 crate::hpr::complete_side(b.scene.point_count as usize)
             } else {
                 0
