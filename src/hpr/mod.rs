@@ -169,16 +169,25 @@ pub fn complete(
 /// to 0.957, 0.887 to 0.922, 0.930 to 0.944, 0.926 to 0.953) and by at most 0.026 beyond.
 pub const COMPLETE_SECTORS_PER_POINT: f64 = 4.0;
 
+/// The largest finest grid of [`complete`], per angle: its six grids hold 89 M sectors (716 MB
+/// of 64-bit keys on the GPU, within one storage binding), enough for about 17 M points at
+/// [`COMPLETE_SECTORS_PER_POINT`] (F1 gains little from more).
+pub const COMPLETE_MAX_SIDE: u32 = 8192;
+
 /// The default finest grid of [`complete`] for `n` points.
 pub fn complete_side(n: usize) -> u32 {
-    prefilter::finest_side(n, COMPLETE_SECTORS_PER_POINT, prefilter::LEVELS)
+    complete_grid(prefilter::finest_side(
+        n,
+        COMPLETE_SECTORS_PER_POINT,
+        prefilter::LEVELS,
+    ))
 }
 
-/// `side` sectors per angle rounded up to the next grid [`complete`] can use (a multiple of
-/// 2^(levels − 1), at least that).
+/// `side` sectors per angle as a grid [`complete`] can use: rounded up to a multiple of
+/// 2^(levels − 1), at most [`COMPLETE_MAX_SIDE`].
 pub fn complete_grid(side: u32) -> u32 {
     let unit = 1 << (prefilter::LEVELS - 1);
-    side.max(1).div_ceil(unit) * unit
+    (side.max(1).div_ceil(unit) * unit).min(COMPLETE_MAX_SIDE)
 }
 
 /// [`exact`] with every flipped point given to the hull: the reference its prefilter is tested
@@ -425,6 +434,16 @@ mod tests {
             let v = exact(&points, eye, Radius::Factor(100.0)).unwrap();
             assert_eq!(v.visible.len(), points.len(), "{eye}");
         }
+    }
+
+    #[test]
+    fn complete_grids_are_multiples_of_the_coarsest_and_capped() {
+        assert_eq!(complete_grid(1), 32);
+        assert_eq!(complete_grid(33), 64);
+        assert_eq!(complete_grid(1 << 20), COMPLETE_MAX_SIDE);
+        // About four sectors per point: 2,000 per angle for a million points.
+        assert_eq!(complete_side(1_000_000), 1984);
+        assert_eq!(complete_side(1 << 30), COMPLETE_MAX_SIDE);
     }
 
     #[test]
