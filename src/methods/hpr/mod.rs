@@ -744,7 +744,7 @@ const COMPLETE: ParamSpec = ParamSpec {
     default: 1.0,
     min: 0.0,
     max: 1.0,
-    doc: "1: the complete visible set (every point decided, beyond 003; needs shaderFloat64); 0: the distinct sector extremes (003 4.2)",
+    doc: "1: the complete visible set (every point decided, beyond 003; needs shaderFloat64, without which the default falls back to 0); 0: the distinct sector extremes (003 4.2)",
 };
 
 const PARAMS: &[ParamSpec] = &[SECTORS, MAX_SECTORS, M, ROUNDS, RADIUS, SORT, COMPLETE];
@@ -818,9 +818,11 @@ fn settings(b: &BuildContext<'_>) -> Settings {
                 b.scene.hpr_density
             },
             max_edge: cfg.get("max_edge"),
-            // `hpr-mesh` reads the hidden mask only through the pyramid.
+            // `hpr-mesh` reads the hidden mask only through the pyramid; by default (not asked
+            // for) a device without double precision runs the sector extremes alone.
             complete_side: if cfg.get("complete") >= 0.5
                 && (cfg.method.name != MESH_INFO.name || cfg.get("pyramid") >= 0.5)
+                && (b.ctx.caps.float64 || cfg.params.contains_key("complete"))
             {
                 crate::hpr::complete_side(b.scene.point_count as usize)
             } else {
