@@ -529,12 +529,6 @@ pub fn load_scene(
     Ok((cloud, estimate_s))
 }
 
-/// The CPU's estimate of normals and radii, for [`load_scene`].
-fn on_cpu(cloud: &mut Cloud, options: &preprocess::PreprocessOptions) -> Result<()> {
-    preprocess::preprocess(cloud, options);
-    Ok(())
-}
-
 /// Whether normals and radii the file lacks are estimated: for a method that reads them, and
 /// for coloring by normal.
 fn estimates(method: &crate::methods::MethodInfo, settings: &ViewSettings) -> bool {
@@ -623,7 +617,11 @@ fn render(a: RenderArgs) -> Result<()> {
     let gpu_estimate = |cloud: &mut Cloud, options: &preprocess::PreprocessOptions| {
         crate::estimate::estimate(&ctx, cloud, options).map(drop)
     };
-    let estimator: Estimator = if on_gpu { &gpu_estimate } else { &on_cpu };
+    let estimator: Estimator = if on_gpu {
+        &gpu_estimate
+    } else {
+        &crate::scene::input::estimate_on_cpu
+    };
     let (cloud, estimate_s) = load_scene(
         &file,
         &settings,
@@ -792,7 +790,7 @@ fn view(a: ViewArgs) -> Result<()> {
         &a.file,
         &settings,
         &a.input.options(estimates(config.method, &settings)),
-        &on_cpu,
+        &crate::scene::input::estimate_on_cpu,
     )?;
     check_surfels(config.method, &cloud, &a.file)?;
     // What the first method does not read is estimated while the viewer shows the raw points.

@@ -800,18 +800,25 @@ fn convert_lines_rejects_missing_and_garbage_files() {
 fn hpr_writes_the_visible_points_and_their_hull_triangles() {
     let bunny = data("stanford/bun_zipper.ply");
     let out = tmp("visible.ply");
-    let o = surfel(&[
-        "hpr",
-        bunny.to_str().expect("utf8"),
-        "--eye",
-        "0.3,0.15,0.3",
-        "--exact",
-        "--radius-factor",
-        "100",
-        "--out",
-        out.to_str().expect("utf8"),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    // Exact HPR of the bunny from one side into `out`, with `extra` arguments.
+    let exact = |extra: &[&str]| {
+        let mut args = vec![
+            "hpr",
+            bunny.to_str().expect("utf8"),
+            "--eye",
+            "0.3,0.15,0.3",
+            "--exact",
+            "--radius-factor",
+            "100",
+            "--out",
+            out.to_str().expect("utf8"),
+        ];
+        args.extend_from_slice(extra);
+        let o = surfel(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        o
+    };
+    let o = exact(&[]);
     let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
     let visible: usize = stdout
         .lines()
@@ -826,20 +833,7 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
     assert!(all > 0);
     // The projected-edge filter (003 §2.2) on the hull's triangles: fewer, none longer than
     // 10 pixels of the 900 × 900 view from the eye towards the centre.
-    let o = surfel(&[
-        "hpr",
-        bunny.to_str().expect("utf8"),
-        "--eye",
-        "0.3,0.15,0.3",
-        "--exact",
-        "--radius-factor",
-        "100",
-        "--max-edge",
-        "10",
-        "--out",
-        out.to_str().expect("utf8"),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    exact(&["--max-edge", "10"]);
     let short = surfel::scene::load(&out).expect("written PLY");
     assert_eq!(short.len(), visible);
     let faces = short.faces.as_ref().expect("triangles");

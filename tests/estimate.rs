@@ -50,17 +50,6 @@ fn both(ctx: &std::sync::Arc<surfel::gpu::Context>, cloud: &Cloud) -> (Cloud, Cl
     (cpu, gpu, times.unresolved)
 }
 
-/// Angles in degrees between the two estimates, sorted.
-fn angles(a: &[Vec3], b: &[Vec3]) -> Vec<f32> {
-    let mut d: Vec<f32> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| x.dot(*y).clamp(-1.0, 1.0).acos().to_degrees())
-        .collect();
-    d.sort_by(f32::total_cmp);
-    d
-}
-
 /// The same radii (the k-th distance is exact on both; only its last bits may differ) and
 /// normals within `median`, `p99` degrees at the median and the 99th percentile.
 fn assert_close(name: &str, cpu: &Cloud, gpu: &Cloud, median: f32, p99: f32) {
@@ -76,7 +65,7 @@ fn assert_close(name: &str, cpu: &Cloud, gpu: &Cloud, median: f32, p99: f32) {
         ng.iter().all(|n| (n.length() - 1.0).abs() < 1e-3),
         "{name}: unit normals"
     );
-    let d = angles(nc, ng);
+    let d = common::angles(nc, ng);
     let at = |q: f64| d[((d.len() - 1) as f64 * q) as usize];
     eprintln!(
         "{name}: {} points, angle median {:.4}°, 99% {:.3}°, 99.9% {:.2}°, max {:.1}°",

@@ -12,19 +12,6 @@ use surfel::hpr::approx::{self, Params, Propagation, Sectors};
 use surfel::methods::hpr::{self as gpu_hpr, Evaluation, Settings};
 use surfel::scene::Cloud;
 
-/// Points on a unit sphere (Fibonacci lattice), scaled.
-fn shell(n: usize, scale: f32) -> Vec<Vec3> {
-    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let r = (1.0 - y * y).sqrt();
-            let a = golden * i as f32;
-            Vec3::new(r * a.cos(), y, r * a.sin()) * scale
-        })
-        .collect()
-}
-
 /// Where `p` falls in the sector grid, in fractional sectors along phi and theta.
 fn grid_position(s: &Sectors, eye: DVec3, p: DVec3) -> (f64, f64) {
     let v = p - eye;
@@ -151,8 +138,8 @@ fn assert_same(
 /// A sphere seen from outside with a smaller shell inside it (hidden points propagation must
 /// remove).
 fn two_shells(eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
-    let mut half = shell(3000, 1.0);
-    half.extend(shell(1000, 0.6));
+    let mut half = common::shell(3000, 1.0);
+    half.extend(common::shell(1000, 0.6));
     let points = away_from_boundaries(half, eye, sqrt_k);
     assert!(points.len() > 6000, "{}", points.len());
     points
@@ -161,7 +148,7 @@ fn two_shells(eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
 #[test]
 fn the_bounding_sphere_reduction_matches_the_cpu() {
     let ctx = common::context();
-    let mut points = shell(50_000, 2.0);
+    let mut points = common::shell(50_000, 2.0);
     points
         .iter_mut()
         .for_each(|p| *p += Vec3::new(3.0, -1.0, 0.5));
@@ -304,7 +291,7 @@ fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
     // A sphere seen from outside: `hpr` with the sector extremes alone (003) shows about the
     // facing cap's points, the complete set (the default) at least those, `hpr-mesh` the
     // reconstruction, which covers the disc much like the points' splats would.
-    let sphere = cloud_of(&shell(20_000, 1.0));
+    let sphere = cloud_of(&common::shell(20_000, 1.0));
     let points = common::render(&sphere, "hpr:complete=0", 128);
     let complete = common::render(&sphere, "hpr", 128);
     let mesh = common::render(&sphere, "hpr-mesh:max_edge=4", 128);

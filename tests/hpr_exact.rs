@@ -7,6 +7,8 @@
 //! rules; and the complete approximate visible set (`hpr::complete`), which must hold every
 //! point exact HPR finds.
 
+mod common;
+
 use std::path::PathBuf;
 
 use glam::Vec3;
@@ -91,19 +93,6 @@ fn every_point_of_a_plane_is_visible() {
     }
 }
 
-/// Points on a sphere of radius `scale` (Fibonacci lattice).
-fn shell(n: usize, scale: f32) -> Vec<Vec3> {
-    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
-            let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f32;
-            Vec3::new(r * a.cos(), r * a.sin(), z) * scale
-        })
-        .collect()
-}
-
 #[test]
 fn the_prefilter_leaves_the_hull_unchanged() {
     let mut inputs: Vec<(String, Vec<Vec3>, Vec3)> = Vec::new();
@@ -116,8 +105,8 @@ fn the_prefilter_leaves_the_hull_unchanged() {
         let (lo, hi) = cloud.bounds().expect("bounds");
         inputs.push((rel.into(), cloud.positions, (lo + hi) * 0.5 + eye));
     }
-    let mut shells = shell(20_000, 1.0);
-    shells.extend(shell(5_000, 0.5));
+    let mut shells = common::shell(20_000, 1.0);
+    shells.extend(common::shell(5_000, 0.5));
     inputs.push((
         "shells, eye outside".into(),
         shells.clone(),

@@ -3,6 +3,8 @@
 //! normals within a small angle (only ties between equally distant neighbours and the
 //! closed-form eigen solve may differ), on a scanned mesh, a dense mesh and a LiDAR tile.
 
+mod common;
+
 use std::path::PathBuf;
 
 use surfel::scene::preprocess::{self, Neighbours, PreprocessOptions, RadiusMode};
@@ -23,17 +25,6 @@ fn bare(rel: &str) -> Cloud {
         faces: None,
         ..cloud
     }
-}
-
-/// Angles in degrees between the two estimates, sorted.
-fn angles(a: &[glam::Vec3], b: &[glam::Vec3]) -> Vec<f32> {
-    let mut d: Vec<f32> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| x.dot(*y).clamp(-1.0, 1.0).acos().to_degrees())
-        .collect();
-    d.sort_by(f32::total_cmp);
-    d
 }
 
 #[test]
@@ -60,7 +51,7 @@ fn grid_estimation_matches_the_tree_reference() {
             },
         );
         assert_eq!(cloud.radii.as_ref(), Some(&radii), "{rel}: radii");
-        let d = angles(cloud.normals.as_ref().unwrap(), &normals);
+        let d = common::angles(cloud.normals.as_ref().unwrap(), &normals);
         let (median, p99, worst) = (d[d.len() / 2], d[d.len() * 99 / 100], d[d.len() - 1]);
         println!("{rel}: normal angle median {median:.2e}°, 99th {p99:.2e}°, max {worst:.2}°");
         assert!(median < 1e-3, "{rel}: median {median}°");

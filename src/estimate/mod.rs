@@ -267,12 +267,7 @@ pub fn estimate(
     let result = nearest_on_gpu(ctx, &pipelines, &cloud.positions, sensor)
         .context("estimating normals and radii on the GPU")?;
     let ran = Instant::now();
-    let unresolved = result
-        .iter()
-        .zip(&cloud.positions)
-        .filter(|(e, p)| e.w < 0.0 && p.is_finite())
-        .count();
-    preprocess::complete_from(cloud, options, &result);
+    let unresolved = preprocess::complete_from(cloud, options, &result);
     Ok(Some(GpuTimes {
         prepare_s: (prepared - start).as_secs_f64(),
         gpu_s: (ran - prepared).as_secs_f64(),

@@ -47,10 +47,13 @@ pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
 /// `options.estimate`: reading it is cheap), else computed when `options.estimate` (and
 /// written to the cache when `options.cache`). Returns whether it estimated or read them.
 pub fn complete(cloud: &mut Cloud, path: &Path, options: &LoadOptions) -> Result<bool> {
-    complete_with(cloud, path, options, &|cloud, options| {
-        preprocess::preprocess(cloud, options);
-        Ok(())
-    })
+    complete_with(cloud, path, options, &estimate_on_cpu)
+}
+
+/// The CPU's estimate of normals and radii ([`preprocess::preprocess`]) as an [`Estimator`].
+pub fn estimate_on_cpu(cloud: &mut Cloud, options: &PreprocessOptions) -> Result<()> {
+    preprocess::preprocess(cloud, options);
+    Ok(())
 }
 
 /// How normals and radii are estimated: [`preprocess::preprocess`], or elsewhere (the GPU).

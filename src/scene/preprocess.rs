@@ -567,11 +567,16 @@ pub fn preprocess_with(
 /// `xyz` its oriented unit normal and `w` the squared distance to its k-th nearest neighbour,
 /// or `w < 0` for a point the estimate left unresolved, which is searched here exactly (a k-d
 /// tree over the finite points). Writes what the cloud lacks, as [`preprocess`] does: the same
-/// radii rule and floor, non-finite points +Z and the floor.
-pub fn complete_from(cloud: &mut Cloud, options: &PreprocessOptions, estimate: &[glam::Vec4]) {
+/// radii rule and floor, non-finite points +Z and the floor. Returns the number of points
+/// searched here.
+pub fn complete_from(
+    cloud: &mut Cloud,
+    options: &PreprocessOptions,
+    estimate: &[glam::Vec4],
+) -> usize {
     let (want_normals, want_radii) = (cloud.normals.is_none(), cloud.radii.is_none());
     if !want_normals && !want_radii {
-        return;
+        return 0;
     }
     let positions = &cloud.positions;
     assert_eq!(estimate.len(), positions.len(), "one estimate per point");
@@ -615,6 +620,7 @@ pub fn complete_from(cloud: &mut Cloud, options: &PreprocessOptions, estimate: &
         floor_radii(positions, &mut radii);
         cloud.radii = Some(radii);
     }
+    unresolved.len()
 }
 
 const CACHE_MAGIC: &[u8; 8] = b"SURFELPC";

@@ -374,3 +374,27 @@ pub fn masked(frame: &surfel::eval::Frame, mask: &[bool]) -> surfel::eval::Frame
     }
     out
 }
+
+/// Points on a unit sphere (Fibonacci lattice), scaled.
+pub fn shell(n: usize, scale: f32) -> Vec<Vec3> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - y * y).sqrt();
+            let a = golden * i as f32;
+            Vec3::new(r * a.cos(), y, r * a.sin()) * scale
+        })
+        .collect()
+}
+
+/// Angles in degrees between two sets of unit normals, pairwise, sorted.
+pub fn angles(a: &[Vec3], b: &[Vec3]) -> Vec<f32> {
+    let mut d: Vec<f32> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| x.dot(*y).clamp(-1.0, 1.0).acos().to_degrees())
+        .collect();
+    d.sort_by(f32::total_cmp);
+    d
+}
