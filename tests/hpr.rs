@@ -281,7 +281,7 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
     let (_, recall, f1) = surfel::hpr::agreement(&gpu, &exact.visible);
     let (_, _, cpu_f1) = surfel::hpr::agreement(&cpu.visible, &exact.visible);
     assert_eq!(recall, 1.0, "no exactly visible point is dropped");
-    assert!(f1 >= 0.9, "F1 {f1}");
+    assert!(f1 >= 0.95, "F1 {f1}");
     // The CPU reference decides on its own (f64) sector frame: nearly the same set.
     assert!((f1 - cpu_f1).abs() < 0.01, "GPU F1 {f1}, CPU {cpu_f1}");
 }

@@ -195,7 +195,7 @@ fn the_complete_set_holds_every_exactly_visible_point() {
         (
             "stanford/armadillo_50k.obj",
             Vec3::new(200.0, 150.0, 300.0),
-            0.9,
+            0.95,
         ),
     ] {
         let cloud = scene::load(&data(rel)).unwrap_or_else(|e| panic!("{e}"));

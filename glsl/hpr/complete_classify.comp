@@ -1,8 +1,9 @@
 #version 460
 // The complete visible set, per point, in double precision: hidden when its flipped image is
-// certified strictly inside a tetrahedron of the eye and three flipped sector extremes (the
-// 2 x 2 blocks of sectors around its own on every grid, coarsest first, each split along the
-// diagonal of its outer surface); otherwise visible: its bit in the hidden mask (all set
+// certified strictly inside a tetrahedron of the eye and three flipped sector extremes (any
+// three of the 3 x 3 sectors around its own on every grid, coarsest first: the sign of
+// q . (e_x x e_y) is decided once per pair, then the triangles whose three pairs agree are
+// tested against their far face); otherwise visible: its bit in the hidden mask (all set
 // before) is cleared and it is counted. The CPU reference is src/hpr/prefilter.rs
 // (certified_hidden, strictly_inside), formula for formula.
 #define HPR_WRITES_STATE
@@ -26,36 +27,23 @@ dvec3 flipped(uint i) {
     return v + 2.0lf * (double(h.eye_radius.w) - n) * v / n;
 }
 
-bool certain(double value, double sign, double bound) {
-    return value * sign > ULPS * bound;
-}
-
-bool strictly_inside(dvec3 q, dvec3 a, dvec3 b, dvec3 c) {
+// Whether q, certainly on the inner side `sign` of the three planes through the eye and two
+// of a, b, c, is strictly inside the tetrahedron (eye, a, b, c).
+bool strictly_inside_cone(dvec3 q, dvec3 a, dvec3 b, dvec3 c, double sign) {
     double det = dot(a, cross(b, c));
-    if (det == 0.0lf) {
-        return false;
-    }
-    double sign = det > 0.0lf ? 1.0lf : -1.0lf;
-    double s0 = dot(q, cross(b, c));
-    double s1 = dot(a, cross(q, c));
-    double s2 = dot(a, cross(b, q));
-    if (s0 * sign <= 0.0lf || s1 * sign <= 0.0lf || s2 * sign <= 0.0lf) {
+    if (det * sign <= 0.0lf) {
         return false;
     }
     dvec3 da = a - q;
     dvec3 db = b - q;
     dvec3 dc = c - q;
     double depth = dot(da, cross(db, dc));
-    if (depth * sign <= 0.0lf) {
-        return false;
-    }
-    double nq = length(q);
-    double na = length(a);
-    double nb = length(b);
-    double nc = length(c);
-    return certain(s0, sign, nq * nb * nc) && certain(s1, sign, na * nq * nc)
-        && certain(s2, sign, na * nb * nq)
-        && certain(depth, sign, length(da) * length(db) * length(dc));
+    return depth * sign > ULPS * length(da) * length(db) * length(dc);
+}
+
+// The bit of the pair (x, y), x < y < 9, in a 36-bit mask.
+uint64_t pair_bit(int x, int y) {
+    return 1ul << uint(x * (17 - x) / 2 + y - x - 1);
 }
 
 // The extreme of sector (i, j) on `level`, or HPR_EMPTY.
@@ -69,27 +57,58 @@ uint extreme(uint level, int i, int j) {
 }
 
 bool covered(dvec3 q, uint level, int i, int j) {
-    for (int b = 0; b < 4; ++b) {
-        int bi = b / 2 - 1;
-        int bj = b % 2 - 1;
-        uint ea = extreme(level, i + bi, j + bj);
-        uint eb = extreme(level, i + bi + 1, j + bj);
-        uint ec = extreme(level, i + bi + 1, j + bj + 1);
-        uint ed = extreme(level, i + bi, j + bj + 1);
-        if (ea == HPR_EMPTY || eb == HPR_EMPTY || ec == HPR_EMPTY || ed == HPR_EMPTY) {
-            continue;
-        }
-        dvec3 a = flipped(ea);
-        dvec3 bb = flipped(eb);
-        dvec3 c = flipped(ec);
-        dvec3 d = flipped(ed);
-        bool ridge_ac = dot(a - d, cross(bb - d, c - d)) * dot(a, cross(bb, c)) > 0.0lf;
-        if (ridge_ac) {
-            if (strictly_inside(q, a, bb, c) || strictly_inside(q, a, c, d)) {
-                return true;
+    dvec3 e[9];
+    double norm[9];
+    int m = 0;
+    double reach = 0.0lf;
+    for (int di = -1; di <= 1; ++di) {
+        for (int dj = -1; dj <= 1; ++dj) {
+            uint v = extreme(level, i + di, j + dj);
+            if (v != HPR_EMPTY) {
+                e[m] = flipped(v);
+                norm[m] = length(e[m]);
+                reach = max(reach, dot(e[m], e[m]));
+                ++m;
             }
-        } else if (strictly_inside(q, a, bb, d) || strictly_inside(q, bb, c, d)) {
-            return true;
+        }
+    }
+    // The tetrahedron lies in the ball through its farthest vertex.
+    if (m < 3 || dot(q, q) >= reach) {
+        return false;
+    }
+    // Pairs whose sign of q . (e_x x e_y) clears its rounding bound: positive, negative.
+    double nq = length(q);
+    uint64_t pos = 0ul;
+    uint64_t neg = 0ul;
+    for (int x = 0; x < m; ++x) {
+        for (int y = x + 1; y < m; ++y) {
+            double t = dot(q, cross(e[x], e[y]));
+            double bound = ULPS * nq * norm[x] * norm[y];
+            if (t > bound) {
+                pos |= pair_bit(x, y);
+            } else if (t < -bound) {
+                neg |= pair_bit(x, y);
+            }
+        }
+    }
+    for (int x = 0; x < m; ++x) {
+        for (int y = x + 1; y < m; ++y) {
+            uint64_t xy = pair_bit(x, y);
+            if (((pos | neg) & xy) == 0ul) {
+                continue;
+            }
+            for (int z = y + 1; z < m; ++z) {
+                uint64_t yz = pair_bit(y, z);
+                uint64_t xz = pair_bit(x, z);
+                if ((pos & xy) != 0ul && (pos & yz) != 0ul && (neg & xz) != 0ul
+                    && strictly_inside_cone(q, e[x], e[y], e[z], 1.0lf)) {
+                    return true;
+                }
+                if ((neg & xy) != 0ul && (neg & yz) != 0ul && (pos & xz) != 0ul
+                    && strictly_inside_cone(q, e[x], e[y], e[z], -1.0lf)) {
+                    return true;
+                }
+            }
         }
     }
     return false;

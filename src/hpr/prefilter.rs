@@ -4,15 +4,15 @@
 //! touches it. The three points come from grids of angular sectors (`approx::Sectors`, the
 //! finest about [`POINTS_PER_SECTOR`] points per sector, then [`LEVELS`] − 1 grids each half
 //! as fine): each sector's farthest flipped point (the original nearest the eye, on the front
-//! surface; a coarse sector's is the farthest of its children's), and for a point the 2 × 2
-//! blocks of sectors around its own on every grid, each split along the diagonal that makes
-//! its outer surface (two triangles). Points behind the front surface, the hidden majority,
+//! surface; a coarse sector's is the farthest of its children's), and for a point any three
+//! of the extremes of the 3 × 3 sectors around its own on every grid (up to 84 triangles per
+//! grid, found from 36 sign tests). Points behind the front surface, the hidden majority,
 //! fall inside one of them; the hull then partitions only the rest, which is where Qhull
 //! spends its time. The same test, with a finer grid, is the complete approximate visible
 //! set (`hpr::complete`).
 //!
 //! A point is left out only when the orientation tests that put it inside the tetrahedron
-//! clear their rounding error bounds by [`TOLERANCE`] (see [`strictly_inside`]): the decision
+//! clear their rounding error bounds by [`TOLERANCE`] (see [`strictly_inside_cone`]): the decision
 //! is never within rounding of the hull's own, so the hull and its vertices are those of the
 //! whole input (`tests/hpr_exact.rs` compares both on scans, shells and both radius rules).
 
@@ -48,42 +48,75 @@ impl Level {
     }
 
     /// Whether `q` (in sector (i, j) of this grid) lies strictly inside a tetrahedron of the
-    /// origin and the extremes of three corners of a 2 × 2 block of sectors around (i, j).
+    /// origin and the extremes of three of the 3 × 3 sectors around (i, j) (any three: each
+    /// such tetrahedron is inside the hull). The sign of q · (eₓ × e_y) is decided once per
+    /// pair of extremes ([`pair_sides`]); a triangle whose three pairs put `q` certainly on
+    /// its inner side is then tested by [`strictly_inside_cone`].
     fn covers(&self, points: &[DVec3], q: DVec3, i: i64, j: i64) -> bool {
-        for (bi, bj) in [(-1, -1), (-1, 0), (0, -1), (0, 0)] {
-            let quad = [
-                self.extreme(i + bi, j + bj),
-                self.extreme(i + bi + 1, j + bj),
-                self.extreme(i + bi + 1, j + bj + 1),
-                self.extreme(i + bi, j + bj + 1),
-            ];
-            let [Some(a), Some(b), Some(c), Some(d)] = quad else {
-                continue;
-            };
-            let [a, b, c, d] = [a, b, c, d].map(|v| points[v as usize]);
-            // The quad's outer surface: split along a-c when d lies on the origin's side of
-            // the plane of a, b and c (a ridge along a-c), else along b-d.
-            let ridge_ac = (a - d).dot((b - d).cross(c - d)) * a.dot(b.cross(c)) > 0.0;
-            let triangles = if ridge_ac {
-                [(a, b, c), (a, c, d)]
-            } else {
-                [(a, b, d), (b, c, d)]
-            };
-            if triangles
-                .into_iter()
-                .any(|(a, b, c)| strictly_inside(q, a, b, c))
-            {
-                return true;
+        let mut e = [DVec3::ZERO; 9];
+        let mut m = 0;
+        for di in -1..=1 {
+            for dj in -1..=1 {
+                if let Some(v) = self.extreme(i + di, j + dj) {
+                    e[m] = points[v as usize];
+                    m += 1;
+                }
+            }
+        }
+        // The tetrahedron lies in the ball through its farthest vertex.
+        let e = &e[..m];
+        let reach = e.iter().map(|v| v.length_squared()).fold(0.0, f64::max);
+        if m < 3 || q.length_squared() >= reach {
+            return false;
+        }
+        let side = pair_sides(q, e);
+        for x in 0..m {
+            for y in x + 1..m {
+                let s = side[x][y];
+                if s == 0 {
+                    continue;
+                }
+                for z in y + 1..m {
+                    if side[y][z] == s
+                        && side[z][x] == s
+                        && strictly_inside_cone(q, [e[x], e[y], e[z]], s)
+                    {
+                        return true;
+                    }
+                }
             }
         }
         false
     }
 }
 
+/// For the extremes `e`, `side[x][y]`: the sign of q · (eₓ × e_y) where it clears its
+/// rounding bound by [`TOLERANCE`] ulps of |q| |eₓ| |e_y|, else 0.
+fn pair_sides(q: DVec3, e: &[DVec3]) -> [[i8; 9]; 9] {
+    let ulps = TOLERANCE * f64::EPSILON;
+    let nq = q.length();
+    let mut side = [[0i8; 9]; 9];
+    for x in 0..e.len() {
+        for y in x + 1..e.len() {
+            let t = q.dot(e[x].cross(e[y]));
+            let bound = ulps * nq * e[x].length() * e[y].length();
+            let s = if t > bound {
+                1
+            } else if t < -bound {
+                -1
+            } else {
+                0
+            };
+            side[x][y] = s;
+            side[y][x] = -s;
+        }
+    }
+    side
+}
+
 /// For every flipped point (viewpoint at the origin) in sector `cells[t]` of a `side` × `side`
 /// grid (`side` a multiple of 2^(`levels` − 1)), whether it lies strictly inside a tetrahedron
-/// of the origin and the extremes of three corners of a 2 × 2 block of sectors around its own,
-/// on that grid or one of the `levels` − 1 grids each half as fine (coarsest first). A
+/// of the origin and the extremes of three of the 3 × 3 sectors around its own, on that grid or one of the `levels` − 1 grids each half as fine (coarsest first). A
 /// sector's extreme is its farthest flipped point (the original nearest the eye; ties: the
 /// lower index), a coarse sector's the farthest of its four children's.
 pub fn certified_hidden(
@@ -168,35 +201,20 @@ pub fn hull_candidates(points: &[DVec3]) -> Vec<usize> {
     (0..n).filter(|&t| !hidden[t]).collect()
 }
 
-/// Whether `q` lies strictly inside the tetrahedron (origin, `a`, `b`, `c`), decided only
-/// where rounding cannot change the answer: each of the four orientation determinants (`q`
-/// against a face) must have the sign of the tetrahedron's own by more than [`TOLERANCE`]
-/// times its bound. The faces through the origin use the points as they are (error at most a
-/// few ulps of |x| |y| |z|); the face (`a`, `b`, `c`) uses the differences to `q`, which
-/// subtraction of two doubles gives to half an ulp, so points a hair from that face are
-/// decided as well as the hull decides them.
-fn strictly_inside(q: DVec3, a: DVec3, b: DVec3, c: DVec3) -> bool {
+/// Whether `q`, certainly on the inner side (sign `s`) of the three planes through the origin
+/// and two of `a`, `b`, `c` ([`pair_sides`]), lies strictly inside the tetrahedron (origin,
+/// `a`, `b`, `c`), decided only where rounding cannot change the answer: the tetrahedron's
+/// orientation must be `s` and `q` must be on the origin's side of the face (`a`, `b`, `c`) by
+/// more than [`TOLERANCE`] ulps of that determinant's bound. The face uses the differences to
+/// `q`, which subtraction of two doubles gives to half an ulp, so points a hair from the face
+/// are decided as well as the hull decides them.
+fn strictly_inside_cone(q: DVec3, [a, b, c]: [DVec3; 3], s: i8) -> bool {
+    let sign = f64::from(s);
     let det = a.dot(b.cross(c));
-    if det == 0.0 || !det.is_finite() {
-        return false;
-    }
-    let sign = det.signum();
-    let sides = [q.dot(b.cross(c)), a.dot(q.cross(c)), a.dot(b.cross(q))];
-    // Most candidates fail here: outside the cone, or clearly outside the far face.
-    if sides.iter().any(|&s| s * sign <= 0.0) {
+    if det * sign <= 0.0 || !det.is_finite() {
         return false;
     }
     let (da, db, dc) = (a - q, b - q, c - q);
     let depth = da.dot(db.cross(dc));
-    if depth * sign <= 0.0 {
-        return false;
-    }
-    let ulps = TOLERANCE * f64::EPSILON;
-    let (nq, na, nb, nc) = (q.length(), a.length(), b.length(), c.length());
-    let bounds = [nq * nb * nc, na * nq * nc, na * nb * nq];
-    sides
-        .iter()
-        .zip(bounds)
-        .all(|(&s, bound)| s * sign > ulps * bound)
-        && depth * sign > ulps * da.length() * db.length() * dc.length()
+    depth * sign > TOLERANCE * f64::EPSILON * da.length() * db.length() * dc.length()
 }

@@ -24,7 +24,7 @@ pub mod sort;
 
 use std::sync::Arc;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
@@ -64,6 +64,10 @@ pub struct Settings {
     /// The thesis' pipeline: radix sort by sector and a segmented maximum
     /// ([`sort`]); otherwise the sort-free 64-bit `atomicMax` per sector.
     pub sort: bool,
+    /// Whether the sector extremes are computed when the complete set decides visibility
+    /// (`params.complete_side` > 0): the reconstruction triangulates them, the points alone
+    /// skip the sector and propagation passes.
+    pub extremes: bool,
 }
 
 impl Settings {
@@ -84,6 +88,7 @@ impl Settings {
             },
             propagation,
             sort,
+            extremes: true,
         }
     }
 }
@@ -94,8 +99,8 @@ pub struct Hpr {
     /// `HprFrame`: the frame, counters and indirect arguments.
     pub state: BufferId,
     /// The final extreme per sector (u32, `HPR_EMPTY` where none), √k_max² entries of which
-    /// the frame's √k² are used.
-    pub extremes: BufferId,
+    /// the frame's √k² are used; `None` where [`Settings::extremes`] skipped them.
+    pub extremes: Option<BufferId>,
     /// One bit per point, set for hidden points.
     pub hidden: BufferId,
 }
@@ -242,9 +247,6 @@ pub fn add(
     };
     let usage = vk::BufferUsageFlags::empty();
     let state = g.buffer("hpr.state", std::mem::size_of::<HprFrame>() as u64, usage);
-    let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
-    let occupied = g.buffer("hpr.empty", k_max * 4, usage);
-    let ping = g.buffer("hpr.extremes.a", k_max * 4, usage);
     let hidden = g.buffer(
         "hpr.hidden",
         u64::from(point_count.div_ceil(32).max(1)) * 4,
@@ -278,9 +280,20 @@ pub fn add(
                 ctx.dispatch(1, 1, 1);
             });
     }
+    g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
+    if params.complete_side > 0 && !settings.extremes {
+        add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
+        return Ok(Hpr {
+            state,
+            extremes: None,
+            hidden,
+        });
+    }
+    let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
+    let occupied = g.buffer("hpr.empty", k_max * 4, usage);
+    let ping = g.buffer("hpr.extremes.a", k_max * 4, usage);
     g.fill_buffer("hpr.clear.max", max64, BufferRange::WHOLE, 0);
     g.fill_buffer("hpr.clear.empty", occupied, BufferRange::WHOLE, 0);
-    g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
 
     // Per point: sector, DIST and the sort-free extreme, or the sort's keys and values.
     let mode = if settings.sort {
@@ -482,7 +495,7 @@ pub fn add(
         add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
         return Ok(Hpr {
             state,
-            extremes: result,
+            extremes: Some(result),
             hidden,
         });
     }
@@ -509,7 +522,7 @@ pub fn add(
         });
     Ok(Hpr {
         state,
-        extremes: result,
+        extremes: Some(result),
         hidden,
     })
 }
@@ -670,7 +683,10 @@ pub fn add_triangulation(
         &[],
     )?;
     let (frame, segments) = (inputs.frame, inputs.segments);
-    let (state, extremes) = (hpr.state, hpr.extremes);
+    let state = hpr.state;
+    let extremes = hpr
+        .extremes
+        .context("the reconstruction triangulates the sector extremes, which were skipped")?;
     let (gx, gy) = groups(blocks);
     let c = Stages::Compute;
     g.pass("hpr.triangulate")
@@ -838,6 +854,7 @@ fn settings(b: &BuildContext<'_>) -> Settings {
             Propagation::Fixed(m | 1)
         },
         sort: cfg.get("sort") >= 0.5,
+        extremes: cfg.method.name == MESH_INFO.name,
     }
 }
 
@@ -899,7 +916,8 @@ pub struct Evaluation {
     pub radius: f32,
     /// The frame's state after the passes: √k, rounds, visible count, triangles.
     pub state: HprFrame,
-    /// The final extreme of each of the frame's √k² sectors (`HPR_EMPTY` where none).
+    /// The final extreme of each of the frame's √k² sectors (`HPR_EMPTY` where none; empty
+    /// where [`Settings::extremes`] skipped them).
     pub extremes: Vec<u32>,
     /// The visible points, ascending.
     pub visible: Vec<u32>,
@@ -941,15 +959,19 @@ pub fn evaluate(
     };
     let hpr = add(&mut g, ctx, scene.point_count, inputs, settings)?;
     let s_max = u64::from(settings.sqrt_k_max.max(1));
+    // Read back: the sphere, the state, the hidden mask, then the extremes and the triangles
+    // where present.
     let mut outputs: Vec<(BufferId, u64)> = vec![
         (inputs.sphere, 16),
         (hpr.state, std::mem::size_of::<HprFrame>() as u64),
-        (hpr.extremes, s_max * s_max * 4),
         (
             hpr.hidden,
             u64::from(scene.point_count.div_ceil(32).max(1)) * 4,
         ),
     ];
+    if let Some(extremes) = hpr.extremes {
+        outputs.push((extremes, s_max * s_max * 4));
+    }
     if triangulate {
         let indices = add_triangulation(&mut g, ctx, inputs, &hpr, settings)?;
         let s = s_max.max(2);
@@ -986,13 +1008,19 @@ pub fn evaluate(
     let sphere_words = words(&hosts[0])?;
     let state: HprFrame = bytemuck::pod_read_unaligned(hosts[1].mapped()?);
     let k = (state.sqrt_k * state.sqrt_k) as usize;
-    let mut extremes = words(&hosts[2])?;
-    extremes.truncate(k);
-    let hidden = words(&hosts[3])?;
+    let hidden = words(&hosts[2])?;
     let visible = (0..scene.point_count)
         .filter(|&i| hidden[(i / 32) as usize] & (1 << (i % 32)) == 0)
         .collect();
-    let triangles = match hosts.get(4) {
+    let extremes = match hpr.extremes {
+        Some(_) => {
+            let mut all = words(&hosts[3])?;
+            all.truncate(k);
+            all
+        }
+        None => Vec::new(),
+    };
+    let triangles = match hosts.get(3 + usize::from(hpr.extremes.is_some())) {
         Some(b) => {
             let all = words(b)?;
             let n = (state.index_count as usize).min(all.len());
