@@ -286,6 +286,53 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
     assert!((f1 - cpu_f1).abs() < 0.01, "GPU F1 {f1}, CPU {cpu_f1}");
 }
 
+/// The names of the passes `method` records rendering `cloud` (one frame, then one timed).
+fn pass_names(cloud: &Cloud, method: &str) -> Vec<String> {
+    use surfel::render::{Extras, Renderer, View};
+    let ctx = common::context();
+    let (scene, info) = surfel::render::upload(&ctx, cloud).expect("upload");
+    let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let extras = Extras {
+        readback: true,
+        ..Extras::default()
+    };
+    let mut r = Renderer::new(&ctx, &scene, info, &config, 64, 64, extras).expect("renderer");
+    let view = View {
+        camera: surfel::scene::Camera::framing(info.centre, info.radius),
+        lights: vec![surfel::scene::Light::headlight()],
+        use_color: true,
+        time: 0.0,
+    };
+    r.render(&view, false).expect("frame");
+    r.clear_timings();
+    r.render(&view, false).expect("timed frame");
+    r.finish().expect("finish");
+    let names = r.timings().0.iter().map(|p| p.name.clone()).collect();
+    drop(r);
+    common::assert_clean(&ctx);
+    names
+}
+
+#[test]
+fn the_complete_set_alone_skips_the_sector_passes_and_the_reconstruction_keeps_them() {
+    let sphere = cloud_of(&common::shell(2_000, 1.0));
+    let points = pass_names(&sphere, "hpr");
+    assert!(
+        points.iter().any(|p| p == "hpr.complete.classify"),
+        "{points:?}"
+    );
+    assert!(
+        !points
+            .iter()
+            .any(|p| p == "hpr.sector" || p.starts_with("hpr.round.")),
+        "{points:?}"
+    );
+    let mesh = pass_names(&sphere, "hpr-mesh:pyramid=1");
+    for pass in ["hpr.sector", "hpr.complete.classify", "hpr.triangulate"] {
+        assert!(mesh.iter().any(|p| p == pass), "{pass}: {mesh:?}");
+    }
+}
+
 #[test]
 fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
     // A sphere seen from outside: `hpr` with the sector extremes alone (003) shows about the
