@@ -189,6 +189,32 @@ fn gpu_time(
     Ok((hpr.iter().map(|p| p.1).sum(), hpr))
 }
 
+/// The complete visible set of the GPU passes (flipping radius `r`, finest grid `side`) in
+/// `view`, as indices of the file's order (`order`: stream index to file index), ascending.
+fn complete_on_gpu(
+    ctx: &Arc<Context>,
+    scene: &crate::methods::GpuScene,
+    view: &HprView,
+    size: (u32, u32),
+    (r, side): (f64, u32),
+    order: &[u32],
+) -> Result<Vec<u32>> {
+    let mut s = Settings::grid(1, r, Propagation::Fixed(3), false);
+    s.params.complete_side = side;
+    s.extremes = false;
+    let gpu = evaluate(
+        ctx,
+        scene,
+        (view.camera.view(), view.proj()),
+        size,
+        &s,
+        false,
+    )?;
+    let mut visible: Vec<u32> = gpu.visible.iter().map(|&i| order[i as usize]).collect();
+    visible.sort_unstable();
+    Ok(visible)
+}
+
 /// The CPU reference of the approximation (`approx::approximate`) with errors as `anyhow`.
 fn approximate(
     points: &[DVec3],
@@ -415,19 +441,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
             cpu_s: Some(cpu_s),
             ..Default::default()
         });
-        let mut s = Settings::grid(from_view, r, Propagation::Fixed(3), false);
-        s.params.complete_side = side;
-        s.extremes = false;
-        let gpu = evaluate(
-            &ctx,
-            &scene,
-            (view.camera.view(), view.proj()),
-            options.size,
-            &s,
-            false,
-        )?;
-        let mut visible: Vec<u32> = gpu.visible.iter().map(|&i| order[i as usize]).collect();
-        visible.sort_unstable();
+        let visible = complete_on_gpu(&ctx, &scene, &view, options.size, (r, side), &order)?;
         let (e, t) = score(&visible);
         let config = format!("hpr:radius={},complete=1", factor_of(&cloud, r));
         let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, options.frames)?;
@@ -581,19 +595,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
             });
         }
         let side = crate::hpr::complete_side(n);
-        let mut s = Settings::grid(sqrt_k, r, Propagation::Fixed(3), false);
-        s.params.complete_side = side;
-        s.extremes = false;
-        let gpu = evaluate(
-            &ctx,
-            &scene,
-            (view.camera.view(), view.proj()),
-            options.size,
-            &s,
-            false,
-        )?;
-        let mut visible: Vec<u32> = gpu.visible.iter().map(|&i| order[i as usize]).collect();
-        visible.sort_unstable();
+        let visible = complete_on_gpu(&ctx, &scene, &view, options.size, (r, side), &order)?;
         let config = format!("hpr:radius={},complete=1", factor_of(&cloud, r));
         let (gpu_ms, passes) = gpu_time(&ctx, &cloud, &view, &config, frames)?;
         rows.push(Row {
