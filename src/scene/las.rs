@@ -20,7 +20,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
-use super::error::LoadError;
+use super::error::{show, LoadError};
 use super::progress::Progress;
 use super::records::{self, Span};
 
@@ -33,7 +33,100 @@ fn read_header<R: Read + Seek>(
     read: &mut R,
     size: usize,
 ) -> Result<las::Header, LoadError> {
+    check_header(file, read, size as u64)?;
+    read.rewind().map_err(|source| io_error(file, source))?;
     las::Header::new(read).map_err(|e| header_error(file, e, size))
+}
+
+/// The `len` bytes at byte `at` of `read`.
+fn bytes_at<R: Read + Seek>(read: &mut R, at: u64, len: usize) -> std::io::Result<Vec<u8>> {
+    read.seek(std::io::SeekFrom::Start(at))?;
+    let mut bytes = vec![0; len];
+    read.read_exact(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// Checks what the `las` crate would trust in the header of a file of `size` bytes before it
+/// reads it: the signature, version, header size, point format and the offset to the points,
+/// and that every VLR ends before the points and every EVLR inside the file (the crate
+/// allocates what their lengths say, and walks as many as the header counts).
+fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(), LoadError> {
+    let io = |source| io_error(file, source);
+    let at = |offset: u64, message: String| LoadError::at_byte(file, offset as usize, message);
+    if size < 227 {
+        let head = bytes_at(read, 0, size.min(4) as usize).map_err(io)?;
+        if head.len() == 4 && head != b"LASF" {
+            return Err(at(0, format!("expected the LAS signature \"LASF\", found \"{}\"", show(&head))));
+        }
+        return Err(LoadError::whole(
+            file,
+            format!("invalid LAS header: the file ends at byte {size}, inside the 227-byte header (truncated file?)"),
+        ));
+    }
+    let h = bytes_at(read, 0, 227).map_err(io)?;
+    let u16_at = |o: usize| u64::from(u16::from_le_bytes([h[o], h[o + 1]]));
+    let u32_at = |o: usize| u64::from(u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]));
+    if &h[..4] != b"LASF" {
+        return Err(at(0, format!("expected the LAS signature \"LASF\", found \"{}\"", show(&h[..4]))));
+    }
+    let (major, minor) = (h[24], h[25]);
+    if major != 1 || minor > 4 {
+        return Err(at(24, format!("expected LAS version 1.0 to 1.4, found {major}.{minor}")));
+    }
+    let header_size = u16_at(94);
+    let minimum = match minor {
+        0..=2 => 227,
+        3 => 235,
+        _ => 375,
+    };
+    if header_size < minimum {
+        return Err(at(94, format!("header size {header_size} is smaller than the {minimum} bytes of a LAS 1.{minor} header")));
+    }
+    if header_size > size {
+        return Err(at(94, format!("header size {header_size} is past the end of the file at byte {size} (truncated file?)")));
+    }
+    let format = h[104] & 0x3f;
+    if format > 10 {
+        return Err(at(104, format!("expected a point data format 0 to 10, found {format}")));
+    }
+    let points_at = u32_at(96);
+    if points_at < header_size || points_at > size {
+        return Err(at(96, format!("the point data offset {points_at} is outside the header's end ({header_size}) and the file's ({size})")));
+    }
+    let vlrs = u32_at(100);
+    let mut vlr = header_size;
+    for i in 0..vlrs {
+        let length = if vlr + 54 <= points_at {
+            let head = bytes_at(read, vlr, 54).map_err(io)?;
+            u64::from(u16::from_le_bytes([head[20], head[21]]))
+        } else {
+            0
+        };
+        if vlr + 54 + length > points_at {
+            return Err(at(vlr, format!("the header declares {vlrs} VLRs, but VLR {i} ends past the start of the point data at byte {points_at}")));
+        }
+        vlr += 54 + length;
+    }
+    if minor < 4 {
+        return Ok(());
+    }
+    let h = bytes_at(read, 235, 12).map_err(io)?;
+    let mut evlr = u64::from_le_bytes(h[..8].try_into().unwrap_or_default());
+    let evlrs = u64::from(u32::from_le_bytes(h[8..].try_into().unwrap_or_default()));
+    for i in 0..evlrs {
+        let length = if evlr.checked_add(60).is_some_and(|end| end <= size) {
+            let head = bytes_at(read, evlr, 60).map_err(io)?;
+            u64::from_le_bytes(head[20..28].try_into().unwrap_or_default())
+        } else {
+            u64::MAX
+        };
+        let end = evlr.checked_add(60).and_then(|e| e.checked_add(length));
+        if evlr < points_at || end.is_none_or(|end| end > size) {
+            return Err(at(evlr, format!("the header declares {evlrs} EVLRs, but EVLR {i} at byte {evlr} is not inside the file of {size} bytes after the points")));
+        }
+        evlr = end.unwrap_or(size);
+    }
+    Ok(())
 }
 
 /// The error for a header the `las` crate rejects: an operating-system failure is
@@ -671,6 +764,21 @@ fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
     let mut data = Vec::with_capacity(size + 16);
     read.read_to_end(&mut data)
         .map_err(|source| io_error(file, source))?;
+    let (vlr_at, vlr) = laszip_vlr(file, &data, header)?;
+    if vlr.items().is_empty() {
+        return Err(LoadError::at_byte(
+            file,
+            vlr_at + 32,
+            "the laszip VLR lists no point items",
+        ));
+    }
+    if u16::from_le_bytes([data[vlr_at], data[vlr_at + 1]]) == POINT_WISE {
+        // The point-wise compressor has no chunks, no chunk table and no offset to one; the
+        // `laz` crate reads it as one chunk unless its chunk size says variable (0 or 2^32-1,
+        // which LASzip 1.2 wrote), then panics for the table it did not read.
+        data[vlr_at + 12..vlr_at + 16].copy_from_slice(&(u32::MAX - 1).to_le_bytes());
+        return read_with_crate(file, Cursor::new(data), size, false);
+    }
     let Some(offset) = data.get(at..at + 8) else {
         return Err(LoadError::whole(
             file,
@@ -685,11 +793,49 @@ fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
         }
         return read_with_crate(file, Cursor::new(data), size, false);
     }
+    if vlr.uses_variable_size_chunks() {
+        return Err(LoadError::at_byte(
+            file,
+            at,
+            format!(
+                "the chunk table at byte {table} is past the end of the file at byte {size} (truncated file?), and variable-size chunks cannot be read without it"
+            ),
+        ));
+    }
     let end = data.len() as i64;
     data[at..at + 8].copy_from_slice(&end.to_le_bytes());
     // Chunk table version 0 with no chunks.
     data.extend_from_slice(&[0; 8]);
     read_with_crate(file, Cursor::new(data), size, true)
+}
+
+/// The laszip VLR's compressor code for the point-wise compressor (LASzip's first, unchunked).
+const POINT_WISE: u16 = 1;
+
+/// The byte offset of the laszip VLR's data in `data` (a file whose header and VLRs
+/// [`check_header`] accepted), and the VLR.
+fn laszip_vlr(
+    file: &str,
+    data: &[u8],
+    header: &las::Header,
+) -> Result<(usize, laz::LazVlr), LoadError> {
+    let missing = || LoadError::whole(file, "a compressed point format without a laszip VLR (user \"laszip encoded\", record 22204)");
+    let vlr = header.laz_vlr().map_err(|e| match e {
+        las::Error::LasZipVlrNotFound => missing(),
+        e => LoadError::whole(file, format!("invalid laszip VLR: {e}")),
+    })?;
+    let word = |at: usize| usize::from(u16::from_le_bytes([data[at], data[at + 1]]));
+    let count = u32::from_le_bytes([data[100], data[101], data[102], data[103]]);
+    let mut at = word(94);
+    for _ in 0..count {
+        let user = &data[at + 2..at + 18];
+        let record = word(at + 18);
+        if user.starts_with(b"laszip encoded") && record == 22204 && word(at + 20) >= 34 {
+            return Ok((at + 54, vlr));
+        }
+        at += 54 + word(at + 20);
+    }
+    Err(missing())
 }
 
 /// The chunks of a LAZ file held in `data` (point data from byte `at`) decompressed in

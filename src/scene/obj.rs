@@ -17,14 +17,74 @@ use super::cloud::{Cloud, LoadStats};
 use super::error::{show, LoadError};
 use super::pack::srgb_byte;
 
-fn map_error(file: &str, err: obj::ObjError) -> LoadError {
+/// OBJ text with its continued lines (a line ending in `\\` goes on in the next, as the format
+/// allows) joined, which the `obj` crate does not do, and the file's line number of each
+/// joined line.
+struct Joined<'a> {
+    text: std::borrow::Cow<'a, [u8]>,
+    /// The 1-based file line each joined line starts on; empty when nothing was joined.
+    lines: Vec<usize>,
+}
+
+impl<'a> Joined<'a> {
+    fn new(data: &'a [u8]) -> Self {
+        let continued = |line: &[u8]| line.strip_suffix(b"\r").unwrap_or(line).ends_with(b"\\");
+        if !data.split(|&b| b == b'\n').any(continued) {
+            return Joined {
+                text: data.into(),
+                lines: Vec::new(),
+            };
+        }
+        let mut text = Vec::with_capacity(data.len());
+        let mut lines = vec![1];
+        for (n, line) in data.split(|&b| b == b'\n').enumerate() {
+            let body = line.strip_suffix(b"\r").unwrap_or(line);
+            match body.strip_suffix(b"\\") {
+                Some(head) => {
+                    text.extend_from_slice(head);
+                    text.push(b' ');
+                }
+                None => {
+                    text.extend_from_slice(line);
+                    text.push(b'\n');
+                    lines.push(n + 2);
+                }
+            }
+        }
+        Joined {
+            text: text.into(),
+            lines,
+        }
+    }
+
+    /// The file's 1-based line number of 0-based joined line `index`.
+    fn line(&self, index: usize) -> usize {
+        self.lines.get(index).copied().unwrap_or(index + 1)
+    }
+
+    /// The text parsed by the `obj` crate; an empty file, or one without vertices, is an error
+    /// (as it is for every other format).
+    fn parse(&self, file: &str) -> Result<obj::ObjData, LoadError> {
+        let parsed = obj::ObjData::load_buf_with_config(&self.text[..], obj::LoadConfig { strict: false })
+            .map_err(|e| map_error(file, self, e))?;
+        if parsed.position.is_empty() {
+            return Err(LoadError::whole(
+                file,
+                "no vertices; expected \"v x y z\" lines",
+            ));
+        }
+        Ok(parsed)
+    }
+}
+
+fn map_error(file: &str, joined: &Joined, err: obj::ObjError) -> LoadError {
     use obj::ObjError as E;
     // The crate counts lines from 0.
     match err {
         E::Io(e) => LoadError::whole(file, format!("cannot read the OBJ text: {e}")),
         E::MalformedFaceGroup { line_number, group } => LoadError::at_line(
             file,
-            line_number + 1,
+            joined.line(line_number),
             format!(
                 "expected a face vertex like 3, 3/1, 3//2 or 3/1/2, found \"{}\"",
                 show(group)
@@ -32,7 +92,7 @@ fn map_error(file: &str, err: obj::ObjError) -> LoadError {
         ),
         E::ArgumentListFailure { line_number, list } => LoadError::at_line(
             file,
-            line_number + 1,
+            joined.line(line_number),
             format!("expected numbers, found {}", show(list)),
         ),
         E::UnexpectedCommand {
@@ -40,15 +100,15 @@ fn map_error(file: &str, err: obj::ObjError) -> LoadError {
             command,
         } => LoadError::at_line(
             file,
-            line_number + 1,
+            joined.line(line_number),
             format!("expected an OBJ command, found \"{}\"", show(command)),
         ),
         E::MissingMTLName { line_number } => {
-            LoadError::at_line(file, line_number + 1, "expected a file name after mtllib")
+            LoadError::at_line(file, joined.line(line_number), "expected a file name after mtllib")
         }
         E::ZeroVertexNumber { line_number } => LoadError::at_line(
             file,
-            line_number + 1,
+            joined.line(line_number),
             "expected a 1-based or negative vertex index, found 0",
         ),
     }
@@ -84,14 +144,14 @@ impl FaceIndex {
 /// definition so far); `face_index` is named when the scan finds nothing.
 fn out_of_range(
     file: &str,
-    data: &[u8],
+    joined: &Joined,
     kind: FaceIndex,
     count: usize,
     face_index: usize,
 ) -> LoadError {
     let (field, command) = kind.field_and_command();
     let mut defined = 0i64;
-    for (line, text) in data.split(|&b| b == b'\n').enumerate() {
+    for (line, text) in joined.text.split(|&b| b == b'\n').enumerate() {
         let mut words = text
             .split(u8::is_ascii_whitespace)
             .filter(|w| !w.is_empty());
@@ -118,7 +178,7 @@ fn out_of_range(
                         };
                         return LoadError::at_line(
                             file,
-                            line + 1,
+                            joined.line(line),
                             format!(
                                 "{what} {index} is out of range (the file has {count} {})",
                                 kind.noun()
@@ -141,8 +201,8 @@ fn out_of_range(
 
 /// Parses OBJ text held in memory. `file` names it in error messages.
 pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
-    let parsed = obj::ObjData::load_buf_with_config(data, obj::LoadConfig { strict: false })
-        .map_err(|e| map_error(file, e))?;
+    let data = &Joined::new(data);
+    let parsed = data.parse(file)?;
     let n = parsed.position.len();
     if n > u32::MAX as usize {
         return Err(LoadError::whole(
@@ -260,14 +320,14 @@ pub fn parse_polygons(
     data: &[u8],
     material: &dyn Fn(&str) -> Option<[f32; 3]>,
 ) -> Result<PolygonMesh, LoadError> {
-    let parsed = obj::ObjData::load_buf_with_config(data, obj::LoadConfig { strict: false })
-        .map_err(|e| map_error(file, e))?;
+    let data = &Joined::new(data);
+    let parsed = data.parse(file)?;
     polygons_of(file, data, &parsed, material)
 }
 
 fn polygons_of(
     file: &str,
-    data: &[u8],
+    data: &Joined,
     parsed: &obj::ObjData,
     material: &dyn Fn(&str) -> Option<[f32; 3]>,
 ) -> Result<PolygonMesh, LoadError> {
@@ -335,8 +395,8 @@ fn polygons_of(
 pub fn load_polygons(path: &Path) -> Result<PolygonMesh, LoadError> {
     let data = super::read_file(path)?;
     let file = path.display().to_string();
-    let parsed = obj::ObjData::load_buf_with_config(&data[..], obj::LoadConfig { strict: false })
-        .map_err(|e| map_error(&file, e))?;
+    let joined = Joined::new(&data);
+    let parsed = joined.parse(&file)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut kd = std::collections::HashMap::new();
     for lib in &parsed.material_libs {
@@ -353,7 +413,7 @@ pub fn load_polygons(path: &Path) -> Result<PolygonMesh, LoadError> {
             }
         }
     }
-    polygons_of(&file, &data, &parsed, &|name| kd.get(name).copied())
+    polygons_of(&file, &joined, &parsed, &|name| kd.get(name).copied())
 }
 
 #[cfg(test)]

@@ -117,7 +117,7 @@ struct Field {
 
 impl Field {
     fn bytes(&self) -> usize {
-        self.size * self.count
+        self.size.saturating_mul(self.count)
     }
 
     /// Decodes one little-endian element of this field.
@@ -338,15 +338,17 @@ impl Builder {
         let mut scalars = Vec::new();
         let mut roles = Vec::new();
         for f in fields {
-            let role = match f.name.as_str() {
+            // Names match in any case, as PDAL's reader matches them; scalars keep the file's.
+            let lower = f.name.to_ascii_lowercase();
+            let role = match lower.as_str() {
                 "x" | "y" | "z" if f.count == 1 => {
-                    Role::Position(usize::from(f.name.as_bytes()[0] - b'x'))
+                    Role::Position(usize::from(lower.as_bytes()[0] - b'x'))
                 }
                 "normal_x" | "normal_y" | "normal_z" if f.count == 1 => {
-                    Role::Normal(usize::from(f.name.as_bytes()[7] - b'x'))
+                    Role::Normal(usize::from(lower.as_bytes()[7] - b'x'))
                 }
                 "rgb" | "rgba" if f.count == 1 && f.size == 4 => Role::Color {
-                    alpha: f.name == "rgba",
+                    alpha: lower == "rgba",
                 },
                 "_" => Role::Skip,
                 _ => {
@@ -474,7 +476,7 @@ fn parse_ascii(
             continue;
         }
         let line_no = header.lines + lines.line();
-        let mut tokens = text::tokens(line, false);
+        let mut tokens = text::tokens(line, true);
         let mismatch = || {
             LoadError::at_line(
                 file,
@@ -608,17 +610,25 @@ fn parse_compressed(
 pub fn parse(file: &str, bytes: &[u8]) -> Result<Cloud, LoadError> {
     let header = parse_header(file, bytes)?;
     let remaining = bytes.len() - header.body;
-    let bound = match header.data {
-        Data::Ascii => remaining / 2 + 1,
-        Data::Binary => remaining,
-        Data::Compressed => remaining.saturating_mul(LZF_MAX_RATIO as usize),
+    // Every value of every point takes at least two bytes of ASCII (a digit and a separator),
+    // its size in binary, and its size over the LZF ratio compressed: counts that claim more
+    // than the file holds are refused before anything is allocated for them.
+    let values: u128 = header.fields.iter().map(|f| f.count as u128).sum();
+    let point_bytes: u128 = header.fields.iter().map(|f| f.bytes() as u128).sum();
+    let (need, have) = match header.data {
+        Data::Ascii => (values * header.points as u128, remaining as u128 / 2 + 1),
+        Data::Binary => (point_bytes * header.points as u128, remaining as u128),
+        Data::Compressed => (
+            point_bytes * header.points as u128,
+            remaining as u128 * u128::from(LZF_MAX_RATIO),
+        ),
     };
-    if header.points > bound {
+    if need > have || values > bytes.len() as u128 {
         return Err(LoadError::at_byte(
             file,
             header.body,
             format!(
-                "DATA size mismatch: header declares {} points, but only {remaining} bytes of data follow",
+                "DATA size mismatch: header declares {} points of {values} values ({point_bytes} bytes), but only {remaining} bytes of data follow",
                 header.points
             ),
         ));
