@@ -81,8 +81,8 @@ pub struct ReportArgs {
 #[derive(Args, Debug, Clone)]
 pub struct InputArgs {
     /// Neighbours for k-NN normals and radii (estimated only for methods that read them);
-    /// 0 turns the estimation off.
-    #[arg(long, default_value_t = preprocess::DEFAULT_K)]
+    /// 0 turns the estimation off; at most 256.
+    #[arg(long, default_value_t = preprocess::DEFAULT_K, value_parser = neighbours)]
     pub k: usize,
     /// Reuse/store computed normals and radii in FILE.surfel-cache.
     #[arg(long)]
@@ -91,6 +91,21 @@ pub struct InputArgs {
     /// root level always).
     #[arg(long, value_name = "N")]
     pub budget: Option<u64>,
+    /// Text files (.xyz, .txt, .pts, .csv) without a row of column names: name the columns,
+    /// e.g. x,y,z,intensity,red,green,blue (`_` skips one).
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub columns: Option<Vec<String>>,
+}
+
+/// Parses `--k`: 0 to [`preprocess::MAX_K`] neighbours.
+fn neighbours(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(k) if k <= preprocess::MAX_K => Ok(k),
+        _ => Err(format!(
+            "expected 0 to {} neighbours, found \"{text}\"",
+            preprocess::MAX_K
+        )),
+    }
 }
 
 impl InputArgs {
@@ -102,6 +117,7 @@ impl InputArgs {
             estimate,
             cache: self.cache,
             budget: self.budget,
+            columns: self.columns.clone(),
         }
     }
 }
@@ -475,6 +491,9 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
             target: parse_vec3(target).map_err(anyhow::Error::msg)?,
         });
     }
+    if let Some(pose) = &pose {
+        pose.check().map_err(anyhow::Error::msg)?;
+    }
     let lights = if file.lights.is_empty() {
         vec![Light::headlight()]
     } else {
@@ -508,7 +527,7 @@ pub fn load_scene(
 ) -> Result<(Cloud, f64)> {
     let mut estimate_s = 0.0;
     let mut load = |path: &Path| -> Result<Cloud> {
-        let mut cloud = crate::scene::load_with_budget(path, options.budget)?;
+        let mut cloud = crate::scene::load_with(path, &options.read())?;
         let start = std::time::Instant::now();
         if crate::scene::complete_with(&mut cloud, path, options, estimate)? {
             estimate_s += start.elapsed().as_secs_f64();

@@ -393,6 +393,34 @@ impl Default for Pose {
 }
 
 impl Pose {
+    /// Refuses a pose no camera can take: a non-finite value, an eye on its target, a
+    /// distance that is not positive.
+    pub fn check(&self) -> Result<(), String> {
+        match *self {
+            Pose::LookAt { eye, target } => {
+                if !eye.iter().chain(&target).all(|v| v.is_finite()) {
+                    return Err(format!(
+                        "camera eye {eye:?} and target {target:?} must be finite"
+                    ));
+                }
+                if eye == target {
+                    return Err(format!(
+                        "camera eye and target are the same point {eye:?}; expected distinct points"
+                    ));
+                }
+            }
+            Pose::Orbit { orbit, distance } => {
+                if !orbit.iter().all(|v| v.is_finite()) || !(distance > 0.0 && distance.is_finite())
+                {
+                    return Err(format!(
+                        "camera orbit {orbit:?} must be finite and its distance {distance} positive"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The camera for a scene with this bounding sphere and up axis.
     pub fn camera(&self, centre: Vec3, radius: f32, up: Up) -> Camera {
         match *self {

@@ -6,7 +6,8 @@
 //! `laz` crate's layered decompressor. With a point budget the octree is read breadth-first by
 //! level: level 0 always, then each next level while the running total stays within the
 //! budget; [`LoadStats::levels`] records the points of every level and how many were read.
-//! Coordinates, colors, intensity and classification are converted as for LAS (f64 until the
+//! Coordinates, colors, intensity, classification, returns, point source and GPS time are
+//! converted as for LAS (f64 until the
 //! bounding-box centre is subtracted; 8-bit colors in 16-bit fields detected).
 //!
 //! Every offset and size in the file is checked against the file's length before anything is
@@ -61,9 +62,20 @@ struct Node {
 struct Decoded {
     world: Vec<DVec3>,
     rgb16: Vec<[u16; 3]>,
-    intensity: Vec<f32>,
-    class: Vec<f32>,
+    /// The standard fields, in the order of [`STANDARD`].
+    standard: [Vec<f32>; 5],
+    gps_time: Vec<f64>,
 }
+
+/// The scalar fields every COPC point has (formats 6-8), named as the LAS reader names them;
+/// `gps_time` follows them.
+const STANDARD: [&str; 5] = [
+    "intensity",
+    "classification",
+    "return_number",
+    "number_of_returns",
+    "point_source_id",
+];
 
 fn io_error(file: &str, source: std::io::Error) -> LoadError {
     LoadError::Io {
@@ -340,8 +352,17 @@ fn decode_chunk(
         if let Some(c) = p.color {
             out.rgb16.push([c.red, c.green, c.blue]);
         }
-        out.intensity.push(f32::from(p.intensity));
-        out.class.push(f32::from(u8::from(p.classification)));
+        let values = [
+            f32::from(p.intensity),
+            f32::from(u8::from(p.classification)),
+            f32::from(p.return_number),
+            f32::from(p.number_of_returns),
+            f32::from(p.point_source_id),
+        ];
+        for (column, value) in out.standard.iter_mut().zip(values) {
+            column.push(value);
+        }
+        out.gps_time.push(p.gps_time.unwrap_or(0.0));
     }
     Ok(out)
 }
@@ -447,8 +468,10 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
         for part in parts {
             decoded.world.extend(part.world);
             decoded.rgb16.extend(part.rgb16);
-            decoded.intensity.extend(part.intensity);
-            decoded.class.extend(part.class);
+            for (all, column) in decoded.standard.iter_mut().zip(part.standard) {
+                all.extend(column);
+            }
+            decoded.gps_time.extend(part.gps_time);
         }
         start = end;
     }
@@ -483,16 +506,23 @@ fn finish(decoded: Decoded, levels: Levels, declared: u64) -> Cloud {
     let mut cloud = Cloud {
         positions,
         colors,
-        scalars: vec![
-            Scalar {
-                name: "intensity".into(),
-                values: decoded.intensity,
-            },
-            Scalar {
-                name: "classification".into(),
-                values: decoded.class,
-            },
-        ],
+        scalars: STANDARD
+            .iter()
+            .zip(decoded.standard)
+            .map(|(name, values)| Scalar {
+                name: (*name).into(),
+                values,
+            })
+            .chain(std::iter::once(Scalar {
+                name: "gps_time".into(),
+                // Relative to the first point's, as the LAS reader keeps them.
+                values: decoded
+                    .gps_time
+                    .iter()
+                    .map(|t| (t - decoded.gps_time.first().copied().unwrap_or(0.0)) as f32)
+                    .collect(),
+            }))
+            .collect(),
         origin,
         stats: LoadStats {
             records: usize::try_from(declared).unwrap_or(usize::MAX),

@@ -65,7 +65,7 @@ pub enum LoadError {
     },
     /// The extension does not name a supported format.
     #[error(
-        "{file}: unsupported file type {extension:?}; expected one of .ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts"
+        "{file}: unsupported file type {extension:?}; expected one of .ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts, .csv"
     )]
     UnknownFormat {
         /// The file, as given by the caller.

@@ -9,7 +9,7 @@ use super::preprocess::{self, PreprocessOptions};
 use super::{pack, Cloud};
 
 /// How [`load_prepared`] completes a loaded model.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LoadOptions {
     /// Neighbours for k-NN normals and radii; 0 turns the estimation off.
     pub k: usize,
@@ -21,6 +21,8 @@ pub struct LoadOptions {
     /// Read at most about this many points from a COPC file: whole octree levels from the root
     /// down while they fit (the root level always). `None` reads everything.
     pub budget: Option<u64>,
+    /// Text files: the names of the columns, for a file without a name row.
+    pub columns: Option<Vec<String>>,
 }
 
 impl Default for LoadOptions {
@@ -30,13 +32,24 @@ impl Default for LoadOptions {
             estimate: true,
             cache: false,
             budget: None,
+            columns: None,
+        }
+    }
+}
+
+impl LoadOptions {
+    /// The options for [`super::load_with`].
+    pub fn read(&self) -> super::ReadOptions {
+        super::ReadOptions {
+            budget: self.budget,
+            columns: self.columns.clone(),
         }
     }
 }
 
 /// Loads `path` and completes it ([`complete`]).
 pub fn load_prepared(path: &Path, options: &LoadOptions) -> Result<Cloud> {
-    let mut cloud = super::load_with_budget(path, options.budget)?;
+    let mut cloud = super::load_with(path, &options.read())?;
     complete(&mut cloud, path, options)?;
     Ok(cloud)
 }

@@ -1,4 +1,4 @@
-//! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ, COPC, E57 and XYZ text, preprocessing (normals and
+//! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ, COPC, E57 and delimited text, preprocessing (normals and
 //! splat radii from k nearest neighbours), mesh sampling, camera, lights and scene files.
 
 pub mod camera;
@@ -34,18 +34,39 @@ pub use input::{complete, complete_with, load_prepared, Estimator, LoadOptions};
 pub use lights::{Light, LightKind};
 
 /// Loads a point cloud or mesh, choosing the format from the file extension (case-insensitive):
-/// `ply`, `obj`, `pcd`, `las`, `laz`, `copc.laz`, `e57`, `xyz`, `txt`, `pts`. Points with a
+/// `ply`, `obj`, `pcd`, `las`, `laz`, `copc.laz`, `e57`, `xyz`, `txt`, `pts`, `csv`. Points with a
 /// non-finite coordinate are dropped and counted in `stats.dropped_non_finite`. The cloud's `up`
 /// is the format's convention: +z for the survey formats (LAS, LAZ, COPC, E57, PCD), +y for the
 /// others.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
-    load_with_budget(path, None)
+    load_with(path, &ReadOptions::default())
 }
 
-/// [`load`], reading a COPC file's octree only down to the deepest level whose points, with
-/// those of the levels above it, fit `budget` (the root level always). A budget for any other
-/// format is an error: only an octree can be read partially.
+/// How [`load_with`] reads a file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReadOptions {
+    /// COPC only: read the octree down to the deepest level whose points, with those of the
+    /// levels above it, fit this many (the root level always).
+    pub budget: Option<u64>,
+    /// Text only: the names of the columns (see [`xyz`]), for a file without a name row.
+    pub columns: Option<Vec<String>>,
+}
+
+/// [`load_with`] with a COPC point budget.
 pub fn load_with_budget(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
+    load_with(
+        path,
+        &ReadOptions {
+            budget,
+            columns: None,
+        },
+    )
+}
+
+/// [`load`] as `options` say. A budget for a format other than COPC is an error (only an
+/// octree can be read partially), and so are columns for a format other than text.
+pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError> {
+    let (budget, columns) = (options.budget, options.columns.as_deref());
     let extension = format_extension(path);
     let up = format_up(&extension);
     if budget.is_some() && extension != "copc.laz" {
@@ -54,6 +75,13 @@ pub fn load_with_budget(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadE
             "a point budget needs a COPC file (.copc.laz); other formats are read whole",
         ));
     }
+    if columns.is_some() && !matches!(extension.as_str(), "xyz" | "txt" | "pts" | "csv") {
+        return Err(LoadError::whole(
+            &path.display().to_string(),
+            "column names are for text files (.xyz, .txt, .pts, .csv); this format names its fields",
+        ));
+    }
+    check_regular(path)?;
     let mut cloud = match extension.as_str() {
         "ply" if lines::is_line_model(path) => lines::load(path).map(|m| m.to_cloud()),
         "ply" => ply::load(path),
@@ -62,7 +90,7 @@ pub fn load_with_budget(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadE
         "copc.laz" => copc::load(path, budget),
         "las" | "laz" => las::load(path),
         "e57" => e57::load(path),
-        "xyz" | "txt" | "pts" => xyz::load(path),
+        "xyz" | "txt" | "pts" | "csv" => xyz::load(path, columns),
         _ => Err(LoadError::UnknownFormat {
             file: path.display().to_string(),
             extension,
@@ -92,6 +120,26 @@ pub fn format_up(extension: &str) -> Up {
     match extension {
         "las" | "laz" | "copc.laz" | "e57" | "pcd" => Up::Z,
         _ => Up::Y,
+    }
+}
+
+/// Refuses what is not a regular file before a loader opens it: reading a FIFO waits for a
+/// writer, and `/dev/zero` or `/dev/urandom` never end.
+fn check_regular(path: &Path) -> Result<(), LoadError> {
+    let file = path.display().to_string();
+    let meta = std::fs::metadata(path).map_err(|source| LoadError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    if meta.is_file() {
+        Ok(())
+    } else if meta.is_dir() {
+        Err(LoadError::whole(&file, "is a folder; expected a point-cloud file"))
+    } else {
+        Err(LoadError::whole(
+            &file,
+            "is not a regular file (a device, FIFO or socket); expected a point-cloud file",
+        ))
     }
 }
 

@@ -35,6 +35,10 @@ use super::progress::Progress;
 /// Default neighbourhood size.
 pub const DEFAULT_K: usize = 10;
 
+/// The most neighbours an estimate uses: more are clamped (the k-NN rows take `k` entries per
+/// point, and a normal's plane needs tens of points, not thousands).
+pub const MAX_K: usize = 256;
+
 /// Radii are at least this fraction of the median radius (duplicates have `r_k` = 0).
 pub const MIN_RADIUS_FRACTION: f32 = 0.1;
 
@@ -91,7 +95,7 @@ impl Neighbours {
     /// finite points) on a grid ([`Grid`]). Non-finite points have no neighbours and are never
     /// anyone's neighbour. Rows are stored in the grid's cell order.
     pub fn compute(positions: &[Vec3], k: usize, progress: bool) -> Self {
-        let k = k.max(1);
+        let k = k.clamp(1, MAX_K);
         let n = positions.len();
         let grid = Grid::build(positions, k);
         let bar = Progress::new("k-NN", n, progress && n >= PROGRESS_MIN_POINTS);
@@ -131,7 +135,7 @@ impl Neighbours {
     /// The reference [`Neighbours::compute`] is measured and tested against: one query of a
     /// k-d tree per point, rows in input order.
     pub fn compute_with_tree(positions: &[Vec3], k: usize) -> Self {
-        let k = k.max(1);
+        let k = k.clamp(1, MAX_K);
         let n = positions.len();
         let tree = FiniteTree::new(positions);
         let mut indices = vec![0u32; n * k];
@@ -519,7 +523,7 @@ pub fn preprocess_with(
     if !want_normals && !want_radii {
         return;
     }
-    let k = options.k.max(1);
+    let k = options.k.clamp(1, MAX_K);
     let positions = &cloud.positions;
     let n = positions.len();
     let grid = Grid::build(positions, k);
@@ -580,7 +584,7 @@ pub fn complete_from(
     }
     let positions = &cloud.positions;
     assert_eq!(estimate.len(), positions.len(), "one estimate per point");
-    let k = options.k.max(1);
+    let k = options.k.clamp(1, MAX_K);
     let unresolved: Vec<u32> = (0..positions.len() as u32)
         .into_par_iter()
         .filter(|&i| estimate[i as usize].w < 0.0 && positions[i as usize].is_finite())

@@ -64,13 +64,51 @@ impl SceneFile {
     /// Parses `text`; `path` names the format and appears in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-        match ext {
+        let file: Self = match ext {
             "toml" => toml::from_str(text)
-                .with_context(|| format!("{}: invalid scene file", path.display())),
+                .with_context(|| format!("{}: invalid scene file", path.display()))?,
             "json" => serde_json::from_str(text)
-                .with_context(|| format!("{}: invalid scene file", path.display())),
+                .with_context(|| format!("{}: invalid scene file", path.display()))?,
             _ => bail!("{}: scene files must end in .toml or .json", path.display()),
+        };
+        file.check()
+            .map_err(|e| anyhow::anyhow!("{}: invalid scene file: {e}", path.display()))?;
+        Ok(file)
+    }
+
+    /// Refuses values that parse but render nothing defined: a camera [`Pose::check`]
+    /// refuses, a light with a non-finite position or a colour that is negative or not finite,
+    /// an input scale outside 10⁻⁶..10⁶ or a translation that is not finite.
+    fn check(&self) -> Result<(), String> {
+        if let Some(pose) = &self.camera {
+            pose.check()?;
         }
+        for (i, light) in self.lights.iter().enumerate() {
+            if !light.position.iter().all(|v| v.is_finite())
+                || !light.color.iter().all(|c| c.is_finite() && *c >= 0.0)
+            {
+                return Err(format!(
+                    "light {i}: position {:?} must be finite and color {:?} finite and not negative",
+                    light.position, light.color
+                ));
+            }
+        }
+        for input in &self.inputs {
+            let name = input.path.display();
+            if let Some(scale) = input.scale {
+                if !(1e-6..=1e6).contains(&scale) {
+                    return Err(format!(
+                        "input {name}: scale {scale} is outside 1e-6 to 1e6"
+                    ));
+                }
+            }
+            if let Some(t) = input.translate {
+                if !t.iter().all(|v| v.is_finite()) {
+                    return Err(format!("input {name}: translate {t:?} must be finite"));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Writes the file as TOML (`.toml`) or JSON (`.json`).
@@ -155,6 +193,24 @@ mod tests {
             e.contains("b.toml") && e.contains("background 'pink'"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn rejects_values_that_render_nothing_defined() {
+        for (text, expected) in [
+            ("[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 1]\n", "same point"),
+            ("[camera]\neye = [0, nan, 1]\ntarget = [0, 0, 0]\n", "must be finite"),
+            ("[camera]\norbit = [inf, 0]\n", "must be finite"),
+            ("[camera]\norbit = [0, 0]\ndistance = 0\n", "distance 0 positive"),
+            ("[[lights]]\nkind = \"static\"\nposition = [nan, 0, 0]\n", "light 0"),
+            ("[[lights]]\nkind = \"camera\"\ncolor = [1, -1, 1]\n", "light 0"),
+            ("[[inputs]]\npath = \"a.ply\"\nscale = nan\n", "scale NaN"),
+            ("[[inputs]]\npath = \"a.ply\"\nscale = 1e30\n", "outside 1e-6 to 1e6"),
+            ("[[inputs]]\npath = \"a.ply\"\ntranslate = [0, inf, 0]\n", "must be finite"),
+        ] {
+            let e = format!("{:#}", SceneFile::parse(text, Path::new("s.toml")).unwrap_err());
+            assert!(e.starts_with("s.toml: invalid scene file: ") && e.contains(expected), "{text}: {e}");
+        }
     }
 
     #[test]

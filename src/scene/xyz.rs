@@ -1,43 +1,195 @@
-//! Plain-text point lists (`.xyz`, `.txt`, `.pts`): one point per line, values separated by
-//! whitespace or commas; blank lines and lines starting with `#` or `//` are ignored. A first
-//! data line holding a single integer (the `.pts` point count) is skipped.
+//! Plain-text point lists (`.xyz`, `.txt`, `.pts`, `.csv`): one point per line, values separated by
+//! commas, semicolons, tabs or spaces (CRLF line ends too); blank lines are ignored.
 //!
-//! The column count of the first data line selects the layout, and every line must match it:
+//! **Named columns** follow PDAL's text reader: a first line of column names (`X,Y,Z,Intensity`,
+//! quoted or not, in any order and any case, also CloudCompare's `//X,Y,Z,R,G,B`) names every
+//! column, or `--columns x,y,z,intensity` names them for a file without that line. Names are
+//! matched case-insensitively, ignoring `_`, `-` and spaces:
+//!
+//! | names | becomes |
+//! |---|---|
+//! | `x`, `y`, `z` | the position (required) |
+//! | `nx`, `ny`, `nz`, `normalx`, ... | the normal (all three) |
+//! | `r`, `g`, `b`, `red`, `green`, `blue` | the colour (0..255, 0..1 floats, or 16-bit as LAS) |
+//! | `i`, `intensity`; `class`, `classification`; `gpstime`, `time`; `returnnumber`; `numberofreturns`; `pointsourceid` | the scalars LAS files give (`intensity`, `classification`, `gps_time`, ...) |
+//! | `_`, `skip` | ignored |
+//! | anything else | a scalar with the file's name |
+//!
+//! **Unnamed columns** (no name line and no `--columns`): lines starting with `#` or `//` are
+//! comments, a first line holding a single integer (the `.pts` point count) is skipped, and the
+//! column count selects the layout:
 //!
 //! | columns | layout |
 //! |---|---|
 //! | 3 | x y z |
 //! | 4 | x y z intensity |
-//! | 6 | x y z r g b, or x y z nx ny nz when every row's last three values form a unit vector |
-//! | 7 | x y z intensity r g b (Leica PTS) |
+//! | 6 | x y z nx ny nz when every row's last three values form a unit vector, x y z r g b when they are all colour values, else x y z and scalars |
+//! | 7 | x y z intensity r g b (Leica PTS) when the last three are colour values, else x y z and scalars |
 //! | 9 | x y z nx ny nz r g b |
 //! | other (≥ 3) | x y z, the rest kept as scalars `column4`, `column5`, ... |
 //!
-//! Colors are 0..255, or 0..1 floats when no color value in the file exceeds 1.
+//! Values are read as f64; the position's f64 centre is subtracted when the coordinates are
+//! large (UTM, ~5 × 10⁶ m), as for the binary formats, so centimetres survive the f32 cloud.
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
-use super::cloud::{Cloud, LoadStats, Scalar};
+use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::{show, LoadError};
+use super::pcd::RECENTRE_MAGNITUDE;
 use super::text::{self, Lines};
 
-/// Parses point-list text held in memory. `file` names it in error messages.
-pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
+/// More columns than this on a line is refused (a 10 MB line of one-byte values would
+/// otherwise make millions of scalar attributes).
+pub const MAX_COLUMNS: usize = 256;
+
+/// What a named column holds.
+#[derive(Clone, Debug, PartialEq)]
+enum Role {
+    Position(usize),
+    Normal(usize),
+    Color(usize),
+    /// A scalar attribute by this name.
+    Scalar(String),
+    Skip,
+}
+
+/// The role of a column named `name` (quotes already removed).
+fn role(name: &str) -> Role {
+    let key: String = name
+        .chars()
+        .filter(|c| !matches!(c, '_' | '-' | ' '))
+        .flat_map(char::to_lowercase)
+        .collect();
+    let scalar = |s: &str| Role::Scalar(s.to_owned());
+    match key.as_str() {
+        "x" => Role::Position(0),
+        "y" => Role::Position(1),
+        "z" => Role::Position(2),
+        "nx" | "normalx" => Role::Normal(0),
+        "ny" | "normaly" => Role::Normal(1),
+        "nz" | "normalz" => Role::Normal(2),
+        "r" | "red" => Role::Color(0),
+        "g" | "green" => Role::Color(1),
+        "b" | "blue" => Role::Color(2),
+        "i" | "intensity" => scalar("intensity"),
+        "class" | "classification" => scalar("classification"),
+        "gpstime" | "time" => scalar("gps_time"),
+        "returnnumber" => scalar("return_number"),
+        "numberofreturns" => scalar("number_of_returns"),
+        "pointsourceid" => scalar("point_source_id"),
+        "" | "skip" => Role::Skip,
+        _ => Role::Scalar(name.to_owned()),
+    }
+}
+
+/// The tokens of a line: split at commas, semicolons and white space, each without the quotes
+/// a spreadsheet puts around names and values.
+fn fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|&b| matches!(b, b' ' | b'\t' | b'\r' | 0x0c | b',' | b';'))
+        .filter(|t| !t.is_empty())
+        .map(|t| {
+            let t = t.strip_prefix(b"\"").unwrap_or(t);
+            let t = t.strip_suffix(b"\"").unwrap_or(t);
+            let t = t.strip_prefix(b"'").unwrap_or(t);
+            t.strip_suffix(b"'").unwrap_or(t)
+        })
+}
+
+/// The roles of the named columns `names`, checked: x, y and z present, each role at most once.
+fn named(names: &[String]) -> Result<Vec<Role>, String> {
+    if names.len() > MAX_COLUMNS {
+        return Err(format!(
+            "{} column names; at most {MAX_COLUMNS} are read",
+            names.len()
+        ));
+    }
+    let roles: Vec<Role> = names.iter().map(|n| role(n)).collect();
+    for (i, r) in roles.iter().enumerate() {
+        if *r != Role::Skip && roles[..i].contains(r) {
+            return Err(format!("column {} repeats \"{}\"", i + 1, show(&names[i])));
+        }
+    }
+    if !(0..3).all(|a| roles.contains(&Role::Position(a))) {
+        return Err(format!(
+            "the column names must include x, y and z, found \"{}\"",
+            show(names.join(","))
+        ));
+    }
+    for (make, what) in [
+        (Role::Normal as fn(usize) -> Role, "nx, ny and nz"),
+        (Role::Color, "r, g and b"),
+    ] {
+        let present = (0..3).filter(|&a| roles.contains(&make(a))).count();
+        if present != 0 && present != 3 {
+            return Err(format!(
+                "the column names must include all of {what} or none, found \"{}\"",
+                show(names.join(","))
+            ));
+        }
+    }
+    Ok(roles)
+}
+
+/// Whether `line` is a row of column names: it has a token that is not a number.
+fn is_name_row(line: &[u8]) -> bool {
+    fields(line).any(|t| text::parse_f64(t).is_none())
+}
+
+/// Parses point-list text held in memory; `columns` names the columns of a file without a name
+/// row (it replaces the name row of a file with one). `file` names it in error messages.
+pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Cloud, LoadError> {
     let mut lines = Lines::new(data);
-    let mut columns = 0usize;
+    let mut roles: Option<Vec<Role>> = columns
+        .map(named)
+        .transpose()
+        .map_err(|e| LoadError::whole(file, format!("--columns: {e}")))?;
+    let mut width = roles.as_ref().map_or(0, Vec::len);
     let mut values: Vec<f64> = Vec::new();
     let mut first = true;
     while let Some(line) = lines.next_line() {
         let trimmed = line.trim_ascii();
-        if trimmed.is_empty() || trimmed.starts_with(b"#") || trimmed.starts_with(b"//") {
+        let n = lines.line();
+        let comment = trimmed
+            .strip_prefix(b"//")
+            .or_else(|| trimmed.strip_prefix(b"#"));
+        if trimmed.is_empty() {
             continue;
         }
-        let n = lines.line();
+        let first_line = std::mem::take(&mut first);
+        if first_line {
+            // A first line with a word names the columns; commented out (`//X,Y,Z`,
+            // `# x y z`), it does when it names x, y and z, else it is a comment.
+            let names_text = comment.unwrap_or(trimmed);
+            if is_name_row(names_text) {
+                let names: Vec<String> = fields(names_text)
+                    .map(|t| String::from_utf8_lossy(t).into_owned())
+                    .collect();
+                match named(&names) {
+                    Ok(named) if columns.is_none() => {
+                        width = named.len();
+                        roles = Some(named);
+                    }
+                    Err(e) if comment.is_none() => return Err(LoadError::at_line(file, n, e)),
+                    _ => {}
+                }
+                continue;
+            }
+        }
+        if comment.is_some() {
+            continue;
+        }
         let start = values.len();
-        let mut count = 0;
-        for token in text::tokens(trimmed, true) {
+        for token in fields(trimmed) {
+            let count = values.len() - start;
+            if count == MAX_COLUMNS {
+                return Err(LoadError::at_line(
+                    file,
+                    n,
+                    format!("more than {MAX_COLUMNS} columns"),
+                ));
+            }
             let v = text::parse_f64(token).ok_or_else(|| {
                 LoadError::at_line(
                     file,
@@ -50,10 +202,9 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
                 )
             })?;
             values.push(v);
-            count += 1;
         }
-        let first_line = std::mem::take(&mut first);
-        if columns == 0 {
+        let count = values.len() - start;
+        if width == 0 {
             if first_line && count == 1 && text::parse_i64(trimmed).is_some() {
                 values.truncate(start);
                 continue;
@@ -68,108 +219,171 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
                     ),
                 ));
             }
-            columns = count;
-        } else if count != columns {
+            width = count;
+        } else if count != width {
+            let like = if roles.is_some() {
+                "as there are column names"
+            } else {
+                "like the first data line"
+            };
             return Err(LoadError::at_line(
                 file,
                 n,
                 format!(
-                    "expected {columns} numbers like the first data line, found {count}: \"{}\"",
+                    "expected {width} numbers {like}, found {count}: \"{}\"",
                     show(trimmed)
                 ),
             ));
         }
     }
-    if columns == 0 {
+    if values.is_empty() {
         return Err(LoadError::whole(
             file,
             "no points; expected lines of x y z values",
         ));
     }
-    Ok(build(&values, columns))
+    let roles = roles.unwrap_or_else(|| guess(&values, width));
+    Ok(build(&values, &roles))
 }
 
-fn build(values: &[f64], columns: usize) -> Cloud {
-    let rows: Vec<&[f64]> = values.chunks_exact(columns).collect();
-    let column = |c: usize| rows.iter().map(move |r| r[c]);
-    let vec3 = |c: usize| -> Vec<Vec3> {
-        rows.iter()
-            .map(|r| Vec3::new(r[c] as f32, r[c + 1] as f32, r[c + 2] as f32))
-            .collect()
+/// The roles of unnamed columns, from their count and values (see the module table).
+fn guess(values: &[f64], width: usize) -> Vec<Role> {
+    let rows = || values.chunks_exact(width);
+    let color_values = |c: usize| {
+        rows().all(|r| {
+            let rgb = &r[c..c + 3];
+            rgb.iter().all(|v| (0.0..=255.0).contains(v) && v.fract() == 0.0)
+                || rgb.iter().all(|v| (0.0..=1.0).contains(v))
+        })
     };
-    let colors_at = |c: usize| -> Vec<[u8; 4]> {
-        let unit = column(c)
-            .chain(column(c + 1))
-            .chain(column(c + 2))
-            .all(|v| v <= 1.0);
-        let scale = if unit { 255.0 } else { 1.0 };
+    let unit_vectors = |c: usize| {
+        rows().all(|r| {
+            let len2 = r[c] * r[c] + r[c + 1] * r[c + 1] + r[c + 2] * r[c + 2];
+            (len2 - 1.0).abs() < 0.02
+        })
+    };
+    let xyz = [Role::Position(0), Role::Position(1), Role::Position(2)];
+    let normal = [Role::Normal(0), Role::Normal(1), Role::Normal(2)];
+    let color = [Role::Color(0), Role::Color(1), Role::Color(2)];
+    let intensity = Role::Scalar("intensity".into());
+    let mut roles: Vec<Role> = xyz.to_vec();
+    match width {
+        3 => {}
+        4 => roles.push(intensity),
+        6 if unit_vectors(3) => roles.extend(normal),
+        6 if color_values(3) => roles.extend(color),
+        7 if color_values(4) => {
+            roles.push(intensity);
+            roles.extend(color);
+        }
+        9 => {
+            roles.extend(normal);
+            roles.extend(color);
+        }
+        _ => {}
+    }
+    for c in roles.len()..width {
+        roles.push(Role::Scalar(format!("column{}", c + 1)));
+    }
+    roles
+}
+
+fn build(values: &[f64], roles: &[Role]) -> Cloud {
+    let rows: Vec<&[f64]> = values.chunks_exact(roles.len()).collect();
+    let find = |want: Role| roles.iter().position(|r| *r == want);
+    let triple = |make: fn(usize) -> Role| -> Option<[usize; 3]> {
+        Some([find(make(0))?, find(make(1))?, find(make(2))?])
+    };
+    let position = triple(Role::Position).unwrap_or([0, 1, 2]);
+    let world = |r: &[f64]| DVec3::new(r[position[0]], r[position[1]], r[position[2]]);
+    let bounds = rows.iter().fold(Bounds::EMPTY, |mut b, r| {
+        b.add(world(r));
+        b
+    });
+    let origin = bounds
+        .centre()
+        .filter(|_| bounds.lo.abs().max(bounds.hi.abs()).max_element() >= RECENTRE_MAGNITUDE)
+        .unwrap_or(DVec3::ZERO);
+    let normals = triple(Role::Normal).map(|[a, b, c]| {
+        rows.iter()
+            .map(|r| Vec3::new(r[a] as f32, r[b] as f32, r[c] as f32))
+            .collect()
+    });
+    let colors = triple(Role::Color).map(|channels| {
+        let all = || rows.iter().flat_map(|r| channels.map(|c| r[c]));
+        let scale = if all().all(|v| v <= 1.0) {
+            255.0
+        } else if all().any(|v| v > 255.0) {
+            1.0 / 257.0
+        } else {
+            1.0
+        };
         rows.iter()
             .map(|r| {
-                let ch = |v: f64| {
-                    let v = (v * scale).round();
+                let [red, green, blue] = channels.map(|c| {
+                    let v = (r[c] * scale).round();
                     if v.is_nan() {
                         0
                     } else {
                         v.clamp(0.0, 255.0) as u8
                     }
-                };
-                [ch(r[c]), ch(r[c + 1]), ch(r[c + 2]), 255]
+                });
+                [red, green, blue, 255]
             })
             .collect()
-    };
-    let scalar = |name: String, c: usize| Scalar {
-        name,
-        values: column(c).map(|v| v as f32).collect(),
-    };
+    });
+    let scalars = roles
+        .iter()
+        .enumerate()
+        .filter_map(|(c, r)| match r {
+            Role::Scalar(name) => {
+                // GPS times (~10⁹ s) keep their sub-millisecond steps relative to the first.
+                let base = if name == "gps_time" {
+                    rows.first().map_or(0.0, |r| r[c])
+                } else {
+                    0.0
+                };
+                Some(Scalar {
+                    name: name.clone(),
+                    values: rows.iter().map(|r| (r[c] - base) as f32).collect(),
+                })
+            }
+            _ => None,
+        })
+        .collect();
     let mut cloud = Cloud {
-        positions: vec3(0),
+        positions: rows.iter().map(|r| (world(r) - origin).as_vec3()).collect(),
+        normals,
+        colors,
+        scalars,
+        origin,
         stats: LoadStats {
             records: rows.len(),
             ..LoadStats::default()
         },
         ..Cloud::default()
     };
-    match columns {
-        3 => {}
-        4 => cloud.scalars.push(scalar("intensity".into(), 3)),
-        6 => {
-            let unit_vectors = rows.iter().all(|r| {
-                let len2 = r[3] * r[3] + r[4] * r[4] + r[5] * r[5];
-                (len2 - 1.0).abs() < 0.02
-            });
-            if unit_vectors {
-                cloud.normals = Some(vec3(3));
-            } else {
-                cloud.colors = Some(colors_at(3));
-            }
-        }
-        7 => {
-            cloud.scalars.push(scalar("intensity".into(), 3));
-            cloud.colors = Some(colors_at(4));
-        }
-        9 => {
-            cloud.normals = Some(vec3(3));
-            cloud.colors = Some(colors_at(6));
-        }
-        _ => {
-            for c in 3..columns {
-                cloud.scalars.push(scalar(format!("column{}", c + 1), c));
-            }
-        }
-    }
     cloud.retain_finite();
     cloud
 }
 
-/// Loads a point-list text file.
-pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+/// Loads a point-list text file; `columns` as for [`parse`].
+pub fn load(path: &Path, columns: Option<&[String]>) -> Result<Cloud, LoadError> {
     let data = super::read_file(path)?;
-    parse(&path.display().to_string(), &data)
+    parse(&path.display().to_string(), &data, columns)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
+        super::parse(file, data, None)
+    }
+
+    fn scalar<'a>(c: &'a Cloud, name: &str) -> &'a [f32] {
+        &c.scalars.iter().find(|s| s.name == name).unwrap().values
+    }
 
     #[test]
     fn layouts() {
@@ -190,11 +404,78 @@ mod tests {
     }
 
     #[test]
-    fn column_mismatch_names_line() {
+    fn six_columns_that_are_neither_colours_nor_normals_stay_scalars() {
+        let c = parse("t.xyz", b"0 0 0 1653000000.5 2 300\n1 1 1 1653000001.5 1 7\n").unwrap();
+        assert!(c.colors.is_none() && c.normals.is_none());
+        assert_eq!(scalar(&c, "column4"), [1653000000.0, 1653000000.0]);
+    }
+
+    #[test]
+    fn a_name_row_in_any_case_order_and_separator() {
+        for text in [
+            &b"X,Y,Z,Intensity\n1,2,3,4\n5,6,7,8\n"[..],
+            b"\"x\";\"y\";\"z\";\"intensity\"\r\n1;2;3;4\r\n5;6;7;8\r\n",
+            b"Intensity\tZ\tY\tX\n4\t3\t2\t1\n8\t7\t6\t5\n",
+            b"//X,Y,Z,I\n1 2 3 4\n5 6 7 8\n",
+        ] {
+            let c = parse("h.txt", text).unwrap();
+            assert_eq!(c.positions, [Vec3::new(1., 2., 3.), Vec3::new(5., 6., 7.)]);
+            assert_eq!(scalar(&c, "intensity"), [4.0, 8.0]);
+        }
+        let c = parse(
+            "c.csv",
+            b"Red,X,Green,Y,Blue,Z,GpsTime,Reflectance\n255,1,0,2,65535,3,1e9,0.5\n0,0,0,0,0,0,1000000000.25,1\n",
+        )
+        .unwrap();
+        assert_eq!(c.colors.unwrap()[0], [1, 0, 255, 255]);
+        assert_eq!(scalar(&c, "gps_time"), [0.0, 0.25]);
+        assert_eq!(scalar(&c, "Reflectance"), [0.5, 1.0]);
+    }
+
+    #[test]
+    fn columns_name_a_file_without_a_name_row() {
+        let names: Vec<String> = ["red", "x", "y", "z"].map(String::from).into();
+        let e = super::parse("n.txt", b"10 1 2 3\n", Some(&names)).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "n.txt: --columns: the column names must include all of r, g and b or none, found \"red,x,y,z\""
+        );
+        let names: Vec<String> = ["i", "x", "y", "z"].map(String::from).into();
+        let c = super::parse("n.txt", b"10 1 2 3\n", Some(&names)).unwrap();
+        assert_eq!(c.positions, [Vec3::new(1., 2., 3.)]);
+        assert_eq!(scalar(&c, "intensity"), [10.0]);
+    }
+
+    #[test]
+    fn large_coordinates_keep_centimetres() {
+        let c = parse(
+            "utm.xyz",
+            b"500000.01 4320000.01 100.01\n500004.36 4320004.36 104.36\n",
+        )
+        .unwrap();
+        let far = c.origin + c.positions[1].as_dvec3();
+        assert!((far - DVec3::new(500004.36, 4320004.36, 104.36)).abs().max_element() < 1e-3);
+    }
+
+    #[test]
+    fn bad_rows_name_their_line() {
         let err = parse("m.xyz", b"0 0 0\n1 1\n").unwrap_err().to_string();
         assert_eq!(
             err,
             "m.xyz: line 2: expected 3 numbers like the first data line, found 2: \"1 1\""
         );
+        let err = parse("h.txt", b"X,Y,Intensity\n1,2,3\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "h.txt: line 1: the column names must include x, y and z, found \"X,Y,Intensity\""
+        );
+        let err = parse("h.txt", b"x,y,z\n1,2,3,4\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "h.txt: line 2: expected 3 numbers as there are column names, found 4: \"1,2,3,4\""
+        );
+        let wide = "1 ".repeat(MAX_COLUMNS + 1);
+        let err = parse("w.xyz", wide.as_bytes()).unwrap_err().to_string();
+        assert_eq!(err, format!("w.xyz: line 1: more than {MAX_COLUMNS} columns"));
     }
 }
