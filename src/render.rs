@@ -94,6 +94,17 @@ pub fn upload_with(
     cloud: &Cloud,
     options: UploadOptions,
 ) -> Result<(GpuScene, SceneInfo)> {
+    // The passes assume finite positions (a NaN projects to pixel 0): a cloud built without a
+    // loader, which drops them, is uploaded without them.
+    let finite;
+    let cloud = if cloud.positions.iter().all(|p| p.is_finite()) {
+        cloud
+    } else {
+        let mut copy = cloud.clone();
+        copy.retain_finite();
+        finite = copy;
+        &finite
+    };
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
     let segment_points = options
         .segment_points

@@ -1364,6 +1364,61 @@ mod tests {
         }
     }
 
+    /// `laz` (one chunk) rewritten as LASzip 1.2's point-wise compressor writes: no offset to a
+    /// chunk table before the points, no table after them, compressor 1 and chunk size 0.
+    fn point_wise(laz: &[u8]) -> Vec<u8> {
+        let word = |at: usize| usize::from(u16::from_le_bytes([laz[at], laz[at + 1]]));
+        let at = u32::from_le_bytes(laz[96..100].try_into().unwrap()) as usize;
+        let table = i64::from_le_bytes(laz[at..at + 8].try_into().unwrap()) as usize;
+        let mut out = [&laz[..at], &laz[at + 8..table]].concat();
+        let mut vlr = word(94);
+        while &out[vlr + 2..vlr + 16] != b"laszip encoded" {
+            vlr += 54 + word(vlr + 20);
+        }
+        out[vlr + 54..vlr + 56].copy_from_slice(&1u16.to_le_bytes());
+        out[vlr + 66..vlr + 70].copy_from_slice(&0u32.to_le_bytes());
+        out
+    }
+
+    #[test]
+    fn point_wise_laz_reads_as_its_chunked_twin() {
+        for format in [1, 3] {
+            let chunked = written(format, 2_000, 2_000, true);
+            let name = format!("pw{format}.laz");
+            let expected = parse(&name, chunked.clone()).unwrap();
+            let cloud = parse(&name, point_wise(&chunked)).unwrap();
+            assert_eq!(cloud.len(), 2_000);
+            assert_eq!(cloud.positions, expected.positions, "{name}");
+            assert_eq!(cloud.scalars, expected.scalars, "{name}");
+            assert_eq!(cloud.colors, expected.colors, "{name}");
+        }
+    }
+
+    #[test]
+    fn laszip_vlrs_the_crate_would_panic_on_are_errors() {
+        let laz = written(3, 100, 100, true);
+        let word = |at: usize| usize::from(u16::from_le_bytes([laz[at], laz[at + 1]]));
+        let mut vlr = word(94);
+        while &laz[vlr + 2..vlr + 16] != b"laszip encoded" {
+            vlr += 54 + word(vlr + 20);
+        }
+        let mut no_items = laz.clone();
+        no_items[vlr + 54 + 32..vlr + 54 + 34].copy_from_slice(&0u16.to_le_bytes());
+        assert_eq!(
+            parse("items.laz", no_items).unwrap_err().to_string(),
+            format!("items.laz: byte offset {}: the laszip VLR lists no point items", vlr + 86)
+        );
+        // Variable-size chunks in a file cut before its chunk table.
+        let mut variable = laz.clone();
+        variable[vlr + 66..vlr + 70].copy_from_slice(&u32::MAX.to_le_bytes());
+        let cut = variable[..variable.len() - 40].to_vec();
+        let message = parse("cut.laz", cut).unwrap_err().to_string();
+        assert!(
+            message.contains("variable-size chunks cannot be read without it"),
+            "{message}"
+        );
+    }
+
     #[test]
     fn inconsistent_chunk_tables_are_errors_before_anything_is_allocated() {
         let root = std::env::var_os("SURFEL_DATA")

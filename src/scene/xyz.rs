@@ -157,29 +157,30 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
         if trimmed.is_empty() {
             continue;
         }
-        let first_line = std::mem::take(&mut first);
-        if first_line {
-            // A first line with a word names the columns; commented out (`//X,Y,Z`,
-            // `# x y z`), it does when it names x, y and z, else it is a comment.
-            let names_text = comment.unwrap_or(trimmed);
-            if is_name_row(names_text) {
-                let names: Vec<String> = fields(names_text)
-                    .map(|t| String::from_utf8_lossy(t).into_owned())
-                    .collect();
-                match named(&names) {
-                    Ok(named) if columns.is_none() => {
+        // A first line with a word names the columns; commented out (`//X,Y,Z`, `# x y z`),
+        // it does when it names x, y and z, else it is a comment.
+        let names_text = comment.unwrap_or(trimmed);
+        if first && is_name_row(names_text) {
+            let names: Vec<String> = fields(names_text)
+                .map(|t| String::from_utf8_lossy(t).into_owned())
+                .collect();
+            match named(&names) {
+                Ok(named) => {
+                    first = false;
+                    if columns.is_none() {
                         width = named.len();
                         roles = Some(named);
                     }
-                    Err(e) if comment.is_none() => return Err(LoadError::at_line(file, n, e)),
-                    _ => {}
                 }
-                continue;
+                Err(e) if comment.is_none() => return Err(LoadError::at_line(file, n, e)),
+                Err(_) => {}
             }
+            continue;
         }
         if comment.is_some() {
             continue;
         }
+        let first_line = std::mem::take(&mut first);
         let start = values.len();
         for token in fields(trimmed) {
             let count = values.len() - start;
@@ -407,7 +408,7 @@ mod tests {
     fn six_columns_that_are_neither_colours_nor_normals_stay_scalars() {
         let c = parse("t.xyz", b"0 0 0 1653000000.5 2 300\n1 1 1 1653000001.5 1 7\n").unwrap();
         assert!(c.colors.is_none() && c.normals.is_none());
-        assert_eq!(scalar(&c, "column4"), [1653000000.0, 1653000000.0]);
+        assert_eq!(scalar(&c, "column6"), [300.0, 7.0]);
     }
 
     #[test]
@@ -427,7 +428,7 @@ mod tests {
             b"Red,X,Green,Y,Blue,Z,GpsTime,Reflectance\n255,1,0,2,65535,3,1e9,0.5\n0,0,0,0,0,0,1000000000.25,1\n",
         )
         .unwrap();
-        assert_eq!(c.colors.unwrap()[0], [1, 0, 255, 255]);
+        assert_eq!(c.colors.as_ref().unwrap()[0], [1, 0, 255, 255]);
         assert_eq!(scalar(&c, "gps_time"), [0.0, 0.25]);
         assert_eq!(scalar(&c, "Reflectance"), [0.5, 1.0]);
     }
