@@ -95,7 +95,10 @@ fn load(name: &str, bytes: &[u8]) -> Option<String> {
     );
     result.err().map(|e| {
         let message = e.to_string();
-        assert!(message.starts_with(&path.display().to_string()), "{message}");
+        assert!(
+            message.starts_with(&path.display().to_string()),
+            "{message}"
+        );
         message
     })
 }
@@ -137,7 +140,6 @@ fn pcd_claiming_a_tera_points_or_values() {
 
 /// A LAS 1.4 file of 50 points in format 6, compressed or not.
 fn las14(compressed: bool) -> Vec<u8> {
-    use las::Write as _;
     let mut builder = las::Builder::from((1, 4));
     builder.point_format = las::point::Format::new(6).unwrap();
     builder.point_format.is_compressed = compressed;
@@ -149,6 +151,7 @@ fn las14(compressed: bool) -> Vec<u8> {
                 x: i as f64,
                 y: (i * 7 % 13) as f64,
                 z: 1.0,
+                gps_time: Some(i as f64),
                 ..Default::default()
             })
             .unwrap();
@@ -161,7 +164,7 @@ fn las14(compressed: bool) -> Vec<u8> {
 fn las_and_laz_claiming_a_tera_points() {
     for (name, compressed) in [("tera.las", false), ("tera.laz", true)] {
         // The 64-bit point count of LAS 1.4 (byte 247); the legacy 32-bit one (107) is 0.
-        let bytes = patched(las14(compressed), 247, TERA, 8);
+        let bytes = patched(patched(las14(compressed), 247, TERA, 8), 107, 0, 4);
         assert!(load(name, &bytes).is_some(), "{name} loaded");
         // As many VLRs (byte 100) as 32 bits hold.
         let bytes = patched(las14(compressed), 100, u64::from(u32::MAX), 4);
@@ -220,7 +223,11 @@ fn e57_claiming_a_tera_records() {
 #[test]
 fn obj_and_text_claiming_a_tera_elements() {
     let obj = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 {TERA}\n");
-    refused("tera.obj", obj.as_bytes(), "face index 1000000000000 is out of range");
+    refused(
+        "tera.obj",
+        obj.as_bytes(),
+        "face index 1000000000000 is out of range",
+    );
     // A `.pts` count line is a claim the reader does not act on: the points are what is there.
     let pts = format!("{TERA}\n0 0 0 10 1 2 3\n");
     assert_eq!(load("tera.pts", pts.as_bytes()), None);
@@ -235,5 +242,9 @@ fn the_measure_sees_a_loader_allocate() {
     PEAK.store(base, Ordering::SeqCst);
     let cloud = scene::load(&file("count.xyz", text.as_bytes())).expect("loads");
     let peak = PEAK.load(Ordering::SeqCst) - base;
-    assert!(peak >= 1000 * 3 * 8, "{peak} bytes for {} points", cloud.len());
+    assert!(
+        peak >= 1000 * 3 * 8,
+        "{peak} bytes for {} points",
+        cloud.len()
+    );
 }

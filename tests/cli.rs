@@ -559,6 +559,99 @@ fn a_missing_file_reports_the_os_error_once() {
 }
 
 #[test]
+fn devices_and_fifos_are_refused_without_reading_them() {
+    let fifo = tmp("pipe.ply");
+    let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success());
+    for input in [fifo.to_str().expect("utf8"), "/dev/zero", "/dev/urandom"] {
+        let o = surfel(&["info", input, "--no-device"]);
+        assert_eq!(o.status.code(), Some(1), "{input}");
+        assert_eq!(
+            stderr(&o).trim_end(),
+            format!("error: {input}: is not a regular file (a device, FIFO or socket); expected a point-cloud file")
+        );
+    }
+}
+
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(["info", "--no-device"])
+        .arg(data("lidar/autzen_trim.las"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run surfel");
+    // Read one byte, then close the pipe as `head -c 1` would.
+    let mut stdout = child.stdout.take().expect("stdout");
+    let mut first = [0u8; 1];
+    stdout.read_exact(&mut first).expect("output");
+    drop(stdout);
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .expect("stderr")
+        .read_to_string(&mut err)
+        .expect("stderr");
+    let status = child.wait().expect("exit");
+    assert!(!status.success() || err.is_empty());
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn text_columns_by_name_or_by_flag() {
+    let named = tmp("named.csv");
+    std::fs::write(
+        &named,
+        "\"X\";\"Y\";\"Z\";\"Intensity\"\r\n1;2;3;40\r\n4;5;6;50\r\n",
+    )
+    .expect("write");
+    let o = surfel(&["info", named.to_str().expect("utf8"), "--no-device"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("intensity              40 .. 50"), "{out}");
+    let bare = tmp("bare.txt");
+    std::fs::write(&bare, "40 1 2 3\n50 4 5 6\n").expect("write");
+    let path = bare.to_str().expect("utf8");
+    let o = surfel(&["info", path, "--no-device", "--columns", "intensity,x,y,z"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("intensity              40 .. 50"), "{out}");
+    let o = surfel(&["info", path, "--no-device", "--columns", "x,y,intensity"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("--columns: the column names must include x, y and z"),
+        "{}",
+        stderr(&o)
+    );
+    let las = data("lidar/autzen_trim.las");
+    let o = surfel(&[
+        "info",
+        las.to_str().expect("utf8"),
+        "--no-device",
+        "--columns",
+        "x,y,z",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("column names are for text files"),
+        "{}",
+        stderr(&o)
+    );
+    let o = surfel(&["info", path, "--no-device", "--k", "1000000000"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("expected 0 to 256 neighbours"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn a_directory_as_input_reports_the_os_error_once() {
     let dir = tmp("directories");
     std::fs::create_dir_all(&dir).expect("temp dir");

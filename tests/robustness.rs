@@ -85,7 +85,10 @@ fn cases() -> Vec<Case> {
     vec![
         case("empty", Cloud::default()),
         case("1 point", cloud(vec![Vec3::new(5.0, -2.0, 1.0)])),
-        case("2 points", cloud(vec![Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0)])),
+        case(
+            "2 points",
+            cloud(vec![Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0)]),
+        ),
         case("all coincident", cloud(vec![Vec3::ONE; 500])),
         case(
             "on a line",

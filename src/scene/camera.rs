@@ -410,7 +410,7 @@ impl Pose {
                 }
             }
             Pose::Orbit { orbit, distance } => {
-                if !orbit.iter().all(|v| v.is_finite()) || !(distance > 0.0 && distance.is_finite())
+                if !(orbit.iter().all(|v| v.is_finite()) && distance > 0.0 && distance.is_finite())
                 {
                     return Err(format!(
                         "camera orbit {orbit:?} must be finite and its distance {distance} positive"

@@ -58,9 +58,20 @@ fn check_header(file: &str, header: &[u8; HEADER_BYTES], size: u64) -> Result<()
 /// The error for a failure the `e57` crate reports (its message names the page for checksum
 /// errors).
 fn crate_error(file: &str, scan: Option<usize>, err: e57::Error) -> LoadError {
+    let message = describe(&err);
     match scan {
-        Some(scan) => LoadError::whole(file, format!("scan {scan}: {err}")),
-        None => LoadError::whole(file, err.to_string()),
+        Some(scan) => LoadError::whole(file, format!("scan {scan}: {message}")),
+        None => LoadError::whole(file, message),
+    }
+}
+
+/// The crate's message, leading with a page checksum failure when there is one: the crate
+/// wraps it in "File appears to be truncated", which a corrupt page is not.
+fn describe(err: &e57::Error) -> String {
+    let text = err.to_string();
+    match text.find("Detected invalid checksum") {
+        Some(at) => format!("corrupt page: {}", &text[at..]),
+        None => text,
     }
 }
 
@@ -253,8 +264,9 @@ fn read_scans<R: Read + Seek>(
             .pointcloud_raw(pc)
             .map_err(|e| crate_error(file, Some(index), e))?;
         for (i, values) in records.enumerate() {
-            let at_record =
-                |e: e57::Error| LoadError::whole(file, format!("scan {index}, record {i}: {e}"));
+            let at_record = |e: e57::Error| {
+                LoadError::whole(file, format!("scan {index}, record {i}: {}", describe(&e)))
+            };
             let values = values.map_err(at_record)?;
             let Decoded {
                 world,

@@ -56,7 +56,13 @@ fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(
     if size < 227 {
         let head = bytes_at(read, 0, size.min(4) as usize).map_err(io)?;
         if head.len() == 4 && head != b"LASF" {
-            return Err(at(0, format!("expected the LAS signature \"LASF\", found \"{}\"", show(&head))));
+            return Err(at(
+                0,
+                format!(
+                    "expected the LAS signature \"LASF\", found \"{}\"",
+                    show(&head)
+                ),
+            ));
         }
         return Err(LoadError::whole(
             file,
@@ -67,11 +73,20 @@ fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(
     let u16_at = |o: usize| u64::from(u16::from_le_bytes([h[o], h[o + 1]]));
     let u32_at = |o: usize| u64::from(u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]));
     if &h[..4] != b"LASF" {
-        return Err(at(0, format!("expected the LAS signature \"LASF\", found \"{}\"", show(&h[..4]))));
+        return Err(at(
+            0,
+            format!(
+                "expected the LAS signature \"LASF\", found \"{}\"",
+                show(&h[..4])
+            ),
+        ));
     }
     let (major, minor) = (h[24], h[25]);
     if major != 1 || minor > 4 {
-        return Err(at(24, format!("expected LAS version 1.0 to 1.4, found {major}.{minor}")));
+        return Err(at(
+            24,
+            format!("expected LAS version 1.0 to 1.4, found {major}.{minor}"),
+        ));
     }
     let header_size = u16_at(94);
     let minimum = match minor {
@@ -87,11 +102,20 @@ fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(
     }
     let format = h[104] & 0x3f;
     if format > 10 {
-        return Err(at(104, format!("expected a point data format 0 to 10, found {format}")));
+        return Err(at(
+            104,
+            format!("expected a point data format 0 to 10, found {format}"),
+        ));
     }
     let points_at = u32_at(96);
-    if points_at < header_size || points_at > size {
-        return Err(at(96, format!("the point data offset {points_at} is outside the header's end ({header_size}) and the file's ({size})")));
+    if points_at > size {
+        return Err(at(96, format!("the point data starts at byte {points_at}, past the end of the file at byte {size} (truncated file?)")));
+    }
+    if points_at < header_size {
+        return Err(at(
+            96,
+            format!("the point data offset {points_at} is inside the {header_size}-byte header"),
+        ));
     }
     let vlrs = u32_at(100);
     let mut vlr = header_size;
@@ -819,7 +843,9 @@ fn laszip_vlr(
     data: &[u8],
     header: &las::Header,
 ) -> Result<(usize, laz::LazVlr), LoadError> {
-    let missing = || LoadError::whole(file, "a compressed point format without a laszip VLR (user \"laszip encoded\", record 22204)");
+    let missing = || {
+        LoadError::whole(file, "a compressed point format without a laszip VLR (user \"laszip encoded\", record 22204)")
+    };
     let vlr = header.laz_vlr().map_err(|e| match e {
         las::Error::LasZipVlrNotFound => missing(),
         e => LoadError::whole(file, format!("invalid laszip VLR: {e}")),
@@ -1406,7 +1432,10 @@ mod tests {
         no_items[vlr + 54 + 32..vlr + 54 + 34].copy_from_slice(&0u16.to_le_bytes());
         assert_eq!(
             parse("items.laz", no_items).unwrap_err().to_string(),
-            format!("items.laz: byte offset {}: the laszip VLR lists no point items", vlr + 86)
+            format!(
+                "items.laz: byte offset {}: the laszip VLR lists no point items",
+                vlr + 86
+            )
         );
         // Variable-size chunks in a file cut before its chunk table.
         let mut variable = laz.clone();

@@ -123,7 +123,7 @@ pub fn format_up(extension: &str) -> Up {
     }
 }
 
-/// Refuses what is not a regular file before a loader opens it: reading a FIFO waits for a
+/// Refuses a device, FIFO or socket before a loader opens it: reading a FIFO waits for a
 /// writer, and `/dev/zero` or `/dev/urandom` never end.
 fn check_regular(path: &Path) -> Result<(), LoadError> {
     let file = path.display().to_string();
@@ -131,10 +131,9 @@ fn check_regular(path: &Path) -> Result<(), LoadError> {
         file: file.clone(),
         source,
     })?;
-    if meta.is_file() {
+    // A folder fails when it is read, with the operating system's reason.
+    if meta.is_file() || meta.is_dir() {
         Ok(())
-    } else if meta.is_dir() {
-        Err(LoadError::whole(&file, "is a folder; expected a point-cloud file"))
     } else {
         Err(LoadError::whole(
             &file,

@@ -65,8 +65,9 @@ impl<'a> Joined<'a> {
     /// The text parsed by the `obj` crate; an empty file, or one without vertices, is an error
     /// (as it is for every other format).
     fn parse(&self, file: &str) -> Result<obj::ObjData, LoadError> {
-        let parsed = obj::ObjData::load_buf_with_config(&self.text[..], obj::LoadConfig { strict: false })
-            .map_err(|e| map_error(file, self, e))?;
+        let parsed =
+            obj::ObjData::load_buf_with_config(&self.text[..], obj::LoadConfig { strict: false })
+                .map_err(|e| map_error(file, self, e))?;
         if parsed.position.is_empty() {
             return Err(LoadError::whole(
                 file,
@@ -103,9 +104,11 @@ fn map_error(file: &str, joined: &Joined, err: obj::ObjError) -> LoadError {
             joined.line(line_number),
             format!("expected an OBJ command, found \"{}\"", show(command)),
         ),
-        E::MissingMTLName { line_number } => {
-            LoadError::at_line(file, joined.line(line_number), "expected a file name after mtllib")
-        }
+        E::MissingMTLName { line_number } => LoadError::at_line(
+            file,
+            joined.line(line_number),
+            "expected a file name after mtllib",
+        ),
         E::ZeroVertexNumber { line_number } => LoadError::at_line(
             file,
             joined.line(line_number),

@@ -610,26 +610,41 @@ fn parse_compressed(
 pub fn parse(file: &str, bytes: &[u8]) -> Result<Cloud, LoadError> {
     let header = parse_header(file, bytes)?;
     let remaining = bytes.len() - header.body;
-    // Every value of every point takes at least two bytes of ASCII (a digit and a separator),
+    // Every value of every point takes at least a byte of ASCII (a digit),
     // its size in binary, and its size over the LZF ratio compressed: counts that claim more
     // than the file holds are refused before anything is allocated for them.
     let values: u128 = header.fields.iter().map(|f| f.count as u128).sum();
     let point_bytes: u128 = header.fields.iter().map(|f| f.bytes() as u128).sum();
-    let (need, have) = match header.data {
-        Data::Ascii => (values * header.points as u128, remaining as u128 / 2 + 1),
-        Data::Binary => (point_bytes * header.points as u128, remaining as u128),
+    let points = header.points as u128;
+    let (need, have, unit) = match header.data {
+        Data::Ascii => (
+            values * points,
+            remaining as u128 + 1,
+            "bytes of text at least",
+        ),
+        Data::Binary => (point_bytes * points, remaining as u128, "bytes"),
         Data::Compressed => (
-            point_bytes * header.points as u128,
+            point_bytes * points,
             remaining as u128 * u128::from(LZF_MAX_RATIO),
+            "bytes, more than LZF packs into them",
         ),
     };
-    if need > have || values > bytes.len() as u128 {
+    if values > bytes.len() as u128 {
         return Err(LoadError::at_byte(
             file,
             header.body,
             format!(
-                "DATA size mismatch: header declares {} points of {values} values ({point_bytes} bytes), but only {remaining} bytes of data follow",
-                header.points
+                "DATA size mismatch: {values} values per point in a file of {} bytes",
+                bytes.len()
+            ),
+        ));
+    }
+    if need > have {
+        return Err(LoadError::at_byte(
+            file,
+            header.body,
+            format!(
+                "DATA size mismatch: {points} points of {point_bytes} bytes ({values} values) need {need} {unit}, but only {remaining} bytes follow the header"
             ),
         ));
     }

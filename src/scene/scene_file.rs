@@ -198,18 +198,45 @@ mod tests {
     #[test]
     fn rejects_values_that_render_nothing_defined() {
         for (text, expected) in [
-            ("[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 1]\n", "same point"),
-            ("[camera]\neye = [0, nan, 1]\ntarget = [0, 0, 0]\n", "must be finite"),
+            (
+                "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 1]\n",
+                "same point",
+            ),
+            (
+                "[camera]\neye = [0, nan, 1]\ntarget = [0, 0, 0]\n",
+                "must be finite",
+            ),
             ("[camera]\norbit = [inf, 0]\n", "must be finite"),
-            ("[camera]\norbit = [0, 0]\ndistance = 0\n", "distance 0 positive"),
-            ("[[lights]]\nkind = \"static\"\nposition = [nan, 0, 0]\n", "light 0"),
-            ("[[lights]]\nkind = \"camera\"\ncolor = [1, -1, 1]\n", "light 0"),
+            (
+                "[camera]\norbit = [0, 0]\ndistance = 0\n",
+                "distance 0 positive",
+            ),
+            (
+                "[[lights]]\nkind = \"static\"\nposition = [nan, 0, 0]\n",
+                "light 0",
+            ),
+            (
+                "[[lights]]\nkind = \"camera\"\ncolor = [1, -1, 1]\n",
+                "light 0",
+            ),
             ("[[inputs]]\npath = \"a.ply\"\nscale = nan\n", "scale NaN"),
-            ("[[inputs]]\npath = \"a.ply\"\nscale = 1e30\n", "outside 1e-6 to 1e6"),
-            ("[[inputs]]\npath = \"a.ply\"\ntranslate = [0, inf, 0]\n", "must be finite"),
+            (
+                "[[inputs]]\npath = \"a.ply\"\nscale = 1e30\n",
+                "outside 1e-6 to 1e6",
+            ),
+            (
+                "[[inputs]]\npath = \"a.ply\"\ntranslate = [0, inf, 0]\n",
+                "must be finite",
+            ),
         ] {
-            let e = format!("{:#}", SceneFile::parse(text, Path::new("s.toml")).unwrap_err());
-            assert!(e.starts_with("s.toml: invalid scene file: ") && e.contains(expected), "{text}: {e}");
+            let e = format!(
+                "{:#}",
+                SceneFile::parse(text, Path::new("s.toml")).unwrap_err()
+            );
+            assert!(
+                e.starts_with("s.toml: invalid scene file: ") && e.contains(expected),
+                "{text}: {e}"
+            );
         }
     }
 

@@ -132,9 +132,11 @@ fn named(names: &[String]) -> Result<Vec<Role>, String> {
     Ok(roles)
 }
 
-/// Whether `line` is a row of column names: it has a token that is not a number.
+/// Whether `line` is a row of column names: text without control characters (binary data is
+/// not), with a token that is not a number.
 fn is_name_row(line: &[u8]) -> bool {
-    fields(line).any(|t| text::parse_f64(t).is_none())
+    std::str::from_utf8(line).is_ok_and(|s| !s.chars().any(|c| c.is_control() && c != '\t'))
+        && fields(line).any(|t| text::parse_f64(t).is_none())
 }
 
 /// Parses point-list text held in memory; `columns` names the columns of a file without a name
@@ -253,7 +255,8 @@ fn guess(values: &[f64], width: usize) -> Vec<Role> {
     let color_values = |c: usize| {
         rows().all(|r| {
             let rgb = &r[c..c + 3];
-            rgb.iter().all(|v| (0.0..=255.0).contains(v) && v.fract() == 0.0)
+            rgb.iter()
+                .all(|v| (0.0..=255.0).contains(v) && v.fract() == 0.0)
                 || rgb.iter().all(|v| (0.0..=1.0).contains(v))
         })
     };
@@ -406,7 +409,11 @@ mod tests {
 
     #[test]
     fn six_columns_that_are_neither_colours_nor_normals_stay_scalars() {
-        let c = parse("t.xyz", b"0 0 0 1653000000.5 2 300\n1 1 1 1653000001.5 1 7\n").unwrap();
+        let c = parse(
+            "t.xyz",
+            b"0 0 0 1653000000.5 2 300\n1 1 1 1653000001.5 1 7\n",
+        )
+        .unwrap();
         assert!(c.colors.is_none() && c.normals.is_none());
         assert_eq!(scalar(&c, "column6"), [300.0, 7.0]);
     }
@@ -455,7 +462,12 @@ mod tests {
         )
         .unwrap();
         let far = c.origin + c.positions[1].as_dvec3();
-        assert!((far - DVec3::new(500004.36, 4320004.36, 104.36)).abs().max_element() < 1e-3);
+        assert!(
+            (far - DVec3::new(500004.36, 4320004.36, 104.36))
+                .abs()
+                .max_element()
+                < 1e-3
+        );
     }
 
     #[test]
@@ -465,7 +477,9 @@ mod tests {
             err,
             "m.xyz: line 2: expected 3 numbers like the first data line, found 2: \"1 1\""
         );
-        let err = parse("h.txt", b"X,Y,Intensity\n1,2,3\n").unwrap_err().to_string();
+        let err = parse("h.txt", b"X,Y,Intensity\n1,2,3\n")
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             err,
             "h.txt: line 1: the column names must include x, y and z, found \"X,Y,Intensity\""
@@ -477,6 +491,9 @@ mod tests {
         );
         let wide = "1 ".repeat(MAX_COLUMNS + 1);
         let err = parse("w.xyz", wide.as_bytes()).unwrap_err().to_string();
-        assert_eq!(err, format!("w.xyz: line 1: more than {MAX_COLUMNS} columns"));
+        assert_eq!(
+            err,
+            format!("w.xyz: line 1: more than {MAX_COLUMNS} columns")
+        );
     }
 }

@@ -1,11 +1,11 @@
 //! Writes the seed corpus of every target into `corpus/TARGET/`, from the real files in
 //! `../shared/data` (small ones whole, larger ones cut to a few dozen points and written again
-//! in each encoding the loader reads). Run from `fuzz/`: `cargo run --bin seed -- ../../shared/data`.
+//! in each encoding the loader reads). Run from `fuzz/`: `cargo run --release --example seed -- ../../shared/data`.
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use las::{Builder, Read as _, Reader, Write as _, Writer};
+use las::{Builder, Reader, Writer};
 
 /// Points kept from a large file.
 const POINTS: usize = 48;
