@@ -40,7 +40,9 @@ fn las_subset(data: &Path, rel: &str, version: (u8, u8), compressed: bool) -> Ve
     let header = builder.into_header().expect("valid header");
     let mut writer = Writer::new(Cursor::new(Vec::new()), header).expect("writer");
     for point in reader.points().take(POINTS) {
-        writer.write_point(point.expect("a point")).expect("written");
+        writer
+            .write_point(point.expect("a point"))
+            .expect("written");
     }
     writer.close().expect("closed");
     writer.into_inner().expect("bytes").into_inner()
@@ -105,8 +107,7 @@ fn pcd_seeds(data: &Path) {
 }
 
 fn ply_seeds(data: &Path) {
-    let mut cloud =
-        surfel::scene::load(&data.join("ply/frag_115.ply")).expect("readable PLY");
+    let mut cloud = surfel::scene::load(&data.join("ply/frag_115.ply")).expect("readable PLY");
     cloud.faces = None;
     let keep = POINTS.min(cloud.positions.len());
     cloud.positions.truncate(keep);
@@ -134,7 +135,10 @@ fn ply_seeds(data: &Path) {
         .collect();
     let head = head
         .replace("element vertex 35947", &format!("element vertex {POINTS}"))
-        .replace("element face 69451", &format!("element face {}", faces.len()));
+        .replace(
+            "element face 69451",
+            &format!("element face {}", faces.len()),
+        );
     let ascii = format!(
         "{head}end_header\n{}\n{}\n",
         lines[..POINTS].join("\n"),
@@ -144,8 +148,7 @@ fn ply_seeds(data: &Path) {
 }
 
 fn text_seeds(data: &Path) {
-    let cloud =
-        surfel::scene::load(&data.join("lidar/autzen_trim.las")).expect("readable LAS");
+    let cloud = surfel::scene::load(&data.join("lidar/autzen_trim.las")).expect("readable LAS");
     let mut named = String::from("X,Y,Z,Intensity,Red,Green,Blue\r\n");
     let mut bare = String::from("# x y z r g b\n");
     for (i, p) in cloud.positions.iter().take(POINTS).enumerate() {
@@ -155,12 +158,19 @@ fn text_seeds(data: &Path) {
             "{:.2},{:.2},{:.2},{},{},{},{}\r\n",
             w.x, w.y, w.z, cloud.scalars[0].values[i], c[0], c[1], c[2]
         );
-        bare += &format!("{:.2} {:.2} {:.2} {} {} {}\n", w.x, w.y, w.z, c[0], c[1], c[2]);
+        bare += &format!(
+            "{:.2} {:.2} {:.2} {} {} {}\n",
+            w.x, w.y, w.z, c[0], c[1], c[2]
+        );
     }
     // The text target reads its first byte as the extension: 0 .xyz, 1 .txt, 2 .pts, 3 .csv.
     put("text", "named.csv", &[b"\x03", named.as_bytes()].concat());
     put("text", "bare.xyz", &[b"\x00", bare.as_bytes()].concat());
-    put("text", "count.pts", b"\x022\n0 0 0 10 1 2 3\n1 1 1 20 4 5 6\n");
+    put(
+        "text",
+        "count.pts",
+        b"\x022\n0 0 0 10 1 2 3\n1 1 1 20 4 5 6\n",
+    );
 }
 
 fn scene_seeds() {
