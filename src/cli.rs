@@ -863,6 +863,9 @@ fn info(a: InfoArgs) -> Result<()> {
         "duplicates        {} points at {} distinct positions",
         duplicates.points, duplicates.positions
     );
+    if let Some(columns) = &cloud.stats.guessed_columns {
+        println!("columns guessed   {columns} (from their count; name them with a first row or --columns)");
+    }
     if let Some(levels) = &cloud.stats.levels {
         let per_level: Vec<String> = levels.points.iter().map(u64::to_string).collect();
         println!(

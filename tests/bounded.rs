@@ -88,7 +88,10 @@ fn load(name: &str, bytes: &[u8]) -> Option<String> {
     let result = scene::load(&path);
     let peak = PEAK.load(Ordering::SeqCst) - base;
     let bound = FACTOR * bytes.len() + CONSTANT;
-    println!("{name}: peak {peak} bytes for a file of {} bytes", bytes.len());
+    println!(
+        "{name}: peak {peak} bytes for a file of {} bytes",
+        bytes.len()
+    );
     assert!(
         peak <= bound,
         "{name}: {peak} bytes at the peak for a file of {} bytes (bound {bound})",

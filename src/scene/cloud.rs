@@ -20,10 +20,13 @@ pub struct LoadStats {
     /// Records dropped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
     /// Records the file itself marks invalid (E57 `cartesianInvalidState` /
-    /// `sphericalInvalidState`), skipped.
+    /// `sphericalInvalidState`), or text rows without the values their column names call for,
+    /// skipped.
     pub dropped_invalid: usize,
     /// For an octree file (COPC): the points of each level and how many levels were read.
     pub levels: Option<Levels>,
+    /// For a text file without column names: the columns as their count made them.
+    pub guessed_columns: Option<String>,
 }
 
 /// The octree levels of a COPC file and the levels a point budget let a load read.

@@ -15,9 +15,13 @@
 //! | `_`, `skip` | ignored |
 //! | anything else | a scalar with the file's name |
 //!
+//! A row with another number of values than there are names is skipped and counted (`surfel
+//! info`: dropped as invalid), as PDAL skips it.
+//!
 //! **Unnamed columns** (no name line and no `--columns`): lines starting with `#` or `//` are
-//! comments, a first line holding a single integer (the `.pts` point count) is skipped, and the
-//! column count selects the layout:
+//! comments, a first line holding a single integer (the `.pts` point count) is skipped, rows
+//! of different lengths are read for the columns every row has (as CGAL reads `.xyz`), and that
+//! column count selects the layout (`surfel info` prints it as `columns guessed`):
 //!
 //! | columns | layout |
 //! |---|---|
@@ -53,6 +57,19 @@ enum Role {
     /// A scalar attribute by this name.
     Scalar(String),
     Skip,
+}
+
+impl Role {
+    /// How `surfel info` names the column.
+    fn name(&self) -> String {
+        match self {
+            Role::Position(a) => ["x", "y", "z"][*a].into(),
+            Role::Normal(a) => ["nx", "ny", "nz"][*a].into(),
+            Role::Color(a) => ["red", "green", "blue"][*a].into(),
+            Role::Scalar(name) => name.clone(),
+            Role::Skip => "_".into(),
+        }
+    }
 }
 
 /// The role of a column named `name` (quotes already removed).
@@ -133,10 +150,16 @@ fn named(names: &[String]) -> Result<Vec<Role>, String> {
 }
 
 /// Whether `line` is a row of column names: text without control characters (binary data is
-/// not), with a token that is not a number.
+/// not), with a token that is not a number, each such token starting with a letter or `_`.
 fn is_name_row(line: &[u8]) -> bool {
+    let words: Vec<&[u8]> = fields(line)
+        .filter(|t| text::parse_f64(t).is_none())
+        .collect();
     std::str::from_utf8(line).is_ok_and(|s| !s.chars().any(|c| c.is_control() && c != '\t'))
-        && fields(line).any(|t| text::parse_f64(t).is_none())
+        && !words.is_empty()
+        && words
+            .iter()
+            .all(|w| w[0].is_ascii_alphabetic() || w[0] == b'_' || w[0] >= 0x80)
 }
 
 /// Parses point-list text held in memory; `columns` names the columns of a file without a name
@@ -149,6 +172,10 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
         .map_err(|e| LoadError::whole(file, format!("--columns: {e}")))?;
     let mut width = roles.as_ref().map_or(0, Vec::len);
     let mut values: Vec<f64> = Vec::new();
+    // Values per row of a file without names (at most MAX_COLUMNS).
+    let mut lengths: Vec<u16> = Vec::new();
+    // Rows skipped for not matching the named columns.
+    let mut skipped = 0usize;
     let mut first = true;
     while let Some(line) = lines.next_line() {
         let trimmed = line.trim_ascii();
@@ -184,6 +211,12 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
         }
         let first_line = std::mem::take(&mut first);
         let start = values.len();
+        // Named columns: a row with another number of values is skipped and counted, as
+        // PDAL skips it.
+        if roles.is_some() && fields(trimmed).take(width + 1).count() != width {
+            skipped += 1;
+            continue;
+        }
         for token in fields(trimmed) {
             let count = values.len() - start;
             if count == MAX_COLUMNS {
@@ -207,46 +240,57 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
             values.push(v);
         }
         let count = values.len() - start;
-        if width == 0 {
-            if first_line && count == 1 && text::parse_i64(trimmed).is_some() {
-                values.truncate(start);
-                continue;
-            }
-            if count < 3 {
-                return Err(LoadError::at_line(
-                    file,
-                    n,
-                    format!(
-                        "expected at least 3 numbers (x y z), found {count}: \"{}\"",
-                        show(trimmed)
-                    ),
-                ));
-            }
-            width = count;
-        } else if count != width {
-            let like = if roles.is_some() {
-                "as there are column names"
-            } else {
-                "like the first data line"
-            };
+        if roles.is_some() {
+            continue;
+        }
+        if first_line && count == 1 && text::parse_i64(trimmed).is_some() {
+            values.truncate(start);
+            continue;
+        }
+        if count < 3 {
             return Err(LoadError::at_line(
                 file,
                 n,
                 format!(
-                    "expected {width} numbers {like}, found {count}: \"{}\"",
+                    "expected at least 3 numbers (x y z), found {count}: \"{}\"",
                     show(trimmed)
                 ),
             ));
         }
+        lengths.push(count as u16);
+        width = if width == 0 { count } else { width.min(count) };
     }
     if values.is_empty() {
-        return Err(LoadError::whole(
-            file,
-            "no points; expected lines of x y z values",
-        ));
+        let message = if skipped > 0 {
+            format!("no points; the {skipped} rows do not have the {width} values the columns name")
+        } else {
+            "no points; expected lines of x y z values".to_owned()
+        };
+        return Err(LoadError::whole(file, message));
     }
-    let roles = roles.unwrap_or_else(|| guess(&values, width));
-    Ok(build(&values, &roles))
+    let (roles, guessed) = match roles {
+        Some(roles) => (roles, None),
+        None => {
+            // Rows of different lengths: the columns every row has.
+            if lengths.iter().any(|&l| usize::from(l) != width) {
+                let mut at = 0;
+                let mut kept = Vec::with_capacity(lengths.len() * width);
+                for &l in &lengths {
+                    kept.extend_from_slice(&values[at..at + width]);
+                    at += usize::from(l);
+                }
+                values = kept;
+            }
+            let roles = guess(&values, width);
+            let names: Vec<String> = roles.iter().map(Role::name).collect();
+            (roles, Some(names.join(", ")))
+        }
+    };
+    let mut cloud = build(&values, &roles);
+    cloud.stats.guessed_columns = guessed;
+    cloud.stats.records += skipped;
+    cloud.stats.dropped_invalid = skipped;
+    Ok(cloud)
 }
 
 /// The roles of unnamed columns, from their count and values (see the module table).
@@ -471,11 +515,33 @@ mod tests {
     }
 
     #[test]
+    fn ragged_rows_keep_the_columns_every_row_has() {
+        let c = parse(
+            "r.xyz",
+            b"2 3 4   4  4 2 7 4\n3 4 6\n1 2 3 4 5 6\n0 0 0 9 9 9",
+        )
+        .unwrap();
+        assert_eq!(c.len(), 4);
+        assert!(c.scalars.is_empty() && c.colors.is_none());
+        assert_eq!(c.positions[2], Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(c.stats.guessed_columns.as_deref(), Some("x, y, z"));
+        let c = parse("named.txt", b"X, Y, Z\n\n1 , 2 , 3,27\n4,5,6\n7 8\n").unwrap();
+        assert_eq!(c.positions, [Vec3::new(4., 5., 6.)]);
+        assert_eq!((c.stats.records, c.stats.dropped_invalid), (3, 2));
+        assert_eq!(c.stats.guessed_columns, None);
+    }
+
+    #[test]
     fn bad_rows_name_their_line() {
         let err = parse("m.xyz", b"0 0 0\n1 1\n").unwrap_err().to_string();
         assert_eq!(
             err,
-            "m.xyz: line 2: expected 3 numbers like the first data line, found 2: \"1 1\""
+            "m.xyz: line 2: expected at least 3 numbers (x y z), found 2: \"1 1\""
+        );
+        let err = parse("n.xyz", b"-+e093e\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "n.xyz: line 1: expected a number in column 1, found \"-+e093e\""
         );
         let err = parse("h.txt", b"X,Y,Intensity\n1,2,3\n")
             .unwrap_err()
@@ -484,10 +550,15 @@ mod tests {
             err,
             "h.txt: line 1: the column names must include x, y and z, found \"X,Y,Intensity\""
         );
-        let err = parse("h.txt", b"x,y,z\n1,2,3,4\n").unwrap_err().to_string();
+        let err = parse("h.txt", b"x,y,z,i\n1,2,3\n").unwrap_err().to_string();
         assert_eq!(
             err,
-            "h.txt: line 2: expected 3 numbers as there are column names, found 4: \"1,2,3,4\""
+            "h.txt: no points; the 1 rows do not have the 4 values the columns name"
+        );
+        let err = parse("h.txt", b"x,y,z\n1,2,q\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "h.txt: line 2: expected a number in column 3, found \"q\""
         );
         let wide = "1 ".repeat(MAX_COLUMNS + 1);
         let err = parse("w.xyz", wide.as_bytes()).unwrap_err().to_string();
