@@ -246,7 +246,7 @@ fn copc_reads_every_level_like_the_plain_laz_reader() {
                 (key, c.scalars.iter().map(|s| s.values[i]).collect())
             })
             .collect();
-        rows.sort_by(|a, b| a.0.cmp(&b.0));
+        rows.sort_by_key(|r| r.0);
         rows
     };
     let (a, b) = (by_position(&copc), by_position(&laz));
