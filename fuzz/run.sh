@@ -8,13 +8,13 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=(ply obj pcd las laz copc e57 text scene)
 [ -d corpus ] || cargo run --release --example seed -- ../../shared/data
-cargo +nightly fuzz build -s none
+cargo +nightly fuzz build -O -s none
 mkdir -p logs
 for t in "${targets[@]}"; do
   mkdir -p "corpus/$t"
   # -malloc_limit_mb: one allocation past 1 GiB from inputs of at most 64 KiB is a finding.
   # Fork mode with the ignore flags runs the whole time and keeps every finding.
-  cargo +nightly fuzz run -s none "$t" "corpus/$t" -- \
+  cargo +nightly fuzz run -O -s none "$t" "corpus/$t" -- \
     -max_total_time="$seconds" -max_len=65536 -timeout=10 \
     -rss_limit_mb=2048 -malloc_limit_mb=1024 \
     -fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1 \

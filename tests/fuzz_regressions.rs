@@ -41,10 +41,12 @@ fn load_all(target: &str) -> (usize, Vec<String>) {
 }
 
 #[test]
-fn laz_cases() {
-    let (loaded, errors) = load_all("laz");
-    // The point-wise file is a real LASzip 1.2 layout and loads; the others are refused.
-    assert_eq!(loaded, 1, "{errors:#?}");
+fn laz_and_copc_cases() {
+    // Each refused with an error naming the file, or read (a mutant can still be a valid file).
+    let (_, errors) = load_all("laz");
+    assert!(errors.len() >= 15, "{errors:#?}");
+    let (_, errors) = load_all("copc");
+    assert_eq!(errors.len(), 1, "{errors:#?}");
     let point_wise = cases("laz")
         .into_iter()
         .find(|p| p.ends_with("point-wise.laz"))

@@ -25,6 +25,7 @@ use rayon::prelude::*;
 
 use super::cloud::{Bounds, Cloud, Levels, LoadStats, Scalar};
 use super::error::LoadError;
+use super::guard;
 use super::progress::Progress;
 
 /// Bytes of one hierarchy entry: key (4 × i32), offset (u64), byte size (i32), point count (i32).
@@ -336,13 +337,17 @@ fn decode_chunk(
     }
     let mut decompressor = LayeredPointRecordDecompressor::new(Cursor::new(data));
     let corrupt = |e: String| LoadError::at_byte(file, at(0), format!("corrupt LAZ chunk: {e}"));
-    decompressor
-        .set_fields_from(vlr.items())
-        .map_err(|e| corrupt(e.to_string()))?;
     let mut records = vec![0u8; node.points as usize * stride];
-    decompressor
-        .decompress_many(&mut records)
-        .map_err(|e| corrupt(e.to_string()))?;
+    guard::third_party(|| {
+        decompressor
+            .set_fields_from(vlr.items())
+            .map_err(|e| e.to_string())?;
+        decompressor
+            .decompress_many(&mut records)
+            .map_err(|e| e.to_string())
+    })
+    .map_err(&corrupt)?
+    .map_err(corrupt)?;
     let mut out = Decoded::default();
     let transforms = header.transforms();
     for record in records.chunks_exact(stride) {

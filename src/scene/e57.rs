@@ -20,6 +20,7 @@ use glam::{DQuat, DVec3};
 
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::LoadError;
+use super::guard;
 
 /// Bytes of the E57 file header (signature, version, lengths, XML offset, page size).
 const HEADER_BYTES: usize = 48;
@@ -303,9 +304,11 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     }
     check_header(&file, &header, size)?;
     open.rewind().map_err(io)?;
-    let mut reader =
-        E57Reader::new(BufReader::new(open)).map_err(|e| crate_error(&file, None, e))?;
-    let points = read_scans(&file, &mut reader, size)?;
+    let failed = |e: String| LoadError::whole(&file, e);
+    let mut reader = guard::third_party(|| E57Reader::new(BufReader::new(open)))
+        .map_err(failed)?
+        .map_err(|e| crate_error(&file, None, e))?;
+    let points = guard::third_party(|| read_scans(&file, &mut reader, size)).map_err(failed)??;
     let bounds = points.world.iter().fold(Bounds::EMPTY, |mut b, p| {
         b.add(*p);
         b

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::{show, LoadError};
+use super::guard;
 use super::progress::Progress;
 use super::records::{self, Span};
 
@@ -35,7 +36,9 @@ fn read_header<R: Read + Seek>(
 ) -> Result<las::Header, LoadError> {
     check_header(file, read, size as u64)?;
     read.rewind().map_err(|source| io_error(file, source))?;
-    las::Header::new(read).map_err(|e| header_error(file, e, size))
+    guard::third_party(|| las::Header::new(read))
+        .map_err(|e| LoadError::whole(file, format!("invalid LAS header: {e}")))?
+        .map_err(|e| header_error(file, e, size))
 }
 
 /// The `len` bytes at byte `at` of `read`.
@@ -115,6 +118,20 @@ fn check_header<R: Read + Seek>(file: &str, read: &mut R, size: u64) -> Result<(
         return Err(at(
             96,
             format!("the point data offset {points_at} is inside the {header_size}-byte header"),
+        ));
+    }
+    let record = u16_at(105);
+    let legacy = u32_at(107);
+    let points = if minor >= 4 {
+        let b = bytes_at(read, 247, 8).map_err(io)?;
+        legacy.max(u64::from_le_bytes(b.try_into().unwrap_or_default()))
+    } else {
+        legacy
+    };
+    if points.checked_mul(record).is_none() {
+        return Err(at(
+            if minor >= 4 { 247 } else { 107 },
+            format!("the header declares {points} points of {record} bytes, more than 2^64 bytes"),
         ));
     }
     let vlrs = u32_at(100);
@@ -796,6 +813,18 @@ fn read_compressed<R: Read + Seek + Send + Sync + 'static>(
             "the laszip VLR lists no point items",
         ));
     }
+    // The decoder writes each item into the record the reader sizes from the header.
+    let items: u64 = vlr.items().iter().map(|i| u64::from(i.size())).sum();
+    let record = u64::from(header.point_format().len());
+    if items != record {
+        return Err(LoadError::at_byte(
+            file,
+            vlr_at + 32,
+            format!(
+                "the laszip VLR's items make {items}-byte points, but the header's point records have {record} bytes"
+            ),
+        ));
+    }
     if u16::from_le_bytes([data[vlr_at], data[vlr_at + 1]]) == POINT_WISE {
         // The point-wise compressor has no chunks, no chunk table and no offset to one; the
         // `laz` crate reads it as one chunk unless its chunk size says variable (0 or 2^32-1,
@@ -889,7 +918,12 @@ fn read_chunks(
         return Ok(None);
     };
     if stride == 0
-        || vlr.items_size() != stride as u64
+        || vlr
+            .items()
+            .iter()
+            .map(|i| usize::from(i.size()))
+            .sum::<usize>()
+            != stride
         || bytes > MAX_EXPANSION * data.len() as u128
     {
         return Ok(None);
@@ -908,7 +942,10 @@ fn read_chunks(
         let points: u64 = entries.iter().map(|e| e.point_count).sum();
         let (chunk_in, rest_in) = input.split_at(compressed as usize);
         let (chunk_out, rest_out) = output.split_at_mut(points as usize * stride);
-        if laz::par_decompress(chunk_in, chunk_out, &vlr, entries).is_err() {
+        let decoded =
+            guard::third_party(|| laz::par_decompress(chunk_in, chunk_out, &vlr, entries))
+                .map_err(|e| LoadError::at_byte(file, at, format!("LAZ chunks: {e}")))?;
+        if decoded.is_err() {
             progress.finish();
             return Ok(None);
         }
@@ -1012,7 +1049,9 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
     size: usize,
     truncated_file: bool,
 ) -> Result<Cloud, LoadError> {
-    let mut reader = las::Reader::new(read).map_err(|e| header_error(file, e, size))?;
+    let mut reader = guard::third_party(|| las::Reader::new(read))
+        .map_err(|e| LoadError::whole(file, format!("invalid LAS header: {e}")))?
+        .map_err(|e| header_error(file, e, size))?;
     let declared = reader.header().number_of_points();
     let extra = extra_fields(file, reader.header())?;
     let format = *reader.header().point_format();
@@ -1029,16 +1068,19 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .collect();
     let mut index = 0u64;
     let mut time_origin = None;
-    while let Some(point) = reader.read_point().map_err(|e| {
-        let message = match e {
-            _ if truncated_file => truncated(index, declared, size),
-            las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => {
-                truncated(index, declared, size)
-            }
-            e => format!("point record {index} of {declared}: {e}"),
-        };
-        LoadError::whole(file, message)
-    })? {
+    while let Some(point) = guard::third_party(|| reader.read_point())
+        .map_err(|e| LoadError::whole(file, format!("point record {index} of {declared}: {e}")))?
+        .map_err(|e| {
+            let message = match e {
+                _ if truncated_file => truncated(index, declared, size),
+                las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => {
+                    truncated(index, declared, size)
+                }
+                e => format!("point record {index} of {declared}: {e}"),
+            };
+            LoadError::whole(file, message)
+        })?
+    {
         world.push(DVec3::new(point.x, point.y, point.z));
         if let Some(c) = point.color {
             rgb16.push([c.red, c.green, c.blue]);

@@ -15,6 +15,7 @@ use glam::Vec3;
 
 use super::cloud::{Cloud, LoadStats};
 use super::error::{show, LoadError};
+use super::guard;
 use super::pack::srgb_byte;
 
 /// OBJ text with its continued lines (a line ending in `\\` goes on in the next, as the format
@@ -65,9 +66,11 @@ impl<'a> Joined<'a> {
     /// The text parsed by the `obj` crate; an empty file, or one without vertices, is an error
     /// (as it is for every other format).
     fn parse(&self, file: &str) -> Result<obj::ObjData, LoadError> {
-        let parsed =
+        let parsed = guard::third_party(|| {
             obj::ObjData::load_buf_with_config(&self.text[..], obj::LoadConfig { strict: false })
-                .map_err(|e| map_error(file, self, e))?;
+        })
+        .map_err(|e| LoadError::whole(file, e))?
+        .map_err(|e| map_error(file, self, e))?;
         if parsed.position.is_empty() {
             return Err(LoadError::whole(
                 file,
