@@ -461,15 +461,17 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
             .iter()
             .map(|n| read_at(&file, &mut read, n.offset, n.bytes, size, "the chunk"))
             .collect::<Result<Vec<_>, _>>()?;
-        let parts = batch
-            .par_iter()
-            .zip(&data)
-            .map(|(node, data)| {
-                let part = decode_chunk(&file, node, data, &header, &vlr, layer_count);
-                progress.advance(node.points as usize);
-                part
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let parts = guard::deep_stack(|| {
+            batch
+                .par_iter()
+                .zip(&data)
+                .map(|(node, data)| {
+                    let part = decode_chunk(&file, node, data, &header, &vlr, layer_count);
+                    progress.advance(node.points as usize);
+                    part
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })?;
         for part in parts {
             decoded.world.extend(part.world);
             decoded.rgb16.extend(part.rgb16);

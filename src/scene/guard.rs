@@ -5,7 +5,7 @@
 
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, Once};
+use std::sync::{Mutex, Once, OnceLock};
 
 /// Guarded calls running now, on any thread.
 static ACTIVE: AtomicUsize = AtomicUsize::new(0);
@@ -52,6 +52,30 @@ pub(crate) fn third_party<T>(f: impl FnOnce() -> T) -> Result<T, String> {
             message.unwrap_or_else(|| "no message".to_owned())
         )
     })
+}
+
+/// Stack of the threads that run the `laz` crate's decoders. Its GPS-time decoder (point
+/// formats 1 and 3) calls itself once per sequence switch it decodes, and corrupt data can
+/// switch tens of thousands of times on a few hundred bytes: an 849-byte file found by fuzzing
+/// needed 150 MB of stack, and overflowing a stack aborts the process, which no check or
+/// [`third_party`] can catch. The space is reserved, not used, until a decoder goes that deep.
+const DECODER_STACK_BYTES: usize = 1 << 30;
+
+/// Runs `f` on a thread pool with [`DECODER_STACK_BYTES`] stacks (its parallel iterators run
+/// there too); on the calling thread when such a pool cannot be made.
+pub(crate) fn deep_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    static POOL: OnceLock<Option<rayon::ThreadPool>> = OnceLock::new();
+    let pool = POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .stack_size(DECODER_STACK_BYTES)
+            .thread_name(|i| format!("decoder {i}"))
+            .build()
+            .ok()
+    });
+    match pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    }
 }
 
 #[cfg(test)]

@@ -726,7 +726,7 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     let mut cursor = Cursor::new(data);
     let header = read_header(file, &mut cursor, size)?;
     if header.point_format().is_compressed {
-        return read_compressed(file, cursor, &header, size);
+        return guard::deep_stack(|| read_compressed(file, cursor, &header, size));
     }
     let at = cursor.position() as usize;
     let layout = Layout::new(file, &header, at, size)?;
@@ -755,7 +755,7 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let mut read = BufReader::new(open);
     let header = read_header(&file, &mut read, size)?;
     if header.point_format().is_compressed {
-        return read_compressed(&file, read, &header, size);
+        return guard::deep_stack(|| read_compressed(&file, read, &header, size));
     }
     let at = read
         .stream_position()
