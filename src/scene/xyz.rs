@@ -112,6 +112,7 @@ fn fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
             let t = t.strip_prefix(b"'").unwrap_or(t);
             t.strip_suffix(b"'").unwrap_or(t)
         })
+        .filter(|t| !t.is_empty())
 }
 
 /// The roles of the named columns `names`, checked: x, y and z present, each role at most once.
@@ -157,9 +158,10 @@ fn is_name_row(line: &[u8]) -> bool {
         .collect();
     std::str::from_utf8(line).is_ok_and(|s| !s.chars().any(|c| c.is_control() && c != '\t'))
         && !words.is_empty()
-        && words
-            .iter()
-            .all(|w| w[0].is_ascii_alphabetic() || w[0] == b'_' || w[0] >= 0x80)
+        && words.iter().all(|w| {
+            w.first()
+                .is_some_and(|&c| c.is_ascii_alphabetic() || c == b'_' || c >= 0x80)
+        })
 }
 
 /// Parses point-list text held in memory; `columns` names the columns of a file without a name
@@ -538,6 +540,9 @@ mod tests {
             err,
             "m.xyz: line 2: expected at least 3 numbers (x y z), found 2: \"1 1\""
         );
+        // An empty quoted field is no column (and no name row).
+        let c = parse("q.xyz", b"\"\" 1 2 3\n").unwrap();
+        assert_eq!(c.positions, [Vec3::new(1.0, 2.0, 3.0)]);
         let err = parse("n.xyz", b"-+e093e\n").unwrap_err().to_string();
         assert_eq!(
             err,
