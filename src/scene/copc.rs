@@ -383,7 +383,9 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
     let mut read = BufReader::new(open);
     check_header(&file, &mut read, size)?;
     read.rewind().map_err(|source| io_error(&file, source))?;
-    let header = las::Header::new(&mut read).map_err(|e| match e {
+    let header = guard::third_party(|| las::Header::new(&mut read))
+        .map_err(|e| LoadError::whole(&file, format!("invalid LAS header: {e}")))?
+        .map_err(|e| match e {
         las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => LoadError::whole(
             &file,
             format!("invalid LAS header: the file ends at byte {size}, inside the header or its VLRs (truncated file?)"),

@@ -1000,10 +1000,12 @@ fn chunk_table(
     }
     let mut cursor = Cursor::new(data);
     cursor.set_position(at as u64);
-    let mut entries = match laz::laszip::ChunkTable::read_from(&mut cursor, vlr) {
-        Ok(table) if table.as_ref().len() as u64 == chunks => table.as_ref().to_vec(),
-        Ok(_) => return invalid(format!("fewer than the {chunks} chunks it declares")),
-        Err(e) => return invalid(e.to_string()),
+    let read = guard::third_party(|| laz::laszip::ChunkTable::read_from(&mut cursor, vlr));
+    let mut entries = match read {
+        Ok(Ok(table)) if table.as_ref().len() as u64 == chunks => table.as_ref().to_vec(),
+        Ok(Ok(_)) => return invalid(format!("fewer than the {chunks} chunks it declares")),
+        Ok(Err(e)) => return invalid(e.to_string()),
+        Err(e) => return invalid(e),
     };
     let bytes = entries
         .iter()
