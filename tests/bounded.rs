@@ -2,6 +2,8 @@
 //! read for what they hold) while the loader's peak heap stays within a fixed multiple of the
 //! file's size plus a constant, measured by a counting allocator.
 
+mod common;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -191,36 +193,10 @@ fn copc_claiming_a_tera_points() {
     refused("node.copc.laz", &bytes, "cannot hold the 2147483647 points");
 }
 
-/// CRC-32C (Castagnoli), the checksum of every 1,020-byte E57 page (stored big-endian after it).
-fn crc32c(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &byte in bytes {
-        crc ^= u32::from(byte);
-        for _ in 0..8 {
-            crc = (crc >> 1) ^ if crc & 1 == 1 { 0x82F6_3B78 } else { 0 };
-        }
-    }
-    !crc
-}
-
 #[test]
 fn e57_claiming_a_tera_records() {
-    // The scan's recordCount raised from 30,571 to 10^12; the XML keeps its length (the next
-    // line's indentation goes) and the page checksums are redone.
-    let mut bytes = data("e57/bunnyFloat.e57");
-    let old = b"recordCount=\"30571\">\n        <prototype";
-    let new = b"recordCount=\"1000000000000\">\n<prototype";
-    assert_eq!(old.len(), new.len());
-    let at = bytes
-        .windows(old.len())
-        .position(|w| w == old)
-        .expect("recordCount in the XML");
-    bytes[at..at + new.len()].copy_from_slice(new);
-    for page in [at / 1024, (at + new.len()) / 1024] {
-        let start = page * 1024;
-        let crc = crc32c(&bytes[start..start + 1020]);
-        bytes[start + 1020..start + 1024].copy_from_slice(&crc.to_be_bytes());
-    }
+    // The scan's recordCount raised from 30,571 to 10^12.
+    let bytes = common::bunny_e57_claiming(TERA);
     refused("tera.e57", &bytes, "scan 0, record 30571: ");
 }
 

@@ -1,6 +1,8 @@
 //! Malformed inputs fail with an error that names the file, the place and what was expected;
 //! none of them panics or allocates according to an absurd header count.
 
+mod common;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -449,35 +451,10 @@ fn malformed_copc_names_the_offset() {
     );
 }
 
-/// CRC-32C (Castagnoli), the checksum of every 1,020-byte E57 page (stored big-endian after it).
-fn crc32c(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &byte in bytes {
-        crc ^= u32::from(byte);
-        for _ in 0..8 {
-            crc = (crc >> 1) ^ if crc & 1 == 1 { 0x82F6_3B78 } else { 0 };
-        }
-    }
-    !crc
-}
-
 #[test]
 fn e57_scan_claiming_2_pow_40_records_fails_at_the_end_of_its_data() {
-    // bunnyFloat.e57 with the scan's recordCount raised from 30,571 to 2^40 (the XML keeps its
-    // length: indentation is dropped) and the page checksums redone.
-    let mut bytes = cut("e57/bunnyFloat.e57", |n| n);
-    let old = b"recordCount=\"30571\">\n        <prototype";
-    let new = b"recordCount=\"1099511627776\">\n<prototype";
-    let at = bytes
-        .windows(old.len())
-        .position(|w| w == old)
-        .expect("recordCount in the XML");
-    bytes[at..at + new.len()].copy_from_slice(new);
-    for page in [at / 1024, (at + new.len()) / 1024] {
-        let start = page * 1024;
-        let crc = crc32c(&bytes[start..start + 1020]);
-        bytes[start + 1020..start + 1024].copy_from_slice(&crc.to_be_bytes());
-    }
+    // bunnyFloat.e57 with the scan's recordCount raised from 30,571 to 2^40.
+    let bytes = common::bunny_e57_claiming(1 << 40);
     let m = error("records.e57", &bytes);
     assert_contains(&m, &["scan 0, record 30571: "]);
 }

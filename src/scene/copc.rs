@@ -63,20 +63,10 @@ struct Node {
 struct Decoded {
     world: Vec<DVec3>,
     rgb16: Vec<[u16; 3]>,
-    /// The standard fields, in the order of [`STANDARD`].
+    /// The standard fields, in the order of [`super::las::STANDARD_NAMES`]; `gps_time` follows.
     standard: [Vec<f32>; 5],
     gps_time: Vec<f64>,
 }
-
-/// The scalar fields every COPC point has (formats 6-8), named as the LAS reader names them;
-/// `gps_time` follows them.
-const STANDARD: [&str; 5] = [
-    "intensity",
-    "classification",
-    "return_number",
-    "number_of_returns",
-    "point_source_id",
-];
 
 fn io_error(file: &str, source: std::io::Error) -> LoadError {
     LoadError::Io {
@@ -357,14 +347,7 @@ fn decode_chunk(
         if let Some(c) = p.color {
             out.rgb16.push([c.red, c.green, c.blue]);
         }
-        let values = [
-            f32::from(p.intensity),
-            f32::from(u8::from(p.classification)),
-            f32::from(p.return_number),
-            f32::from(p.number_of_returns),
-            f32::from(p.point_source_id),
-        ];
-        for (column, value) in out.standard.iter_mut().zip(values) {
+        for (column, value) in out.standard.iter_mut().zip(super::las::standard_values(&p)) {
             column.push(value);
         }
         out.gps_time.push(p.gps_time.unwrap_or(0.0));
@@ -515,7 +498,7 @@ fn finish(decoded: Decoded, levels: Levels, declared: u64) -> Cloud {
     let mut cloud = Cloud {
         positions,
         colors,
-        scalars: STANDARD
+        scalars: super::las::STANDARD_NAMES
             .iter()
             .zip(decoded.standard)
             .map(|(name, values)| Scalar {

@@ -409,14 +409,29 @@ fn extra_fields(file: &str, header: &las::Header) -> Result<Vec<ExtraField>, Loa
 }
 
 /// The scalar fields of every record of `format`: the standard ones, then the extra bytes'.
+/// The scalar fields every point record has, as `surfel info` names them (the COPC reader's
+/// too).
+pub(crate) const STANDARD_NAMES: [&str; 5] = [
+    "intensity",
+    "classification",
+    "return_number",
+    "number_of_returns",
+    "point_source_id",
+];
+
+/// `point`'s values of [`STANDARD_NAMES`].
+pub(crate) fn standard_values(point: &las::Point) -> [f32; 5] {
+    [
+        f32::from(point.intensity),
+        f32::from(u8::from(point.classification)),
+        f32::from(point.return_number),
+        f32::from(point.number_of_returns),
+        f32::from(point.point_source_id),
+    ]
+}
+
 fn standard_names(format: &las::point::Format) -> Vec<&'static str> {
-    let mut names = vec![
-        "intensity",
-        "classification",
-        "return_number",
-        "number_of_returns",
-        "point_source_id",
-    ];
+    let mut names = STANDARD_NAMES.to_vec();
     if format.has_gps_time {
         names.push("gps_time");
     }
@@ -896,9 +911,9 @@ fn laszip_vlr(
 /// The chunks of a LAZ file held in `data` (point data from byte `at`) decompressed in
 /// parallel by the `laz` crate into uncompressed records, decoded as a LAS file's are. An
 /// error when the chunk table does not describe the declared points within the file; `None`
-/// when the chunks cannot be read this way: no LAZ VLR or chunk table, a record size that is
-/// not the format's, more than [`MAX_EXPANSION`] times the file in records, or a chunk that
-/// fails to decode.
+/// when the chunks cannot be read this way: no LAZ VLR or chunk table, a record size of 0,
+/// more than [`MAX_EXPANSION`] times the file in records, or a chunk that fails to decode.
+/// [`read_compressed`] has checked that the laszip items make the record size.
 fn read_chunks(
     file: &str,
     data: &[u8],
@@ -917,15 +932,7 @@ fn read_chunks(
     else {
         return Ok(None);
     };
-    if stride == 0
-        || vlr
-            .items()
-            .iter()
-            .map(|i| usize::from(i.size()))
-            .sum::<usize>()
-            != stride
-        || bytes > MAX_EXPANSION * data.len() as u128
-    {
+    if stride == 0 || bytes > MAX_EXPANSION * data.len() as u128 {
         return Ok(None);
     }
     let mut records = vec![0u8; bytes as usize];
@@ -1089,13 +1096,7 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         }
         let time = point.gps_time.unwrap_or(0.0);
         let origin = *time_origin.get_or_insert(time);
-        let standard = [
-            f32::from(point.intensity),
-            f32::from(u8::from(point.classification)),
-            f32::from(point.return_number),
-            f32::from(point.number_of_returns),
-            f32::from(point.point_source_id),
-        ];
+        let standard = standard_values(&point);
         let optional = [
             format.has_gps_time.then_some((time - origin) as f32),
             point.nir.map(f32::from),

@@ -398,3 +398,40 @@ pub fn angles(a: &[Vec3], b: &[Vec3]) -> Vec<f32> {
     d.sort_by(f32::total_cmp);
     d
 }
+
+/// `../shared/data/e57/bunnyFloat.e57` with its scan's recordCount (30,571) replaced by
+/// `count`, at most 13 digits: the XML keeps its length (the next line's indentation shrinks)
+/// and the changed pages get their CRC-32C checksums again.
+pub fn bunny_e57_claiming(count: u64) -> Vec<u8> {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/e57/bunnyFloat.e57");
+    let mut bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let old = b"recordCount=\"30571\">\n        <prototype";
+    let digits = count.to_string();
+    let indent = " ".repeat(13 - digits.len());
+    let new = format!("recordCount=\"{digits}\">\n{indent}<prototype");
+    assert_eq!(old.len(), new.len(), "at most 13 digits");
+    let at = bytes
+        .windows(old.len())
+        .position(|w| w == old)
+        .expect("recordCount in the XML");
+    bytes[at..at + new.len()].copy_from_slice(new.as_bytes());
+    for page in [at / 1024, (at + new.len()) / 1024] {
+        let start = page * 1024;
+        let crc = crc32c(&bytes[start..start + 1020]);
+        bytes[start + 1020..start + 1024].copy_from_slice(&crc.to_be_bytes());
+    }
+    bytes
+}
+
+/// CRC-32C (Castagnoli), the checksum of every 1,020-byte E57 page (stored big-endian after it).
+fn crc32c(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in bytes {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = (crc >> 1) ^ if crc & 1 == 1 { 0x82F6_3B78 } else { 0 };
+        }
+    }
+    !crc
+}
