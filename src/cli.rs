@@ -656,7 +656,7 @@ fn render(a: RenderArgs) -> Result<()> {
             let radius = crate::hpr::Radius::Density {
                 spacing: crate::hpr::spacing(&cloud),
             };
-            let view = crate::hpr::view::HprView {
+            let view = crate::eval::hpr_view::HprView {
                 camera,
                 width,
                 height,
@@ -1024,7 +1024,7 @@ const MAX_SQRT_K: u32 = 4096;
 /// The points of `cloud` visible from the view's eye.
 fn visible_points(
     cloud: &Cloud,
-    view: &crate::hpr::view::HprView,
+    view: &crate::eval::hpr_view::HprView,
     mode: Visibility,
     radius: crate::hpr::Radius,
     options: SectorOptions,
@@ -1094,7 +1094,7 @@ fn visible_points(
 /// order.
 fn gpu_visible_points(
     cloud: &Cloud,
-    view: &crate::hpr::view::HprView,
+    view: &crate::eval::hpr_view::HprView,
     radius: f64,
     sqrt_k: u32,
     propagation: crate::hpr::approx::Propagation,
@@ -1193,7 +1193,7 @@ fn hpr(a: HprArgs) -> Result<()> {
             spacing: crate::hpr::spacing(&cloud),
         },
     };
-    let view = crate::hpr::view::HprView::new(&cloud, eye, target, parse_size(&a.size)?);
+    let view = crate::eval::hpr_view::HprView::new(&cloud, eye, target, parse_size(&a.size)?);
     let start = std::time::Instant::now();
     let mode = if a.exact {
         Visibility::HprExact
@@ -1289,7 +1289,7 @@ fn hpr(a: HprArgs) -> Result<()> {
             );
         }
         if cloud.faces.is_some() {
-            let seen = crate::hpr::view::mesh_visibility(&cloud, &view)?;
+            let seen = crate::eval::hpr_view::mesh_visibility(&cloud, &view)?;
             let (p, r, f1) = crate::hpr::agreement(&v.visible, &seen);
             let (ep, er, ef1) = crate::hpr::agreement(&truth.visible, &seen);
             report["truth"] = serde_json::json!({
@@ -1328,13 +1328,13 @@ fn hpr(a: HprArgs) -> Result<()> {
 
 /// Renders `cloud` (the visible points, with the reconstruction's faces when it has any) in
 /// `view` to a PNG: the faces as a mesh, else the points by the compute rasterizer.
-fn render_hpr_png(cloud: &Cloud, view: &crate::hpr::view::HprView, out: &Path) -> Result<()> {
+fn render_hpr_png(cloud: &Cloud, view: &crate::eval::hpr_view::HprView, out: &Path) -> Result<()> {
     let method = if cloud.faces.is_some() {
         "mesh:samples=1"
     } else {
         "compute"
     };
-    let frame = crate::hpr::view::render_once(cloud, view, method)?;
+    let frame = crate::eval::hpr_view::render_once(cloud, view, method)?;
     image::save_buffer(
         out,
         bytemuck::cast_slice(&frame.color),
@@ -1374,7 +1374,7 @@ fn hpr_study(a: HprStudyArgs) -> Result<()> {
 }
 
 fn convert_lines(a: ConvertLinesArgs) -> Result<()> {
-    use crate::scene::lines;
+    use crate::lines;
     if crate::scene::format_extension(&a.mesh) != "obj" {
         bail!(
             "{}: expected an .obj mesh (polygons and materials)",

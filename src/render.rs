@@ -15,8 +15,8 @@ use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
-use crate::lod::gpu::GpuLod;
 use crate::lod::{self, Hierarchy, ObjectTexture};
+use crate::methods::lod::gpu::GpuLod;
 use crate::methods::{
     BuildContext, GpuScene, MethodConfig, MethodInfo, SampleCounters, Targets, COLOR_FORMAT,
     DEPTH_FORMAT, NORMAL_FORMAT,

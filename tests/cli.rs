@@ -859,7 +859,7 @@ fn convert_lines_prints_counts_and_writes_a_line_model() {
     ] {
         assert!(text.contains(line), "{line:?} in {text}");
     }
-    let model = surfel::scene::lines::load(&out).expect("reload");
+    let model = surfel::lines::load(&out).expect("reload");
     assert!(!model.polylines.is_empty());
     // Other PLY readers see the vertices and the kept triangles.
     let cloud = surfel::scene::load(&out).expect("load as PLY");
@@ -936,8 +936,12 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
         faces.len()
     );
     let whole = surfel::scene::load(&bunny).expect("bunny");
-    let view =
-        surfel::hpr::view::HprView::new(&whole, glam::Vec3::new(0.3, 0.15, 0.3), None, (900, 900));
+    let view = surfel::eval::hpr_view::HprView::new(
+        &whole,
+        glam::Vec3::new(0.3, 0.15, 0.3),
+        None,
+        (900, 900),
+    );
     let longest = faces
         .iter()
         .flat_map(|t| {

@@ -1,4 +1,4 @@
-//! The GPU radix sort and segmented maximum (`methods::hpr::sort`) on lavapipe under
+//! The GPU radix sort and segmented maximum (`methods::common::sort`) on lavapipe under
 //! synchronization validation, element for element against the CPU: a stable sort by the low
 //! key bits (values hold the original index, keys repeat often), including more block sums
 //! than the scan workgroup handles at once, and the per-key maximum of sorted data with
@@ -11,7 +11,7 @@ use std::sync::Arc;
 use ash::vk;
 use surfel::gpu::{Buffer, Context};
 use surfel::graph::{Access, BufferId, GraphBuilder};
-use surfel::methods::hpr::sort::{add_segmented_max, add_sort, SortPipelines};
+use surfel::methods::common::sort::{add_segmented_max, add_sort, SortPipelines};
 
 /// A small deterministic generator (64-bit LCG, high bits out).
 struct Lcg(u64);

@@ -1,6 +1,6 @@
 //! The pyramid with search kernels (000 ch. 6) on lavapipe under validation and
 //! synchronization validation: the GPU analysis and interpolation against the CPU model
-//! (`methods::pyramid::kernel_reference`) on random synthetic level-0 images for each kernel
+//! (`methods::kernel::reference`) on random synthetic level-0 images for each kernel
 //! size, and a sparse plane reconstructed without holes by `kernel3`, `kernel5` and `kernel7`.
 
 mod common;
@@ -14,8 +14,8 @@ use surfel::gpu::layout::{
 };
 use surfel::gpu::{Binding, Buffer, Pipeline};
 use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
-use surfel::methods::pyramid::kernel::KernelPyramid;
-use surfel::methods::pyramid::kernel_reference::{self, searched_levels};
+use surfel::methods::kernel::reference::{self, searched_levels};
+use surfel::methods::kernel::KernelPyramid;
 use surfel::methods::pyramid::reference::{Level, Texel};
 use surfel::scene::Cloud;
 
@@ -152,8 +152,8 @@ fn analysis_and_interpolation_match_the_cpu_model() {
     let level0 = random_level(37, 29, 21);
     let projected = level0.texels.iter().filter(|t| !t.is_empty()).count();
     for kernel in [3, 5, 7] {
-        let mut cpu = kernel_reference::analysis(level0.clone(), kernel);
-        let result = kernel_reference::interpolate(&cpu, kernel, SCALE);
+        let mut cpu = reference::analysis(level0.clone(), kernel);
+        let result = reference::interpolate(&cpu, kernel, SCALE);
         let filled = result.texels.iter().filter(|t| !t.is_empty()).count();
         assert!(
             filled > 2 * projected,

@@ -4,7 +4,7 @@
 //!
 //! * `estimate.key`: each point's cell of the CPU's grid (`scene::knn::GridFrame`, sized from a
 //!   sample on the CPU) hashed into one of 2^b buckets (2^b ≥ points) as a sort key;
-//! * the radix sort of `methods::hpr::sort` groups the points by bucket;
+//! * the radix sort of `methods::common::sort` groups the points by bucket;
 //! * `estimate.cells`: each bucket's range in the sorted order (a cleared table) and the
 //!   points in that order;
 //! * `estimate.query`: one thread per sorted point, the k nearest in the 3×3×3 block of cells
@@ -34,8 +34,8 @@ use crate::gpu::layout::{
 };
 use crate::gpu::{Buffer, Context, Pipeline};
 use crate::graph::{Access, BufferRange, GraphBuilder, Stages};
+use crate::methods::common::sort::{add_sort, compute_pass, SortPipelines};
 use crate::methods::compute::storage;
-use crate::methods::hpr::sort::{add_sort, compute_pass, SortPipelines};
 use crate::scene::knn::{finite_indices, GridFrame};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::Cloud;

@@ -13,9 +13,9 @@ use anyhow::{Context as _, Result};
 use glam::{DVec3, Vec3};
 use serde::Serialize;
 
+use crate::eval::hpr_view::{mesh_visibility, render_once, HprView};
 use crate::gpu::Context;
 use crate::hpr::approx::{self, Params, Propagation};
-use crate::hpr::view::{mesh_visibility, render_once, HprView};
 use crate::hpr::{agreement, exact, spacing, Radius};
 use crate::methods::hpr::{evaluate, Settings};
 use crate::methods::MethodConfig;

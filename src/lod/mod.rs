@@ -21,8 +21,6 @@ use crate::gpu::layout::{
     GpuLodPatch, GpuLodVertex, LOD_BUDGET_BINS, LOD_BUDGET_BIN_BASE, LOD_MAX_LEVELS,
 };
 
-pub mod gpu;
-
 /// The thesis' number of levels (0: the input points; 3: the representatives).
 pub const DEFAULT_LEVELS: u32 = 4;
 

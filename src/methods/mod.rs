@@ -2,12 +2,13 @@
 //! render graph, writing the standard frame targets (color, linear depth, normal). Adding a
 //! method to the viewer, the headless renderer and the benchmark sweeps needs only an entry here.
 
+pub mod common;
 pub mod compute;
 mod ewa;
 pub mod hpr;
-mod lod;
+pub mod kernel;
+pub mod lod;
 mod mesh;
-mod points;
 pub mod pyramid;
 mod splat;
 
@@ -136,7 +137,7 @@ impl MethodInfo {
 
 /// Every method, in the order the viewer cycles through them.
 pub static METHODS: &[MethodInfo] = &[
-    points::INFO,
+    splat::points::INFO,
     compute::COMPUTE,
     compute::COMPUTE_HQ,
     mesh::INFO,
@@ -160,9 +161,9 @@ pub static METHODS: &[MethodInfo] = &[
     pyramid::INFO,
     pyramid::HYBRID_INFO,
     pyramid::LOD_INFO,
-    pyramid::kernel::KERNEL3,
-    pyramid::kernel::KERNEL5,
-    pyramid::kernel::KERNEL7,
+    kernel::KERNEL3,
+    kernel::KERNEL5,
+    kernel::KERNEL7,
     hpr::INFO,
     hpr::MESH_INFO,
     lod::COMPUTE_INFO,
@@ -280,7 +281,7 @@ pub struct GpuScene {
     pub diagonal: f32,
     /// The object texture of level of detail (000 ch. 7), when uploaded
     /// (`UploadOptions::lod`).
-    pub lod: Option<Arc<crate::lod::gpu::GpuLod>>,
+    pub lod: Option<Arc<crate::methods::lod::gpu::GpuLod>>,
 }
 
 /// The standard outputs every method writes.

@@ -12,7 +12,6 @@ pub mod input;
 pub mod knn;
 pub mod las;
 pub mod lights;
-pub mod lines;
 pub mod normal_field;
 pub mod obj;
 pub mod pack;
@@ -84,7 +83,9 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
     }
     check_regular(path)?;
     let mut cloud = match extension.as_str() {
-        "ply" if lines::is_line_model(path) => lines::load(path).map(|m| m.to_cloud()),
+        "ply" if crate::lines::is_line_model(path) => {
+            crate::lines::load(path).map(|m| m.to_cloud())
+        }
         "ply" => ply::load(path),
         "obj" => obj::load(path),
         "pcd" => pcd::load(path),

@@ -7,7 +7,7 @@
 //! (`mtllib`) are not opened, so a missing `.mtl` is not an error. Unknown commands are ignored.
 //!
 //! [`load_polygons`] keeps the polygons as they are (not triangulated), each with the diffuse
-//! colour (`Kd`) of its material, for the line conversion (`scene::lines`).
+//! colour (`Kd`) of its material, for the line conversion (`lines`).
 
 use std::path::Path;
 

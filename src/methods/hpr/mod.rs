@@ -20,8 +20,6 @@
 //! Converged adaptive rounds leave both ping-pong buffers equal (the last round that ran
 //! wrote what it read), so the statically last destination holds the result.
 
-pub mod sort;
-
 use std::sync::Arc;
 
 use anyhow::{bail, Context as _, Result};
@@ -362,10 +360,16 @@ pub fn add(
     if settings.sort {
         // Sector ids run to k_max (the sentinel of points at the eye).
         let key_bits = (32 - (k_max as u32).leading_zeros()).max(1);
-        let pipelines = sort::SortPipelines::new(ctx)?;
-        let (sorted_keys, sorted_values) =
-            sort::add_sort(g, &pipelines, keys, values, point_count, key_bits);
-        sort::add_segmented_max(
+        let pipelines = crate::methods::common::sort::SortPipelines::new(ctx)?;
+        let (sorted_keys, sorted_values) = crate::methods::common::sort::add_sort(
+            g,
+            &pipelines,
+            keys,
+            values,
+            point_count,
+            key_bits,
+        );
+        crate::methods::common::sort::add_segmented_max(
             g,
             &pipelines,
             sorted_keys,

@@ -31,8 +31,6 @@
 //! `kernel` is ch. 6's variant (`kernel3`, `kernel5`, `kernel7`): the same level 0, texels and
 //! shading, with each splat stored in one level and a k × k search in place of synthesis.
 
-pub mod kernel;
-pub mod kernel_reference;
 pub mod reference;
 
 use std::sync::Arc;
@@ -52,7 +50,7 @@ use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipel
 use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
-use crate::lod::gpu::{add_select, LodInputs};
+use crate::methods::lod::gpu::{add_select, LodInputs};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
 /// k-th nearest neighbour (4.2.1, k = 10); the clouds here carry the density spacing
@@ -69,21 +67,21 @@ pub const FORMAT_B: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const FORMAT_C: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 
 /// Parameters the pyramid methods and the kernel pyramid (`kernel.rs`) share.
-pub(super) const RADIUS: ParamSpec = ParamSpec {
+pub(crate) const RADIUS: ParamSpec = ParamSpec {
     name: "radius",
     default: RADIUS_SCALE,
     min: 0.05,
     max: 20.0,
     doc: "scale of the per-point radii (default: the thesis' r_k for k = 10)",
 };
-pub(super) const COLOR: ParamSpec = ParamSpec {
+pub(crate) const COLOR: ParamSpec = ParamSpec {
     name: "color",
     default: 1.0,
     min: 0.0,
     max: 1.0,
     doc: "1: interpolate the albedo group; 0: normals only, lit in the base color",
 };
-pub(super) const CULL: ParamSpec = ParamSpec {
+pub(crate) const CULL: ParamSpec = ParamSpec {
     name: "cull",
     default: 1.0,
     min: 0.0,
@@ -200,7 +198,7 @@ impl Group {
     }
 
     /// The three descriptors of mip `mip` at bindings `base`, `base + 1`, `base + 2`.
-    fn descriptors(&self, base: u32, mip: u32) -> [Descriptor; 3] {
+    pub(crate) fn descriptors(&self, base: u32, mip: u32) -> [Descriptor; 3] {
         [
             Descriptor::StorageImage(base, self.a, mip),
             Descriptor::StorageImage(base + 1, self.b, mip),
@@ -211,7 +209,7 @@ impl Group {
 
 /// Records one dispatch of `pipeline` over `groups` with `descriptors` (bound once per frame,
 /// built at compile: recording allocates nothing) and the push constants `push`.
-fn dispatch(
+pub(crate) fn dispatch(
     pass: PassBuilder<'_>,
     pipeline: Arc<Pipeline>,
     descriptors: Vec<Descriptor>,
@@ -226,14 +224,14 @@ fn dispatch(
 }
 
 /// Workgroups covering level `level` of a `width` x `height` pyramid.
-fn groups(width: u32, height: u32, level: u32) -> (u32, u32) {
+pub(crate) fn groups(width: u32, height: u32, level: u32) -> (u32, u32) {
     (
         (width >> level).max(1).div_ceil(PYRAMID_GROUP),
         (height >> level).max(1).div_ceil(PYRAMID_GROUP),
     )
 }
 
-fn group_bindings(base: u32) -> [Binding; 3] {
+pub(crate) fn group_bindings(base: u32) -> [Binding; 3] {
     [
         storage_image(base),
         storage_image(base + 1),
@@ -251,10 +249,10 @@ pub fn specialization(color: bool, cull: bool, hybrid: bool) -> [(u32, u32); 3] 
 }
 
 /// A compute shader, its specialization constants and the prefix of its passes' names.
-struct Passes<'a> {
-    shader: &'a str,
-    spec: &'a [(u32, u32)],
-    prefix: &'a str,
+pub(crate) struct Passes<'a> {
+    pub(crate) shader: &'a str,
+    pub(crate) spec: &'a [(u32, u32)],
+    pub(crate) prefix: &'a str,
 }
 
 /// A pyramid's images and the passes that reconstruct its level 0; usable on any graph (the
@@ -344,7 +342,7 @@ impl Pyramid {
     }
 
     /// The analysis passes `{prefix}.analysis.L` of levels 1..=`top`.
-    fn add_analysis_with(
+    pub(crate) fn add_analysis_with(
         &self,
         ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
@@ -681,7 +679,7 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
 /// Level 0 from the compute projection (000 4.2.1): `compute::project` with `options`, then
 /// `{prefix}.level0` writing the winners' texels into level 0 of `first` (over what a raster
 /// pass drew there, in hybrid scenes).
-fn add_level0(
+pub(crate) fn add_level0(
     b: &mut BuildContext<'_>,
     prefix: &str,
     first: Group,
@@ -729,7 +727,7 @@ fn add_level0(
 
 /// `{prefix}.shade`: deferred shading (000 4.2.3) of level `level` of `source` (magnified
 /// when above 0) into the standard targets.
-fn add_shade(
+pub(crate) fn add_shade(
     b: &mut BuildContext<'_>,
     prefix: &str,
     (source, level): (Group, u32),

@@ -27,7 +27,7 @@ pub struct Texel {
     pub color: Vec4,
 }
 
-fn half(v: f32) -> f32 {
+pub(crate) fn half(v: f32) -> f32 {
     f16::from_f32(v).to_f32()
 }
 
@@ -51,7 +51,7 @@ impl Texel {
         }
     }
 
-    pub(super) fn overlaps(&self, other: &Texel) -> bool {
+    pub(crate) fn overlaps(&self, other: &Texel) -> bool {
         (self.depth - other.depth).abs() <= self.half_range.abs() + other.half_range.abs()
     }
 }
@@ -77,25 +77,25 @@ impl Level {
         self.texels[(q.y as u32 * self.width + q.x as u32) as usize]
     }
 
-    pub(super) fn set(&mut self, q: IVec2, t: Texel) {
+    pub(crate) fn set(&mut self, q: IVec2, t: Texel) {
         self.texels[(q.y as u32 * self.width + q.x as u32) as usize] = t.stored();
     }
 
-    pub(super) fn size(&self) -> IVec2 {
+    pub(crate) fn size(&self) -> IVec2 {
         IVec2::new(self.width as i32, self.height as i32)
     }
 }
 
 /// Weighted sums of texels and their ellipse centres (see `Blend` in pyramid.glsl).
 #[derive(Default)]
-pub(super) struct Blend {
+pub(crate) struct Blend {
     sum: Texel,
     centres: Vec2,
     weight: f32,
 }
 
 impl Blend {
-    pub(super) fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
+    pub(crate) fn add(&mut self, t: &Texel, centre: Vec2, w: f32) {
         self.sum.n += w * t.n;
         self.sum.radius += w * t.radius.abs();
         self.sum.depth += w * t.depth;
@@ -107,7 +107,7 @@ impl Blend {
 
     /// The blended texel at pixel centre `x`, with the primitive id (and the fallback normal)
     /// of `front`.
-    pub(super) fn finish(&self, front: &Texel, x: Vec2) -> Texel {
+    pub(crate) fn finish(&self, front: &Texel, x: Vec2) -> Texel {
         let (s, w) = (&self.sum, self.weight);
         let len = s.n.length();
         Texel {
@@ -184,7 +184,7 @@ pub fn analysis(level0: Level) -> Vec<Level> {
     levels
 }
 
-fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel {
+pub(crate) fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel {
     let lo = 2 * p;
     let last = child.size() - 1;
     let hi = IVec2::new(
@@ -230,7 +230,14 @@ pub fn synthesis(mut levels: Vec<Level>, scale: Vec2, falloff: f32) -> Vec<Level
     levels
 }
 
-fn rebuilt(own: &Level, parent: &Level, q: IVec2, level: u32, scale: Vec2, falloff: f32) -> Texel {
+pub(crate) fn rebuilt(
+    own: &Level,
+    parent: &Level,
+    q: IVec2,
+    level: u32,
+    scale: Vec2,
+    falloff: f32,
+) -> Texel {
     let t = own.at(q);
     let above = parent.at((q / 2).min(parent.size() - 1));
     let occluded =
@@ -280,7 +287,7 @@ pub const FILL_LEVELS: u32 = 3;
 
 /// Whether texel `q` has a valid texel within [`FILL_SPAN`] texels in each of the four axis
 /// directions (a gap enclosed by the surface; see synthesis.comp).
-fn enclosed(own: &Level, q: IVec2) -> bool {
+pub(crate) fn enclosed(own: &Level, q: IVec2) -> bool {
     [IVec2::X, IVec2::NEG_X, IVec2::Y, IVec2::NEG_Y]
         .into_iter()
         .all(|step| {
@@ -294,7 +301,7 @@ fn enclosed(own: &Level, q: IVec2) -> bool {
 /// The parents among the four nearest to texel `q` of `level` (centre `x`) whose ellipses,
 /// grown by `grow`, cover `x` (with their centres and squared distances), and how many of the
 /// four are inside the level and not empty; parents filled across a gap only when `gap`.
-fn gather(
+pub(crate) fn gather(
     parent: &Level,
     q: IVec2,
     x: Vec2,

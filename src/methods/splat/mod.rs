@@ -9,6 +9,8 @@
 //! Every combination is one pair of shaders specialized by constants; the method name
 //! `{raster}-{shading}` picks them.
 
+pub mod points;
+
 use std::sync::Arc;
 
 use anyhow::{anyhow, Result};

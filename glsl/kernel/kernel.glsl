@@ -3,7 +3,7 @@
 // the levels searched (the pyramid's levels up to the first one the kernel below covers).
 #ifndef SURFEL_PYRAMID_KERNEL_GLSL
 #define SURFEL_PYRAMID_KERNEL_GLSL
-#include "images.glsl"
+#include "../pyramid/images.glsl"
 
 // The kernel is KERNEL x KERNEL texels (3, 5 or 7).
 layout(constant_id = PYRAMID_SPEC_KERNEL) const uint KERNEL = 3u;

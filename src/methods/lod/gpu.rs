@@ -20,7 +20,6 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::ObjectTexture;
 use crate::gpu::layout::{
     LodParams, BINDING_FRAME, BINDING_LOD_COUNTERS, BINDING_LOD_LIST, BINDING_LOD_PATCHES,
     BINDING_LOD_VERTICES, LOD_BUDGET_BINS, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES,
@@ -32,6 +31,7 @@ use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, 
 use crate::graph::{
     Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
+use crate::lod::ObjectTexture;
 use crate::methods::compute::storage;
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 

@@ -2,11 +2,11 @@
 //!
 //! * `lod-compute`: a compute pre-pass chooses each patch's level and writes the list of the
 //!   chosen vertices and an indirect draw's arguments; one indirect draw pulls them through
-//!   the list (`crate::lod::gpu::add_compute`).
+//!   the list (`crate::methods::lod::gpu::add_compute`).
 //! * `lod-mesh`: a task shader chooses the levels, one mesh workgroup per patch emits the
-//!   chosen level's vertices (`crate::lod::gpu::add_mesh`).
+//!   chosen level's vertices (`crate::methods::lod::gpu::add_mesh`).
 //! * `lod-geometry`: the thesis' path (§7.2): one vertex per patch, the geometry shader chooses
-//!   the level and emits its vertices (`crate::lod::gpu::add_geometry`).
+//!   the level and emits its vertices (`crate::methods::lod::gpu::add_geometry`).
 //!
 //! All three draw each sample as a perspective-correct disc (or, with `shape=0`, a square of
 //! its projected diameter), honour the point budget (`budget`) and publish their selection's
@@ -16,10 +16,12 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::LOD_PATCH_VERTICES;
 use crate::gpu::ImageDesc;
-use crate::lod::gpu::{self, DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK};
+use crate::methods::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+pub mod gpu;
+
+use gpu::{DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK};
 
 /// The default ε: the largest measured value that costs the full dragon, drawn as discs,
 /// less than 0.5 dB of PSNR against ε = 0 at every distance from 0.5 to 8 times the default

@@ -24,7 +24,7 @@
 //! `level_count` = the levels searched.
 //!
 //! Deviations from the thesis:
-//! * D in eq. 6.1 is the projected diameter, not the radius (`kernel_reference::kernel_level`).
+//! * D in eq. 6.1 is the projected diameter, not the radius (`reference::kernel_level`).
 //! * The interpolation's occlusion test is not spelled out in 6.2 ("the only difference ... is
 //!   the weight"): ch. 4's test is applied sequentially in the order of the search (a texel
 //!   overlapping the front contribution's depth interval joins it, one behind is dropped, one
@@ -34,15 +34,13 @@
 //! * The resolved texel takes the front contribution's depth-interval half range, and the
 //!   radius scale defaults to the pyramid's (`RADIUS_SCALE`, the thesis' r_k of ch. 4).
 
+pub mod reference;
+
 use std::sync::Arc;
 
 use anyhow::Result;
 use ash::vk;
 
-use super::kernel_reference::searched_levels;
-use super::{
-    add_level0, add_shade, dispatch, group_bindings, groups, specialization, Group, Passes, Pyramid,
-};
 use crate::gpu::layout::{
     PyramidParams, BINDING_FRAME, BINDING_KERNEL_ACCUM, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
     PYRAMID_SPEC_KERNEL,
@@ -50,15 +48,19 @@ use crate::gpu::layout::{
 use crate::gpu::{Context, ImageDesc, Pipeline};
 use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, Stages};
 use crate::methods::compute::{storage, ProjectOptions};
+use crate::methods::pyramid::{
+    add_level0, add_shade, dispatch, group_bindings, groups, specialization, Group, Passes, Pyramid,
+};
 use crate::methods::{BuildContext, Feature, MethodConfig, MethodInfo, ParamSpec};
+use reference::searched_levels;
 
 /// The accumulators' format.
 const FORMAT_ACCUM: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
 const PARAMS: &[ParamSpec] = &[
-    super::RADIUS,
-    super::COLOR,
-    super::CULL,
+    crate::methods::pyramid::RADIUS,
+    crate::methods::pyramid::COLOR,
+    crate::methods::pyramid::CULL,
     ParamSpec {
         name: "show",
         default: -1.0,
@@ -182,7 +184,7 @@ impl KernelPyramid {
         top: u32,
     ) -> Result<()> {
         let analysis = Passes {
-            shader: "pyramid/kernel_analysis.comp",
+            shader: "kernel/analysis.comp",
             spec: &self.spec,
             prefix: "kernel",
         };
@@ -207,7 +209,7 @@ impl KernelPyramid {
         bindings.extend(group_bindings(BINDING_KERNEL_ACCUM));
         let interpolate = Arc::new(Pipeline::compute_specialized(
             ctx,
-            "pyramid/kernel_interpolate.comp",
+            "kernel/interpolate.comp",
             &bindings,
             &self.spec,
         )?);
@@ -239,7 +241,7 @@ impl KernelPyramid {
         bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
         let resolve = Arc::new(Pipeline::compute_specialized(
             ctx,
-            "pyramid/kernel_resolve.comp",
+            "kernel/resolve.comp",
             &bindings,
             &self.spec,
         )?);

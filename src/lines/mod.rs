@@ -80,9 +80,9 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::cloud::{Cloud, Lines, LoadStats};
-use super::error::{show, LoadError};
-use super::obj::PolygonMesh;
+use crate::scene::cloud::{Cloud, Lines, LoadStats};
+use crate::scene::error::{show, LoadError};
+use crate::scene::obj::PolygonMesh;
 
 /// A chain of rings is a ribbon when its median thickness / width is below this. Round rings
 /// measure about 0.6 to 1 (the branches of `CommonTree_Dead_1.obj`: medians 0.67 to 1), the
@@ -1115,7 +1115,7 @@ pub fn is_line_model(path: &Path) -> bool {
 
 /// Reads a line model written by [`save`].
 pub fn load(path: &Path) -> Result<LineModel, LoadError> {
-    let data = super::read_file(path)?;
+    let data = crate::scene::read_file(path)?;
     parse(&path.display().to_string(), &data)
 }
 

@@ -5,13 +5,13 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use super::{
-    BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
-};
 use crate::gpu::layout::{BINDING_FRAME, BINDING_SEGMENTS};
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::Descriptor;
 use crate::graph::{Access, Load, Stages};
+use crate::methods::{
+    BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
+};
 
 pub const INFO: MethodInfo = MethodInfo {
     name: "points",

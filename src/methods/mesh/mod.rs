@@ -6,13 +6,15 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::{BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
     BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
     BINDING_SEGMENTS, RESOLVE_GROUP,
 };
 use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{Access, BufferId, BufferRange, Descriptor, Load, Stages};
+use crate::methods::{
+    BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
+};
 
 pub const INFO: MethodInfo = MethodInfo {
     name: "mesh",
@@ -75,7 +77,7 @@ pub fn add_mesh(
     let raster = Arc::new(Pipeline::graphics(
         b.ctx,
         &GraphicsDesc {
-            shaders: &["eval/mesh.vert", "eval/mesh.frag"],
+            shaders: &["mesh/mesh.vert", "mesh/mesh.frag"],
             bindings: &[
                 Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, gfx),
                 Binding::new(
@@ -100,7 +102,7 @@ pub fn add_mesh(
     let storage = vk::DescriptorType::STORAGE_IMAGE;
     let resolve = Arc::new(Pipeline::compute(
         b.ctx,
-        "eval/resolve.comp",
+        "mesh/resolve.comp",
         &[
             Binding::new(BINDING_INPUT0, storage, comp),
             Binding::new(BINDING_INPUT1, storage, comp),

@@ -6,8 +6,8 @@
 
 use glam::{IVec2, Vec2, Vec3};
 
-use super::reference::{ellipse_distance2, pixel_centre, Blend, Level, Texel};
 use crate::gpu::layout::PRIMITIVE_POINT;
+use crate::methods::pyramid::reference::{ellipse_distance2, pixel_centre, Blend, Level, Texel};
 
 /// The level a splat of projected radius `radius` (level-0 pixels) is stored in for a
 /// `kernel` × `kernel` search: the least l with kernel · 2^l ≥ 2 · radius, at most `top`.
@@ -31,7 +31,7 @@ pub fn kernel_level(radius: f32, kernel: u32, top: u32) -> u32 {
 /// with 3 × 3: levels 0 to 9, the 1 × 1 level 10 skipped, 10 × 9 = 90 lookups per pixel).
 pub fn searched_levels(width: u32, height: u32, kernel: u32) -> u32 {
     let reach = kernel.div_ceil(2);
-    let levels = super::level_count(width, height);
+    let levels = crate::methods::pyramid::level_count(width, height);
     (0..levels)
         .find(|&l| (width >> l).max(1) <= reach && (height >> l).max(1) <= reach)
         .map_or(levels, |l| l + 1)

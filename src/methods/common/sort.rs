@@ -98,23 +98,23 @@ impl SortPipelines {
         };
         Ok(Self {
             count: pipeline(
-                "hpr/sort_count.comp",
+                "common/sort_count.comp",
                 &[BINDING_SORT_KEYS, BINDING_SORT_HIST],
                 &[],
             )?,
             reduce: pipeline(
-                "hpr/sort_reduce.comp",
+                "common/sort_reduce.comp",
                 &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
                 &[],
             )?,
-            scan: pipeline("hpr/sort_scan.comp", &[BINDING_SORT_SUMS], &[])?,
+            scan: pipeline("common/sort_scan.comp", &[BINDING_SORT_SUMS], &[])?,
             downsweep: pipeline(
-                "hpr/sort_downsweep.comp",
+                "common/sort_downsweep.comp",
                 &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
                 &[],
             )?,
             scatter: pipeline(
-                "hpr/sort_scatter.comp",
+                "common/sort_scatter.comp",
                 &[
                     BINDING_SORT_KEYS,
                     BINDING_SORT_VALUES,
