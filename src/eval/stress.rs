@@ -62,38 +62,6 @@ fn check_aligned(cloud: &Cloud) -> Result<(), StressError> {
     Ok(())
 }
 
-/// The points at `keep` (ascending indices) with every attribute, radii multiplied by
-/// `radius_scale(i)`; faces and lines dropped. Every field is listed so that a new per-point field of
-/// `Cloud` is a compile error here rather than silently misaligned.
-pub(crate) fn select(cloud: &Cloud, keep: &[usize], radius_scale: impl Fn(usize) -> f32) -> Cloud {
-    let mut out = Cloud {
-        positions: keep.iter().map(|&i| cloud.positions[i]).collect(),
-        normals: cloud
-            .normals
-            .as_ref()
-            .map(|v| keep.iter().map(|&i| v[i]).collect()),
-        colors: cloud
-            .colors
-            .as_ref()
-            .map(|v| keep.iter().map(|&i| v[i]).collect()),
-        radii: cloud
-            .radii
-            .as_ref()
-            .map(|v| keep.iter().map(|&i| v[i] * radius_scale(i)).collect()),
-        scalars: cloud.scalars.clone(),
-        faces: None,
-        lines: None,
-        sensor: cloud.sensor,
-        up: cloud.up,
-        origin: cloud.origin,
-        stats: cloud.stats.clone(),
-    };
-    for s in &mut out.scalars {
-        s.values = keep.iter().map(|&i| s.values[i]).collect();
-    }
-    out
-}
-
 /// Keeps `round(fraction * n)` points (at least one of a non-empty cloud), chosen by ranking
 /// a per-point hash: deterministic, exact in count and spatially unbiased (unlike a stride,
 /// which aliases with the file's scan order). Points keep their original relative order.
@@ -123,7 +91,7 @@ pub fn subsample(cloud: &Cloud, fraction: f64, seed: u64) -> Result<Cloud, Stres
     } else {
         1.0
     };
-    Ok(select(cloud, &keep, |_| scale))
+    Ok(cloud.select(&keep, |_| scale))
 }
 
 /// Adds isotropic Gaussian noise to every position, sigma = `sigma_fraction` x the
@@ -185,9 +153,7 @@ pub fn nonuniform(cloud: &Cloud, contrast: f64, seed: u64) -> Result<Cloud, Stre
         .into_par_iter()
         .filter(|&i| point_rng(seed, i).next_f64() < probability(i))
         .collect();
-    Ok(select(cloud, &keep, |i| {
-        (1.0 / probability(i)).sqrt() as f32
-    }))
+    Ok(cloud.select(&keep, |i| (1.0 / probability(i)).sqrt() as f32))
 }
 
 /// Applies a cloud-side stress with [`DEFAULT_SEED`]; `Ok(None)` for the camera-side kinds,

@@ -356,7 +356,7 @@ pub fn visible_cloud(cloud: &Cloud, v: &Visibility) -> Cloud {
     for (k, &i) in keep.iter().enumerate() {
         new_index[i] = k as u32;
     }
-    let mut out = crate::eval::stress::select(cloud, &keep, |_| 1.0);
+    let mut out = cloud.select(&keep, |_| 1.0);
     let faces: Vec<[u32; 3]> = v
         .triangles
         .iter()

@@ -131,6 +131,38 @@ pub struct Cloud {
 }
 
 impl Cloud {
+    /// The points at `keep` (ascending indices) with every attribute, radii multiplied by
+    /// `radius_scale(i)`; faces and lines dropped. Every field is listed so that a new per-point field of
+    /// `Cloud` is a compile error here rather than silently misaligned.
+    pub fn select(&self, keep: &[usize], radius_scale: impl Fn(usize) -> f32) -> Cloud {
+        let mut out = Cloud {
+            positions: keep.iter().map(|&i| self.positions[i]).collect(),
+            normals: self
+                .normals
+                .as_ref()
+                .map(|v| keep.iter().map(|&i| v[i]).collect()),
+            colors: self
+                .colors
+                .as_ref()
+                .map(|v| keep.iter().map(|&i| v[i]).collect()),
+            radii: self
+                .radii
+                .as_ref()
+                .map(|v| keep.iter().map(|&i| v[i] * radius_scale(i)).collect()),
+            scalars: self.scalars.clone(),
+            faces: None,
+            lines: None,
+            sensor: self.sensor,
+            up: self.up,
+            origin: self.origin,
+            stats: self.stats.clone(),
+        };
+        for s in &mut out.scalars {
+            s.values = keep.iter().map(|&i| s.values[i]).collect();
+        }
+        out
+    }
+
     pub fn len(&self) -> usize {
         self.positions.len()
     }

@@ -1,6 +1,7 @@
 //! Scene input: loaders for PLY, OBJ, PCD, LAS/LAZ, COPC, E57 and delimited text, preprocessing (normals and
 //! splat radii from k nearest neighbours), mesh sampling, camera, lights and scene files.
 
+pub mod appearance;
 pub mod camera;
 pub mod cloud;
 pub mod compose;

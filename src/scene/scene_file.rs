@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use super::camera::{Pose, Up};
 use super::compose::SceneInput;
 use super::lights::Light;
-use crate::post::{Background, Edl};
+use crate::scene::appearance::{Background, Edl};
 
 /// The parsed file.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -164,7 +164,7 @@ mod tests {
 
     #[test]
     fn parses_post_processing_with_defaults_and_checks_it() {
-        use crate::post::{Background, Edl};
+        use crate::scene::appearance::{Background, Edl};
         let t = SceneFile::parse(
             "edl = { radius = 3 }\nbackground = \"#102030\"\n",
             Path::new("s.toml"),
