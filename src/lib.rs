@@ -18,3 +18,4 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod streams;
+pub mod upload;

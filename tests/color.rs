@@ -9,8 +9,9 @@ use std::sync::Arc;
 use glam::Vec3;
 use surfel::color::{self, class_color, return_color, rgb8, Coloring};
 use surfel::gpu::layout::*;
-use surfel::render::{upload_colored, Extras, Renderer, View};
+use surfel::render::{Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light, Scalar, Up};
+use surfel::upload::{upload, UploadOptions};
 
 /// A `n` x `n` grid over [-1, 1]² seen from +z, in three plateaus along x: the left third at
 /// z = 0, the middle at z = 0.5, the right at z = 1; normals +z. Each third has its value
@@ -230,8 +231,12 @@ fn the_scalar_stream_swaps_in_place_of_a_fresh_upload() {
         values: cloud.scalars[1].values.iter().map(|&c| -c).collect(),
     };
     let ctx = common::context();
-    let (mut scene, mut info) =
-        upload_colored(&ctx, &cloud, select(&cloud, "classification")).expect("upload");
+    let (mut scene, mut info) = upload(
+        &ctx,
+        &cloud,
+        &UploadOptions::colored(select(&cloud, "classification")),
+    )
+    .expect("upload");
     let config = surfel::methods::MethodConfig::parse("compute").expect("method");
     let view = View {
         camera: Camera::framing(info.centre, info.radius),
@@ -239,7 +244,7 @@ fn the_scalar_stream_swaps_in_place_of_a_fresh_upload() {
         use_color: true,
         time: 0.0,
     };
-    let render = |scene: &surfel::methods::GpuScene, info| {
+    let render = |scene: &surfel::upload::GpuScene, info| {
         let mut r = Renderer::new(
             &Arc::clone(&ctx),
             scene,

@@ -10,7 +10,7 @@ use common::{render, render_with};
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::scene::{pack, Cloud};
-use surfel::streams::UploadOptions;
+use surfel::upload::UploadOptions;
 
 fn bunny() -> Cloud {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/stanford/bun_zipper.ply");

@@ -12,8 +12,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use surfel::eval::Frame;
 use surfel::methods::{MethodConfig, METHODS};
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{upload_with, Extras, Renderer, View};
+use surfel::render::{Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light};
+use surfel::upload::upload;
 
 /// Counts the allocations (`alloc`, `alloc_zeroed`, `realloc`) made by threads that opted in.
 struct Counting;
@@ -111,7 +112,7 @@ fn renderer_sized(
     size: u32,
 ) -> (Renderer, View) {
     let options = config.method.upload_options(Default::default());
-    let (scene, info) = upload_with(ctx, cloud, options).expect("upload");
+    let (scene, info) = upload(ctx, cloud, &options).expect("upload");
     let r = Renderer::new(
         ctx,
         &scene,

@@ -482,6 +482,31 @@ fn imported_resources_lacking_a_declared_usage_are_rejected_at_compile() {
 }
 
 #[test]
+fn resources_only_culled_passes_used_are_not_allocated() {
+    // Usage flags follow from the accesses: a transient buffer or image whose passes were all
+    // culled has none, and allocating it would be invalid (usage 0).
+    let ctx = common::context();
+    let mut g = GraphBuilder::new();
+    let scratch = g.buffer("scratch", 64, vk::BufferUsageFlags::empty());
+    let image = g.image(
+        "unseen",
+        ImageDesc {
+            format: vk::Format::R8G8B8A8_UNORM,
+            width: 8,
+            height: 8,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::empty(),
+        },
+    );
+    g.pass("dead")
+        .buffer(scratch, Access::StorageWrite(Stages::Compute))
+        .image(image, Access::StorageWrite(Stages::Compute))
+        .record(|_| {});
+    drop(g.compile(&ctx).expect("compile"));
+    common::assert_clean(&ctx);
+}
+
+#[test]
 fn binding_an_undeclared_resource_panics_with_pass_and_resource() {
     let ctx = common::context();
     let fill = compute_pipeline(

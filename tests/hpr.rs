@@ -71,7 +71,8 @@ fn run_gpu(
     propagation: Propagation,
     sort: bool,
 ) -> Evaluation {
-    let (scene, _) = surfel::render::upload(ctx, &cloud_of(points)).expect("upload");
+    let (scene, _) =
+        surfel::upload::upload(ctx, &cloud_of(points), &Default::default()).expect("upload");
     let mut settings = Settings::grid(sqrt_k, f64::from(radius), propagation, sort);
     settings.params.max_edge = 4.0;
     let view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
@@ -259,7 +260,7 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
     let bunny = surfel::scene::load(&path).expect("bunny");
     let eye = Vec3::new(0.25, 0.3, 0.35);
     let side = surfel::hpr::complete_side(bunny.len());
-    let (scene, _) = surfel::render::upload(&ctx, &bunny).expect("upload");
+    let (scene, _) = surfel::upload::upload(&ctx, &bunny, &Default::default()).expect("upload");
     let order = surfel::streams::morton_order(&bunny.positions);
     let spacing = surfel::hpr::spacing(&bunny);
     let density = surfel::hpr::Radius::Density { spacing };
@@ -290,8 +291,9 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
 fn pass_names(cloud: &Cloud, method: &str) -> Vec<String> {
     use surfel::render::{Extras, Renderer, View};
     let ctx = common::context();
-    let (scene, info) = surfel::render::upload(&ctx, cloud).expect("upload");
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
+    let options = config.method.upload_options(Default::default());
+    let (scene, info) = surfel::upload::upload(&ctx, cloud, &options).expect("upload");
     let extras = Extras {
         readback: true,
         ..Extras::default()
@@ -381,11 +383,43 @@ fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
     }
     // No points: a clear error, not a panic or an empty GPU dispatch.
     let ctx = common::context();
-    let (scene, info) = surfel::render::upload(&ctx, &Cloud::default()).expect("upload");
     let config = surfel::methods::MethodConfig::parse("hpr").expect("method");
+    let options = config.method.upload_options(Default::default());
+    let (scene, info) = surfel::upload::upload(&ctx, &Cloud::default(), &options).expect("upload");
     let e = surfel::render::Renderer::new(&ctx, &scene, info, &config, 32, 32, Default::default())
         .err()
         .expect("an empty cloud is rejected");
     assert!(e.to_string().contains("at least one point"), "{e}");
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn the_bounding_sphere_is_reduced_once_per_scene_and_hpr_data_is_required() {
+    use surfel::render::Renderer;
+    let ctx = common::context();
+    let cloud = cloud_of(&two_shells(Vec3::new(0.0, 0.0, 5.0), 8));
+    let config = surfel::methods::MethodConfig::parse("hpr").expect("method");
+    // Uploaded for another method: the HPR method names what the scene lacks.
+    let (bare, info) = surfel::upload::upload(&ctx, &cloud, &Default::default()).expect("upload");
+    let e = Renderer::new(&ctx, &bare, info, &config, 32, 32, Default::default())
+        .err()
+        .expect("a scene without HPR data is rejected");
+    assert!(e.to_string().contains("needs the scene's HPR data"), "{e}");
+    // Uploaded for HPR: two renderers (a rebuild) share one sphere buffer.
+    let options = config.method.upload_options(Default::default());
+    let (scene, info) = surfel::upload::upload(&ctx, &cloud, &options).expect("upload");
+    let first = surfel::methods::hpr::bounding_sphere(&ctx, &scene).expect("sphere");
+    for _ in 0..2 {
+        Renderer::new(&ctx, &scene, info, &config, 32, 32, Default::default()).expect("renderer");
+    }
+    let again = surfel::methods::hpr::bounding_sphere(&ctx, &scene).expect("sphere");
+    assert!(std::sync::Arc::ptr_eq(&first, &again));
+    // Completing the bare scene adds the same data the upload would have built.
+    let mut completed = bare;
+    completed
+        .complete(&ctx, &cloud, &options)
+        .expect("complete");
+    let (a, b) = (completed.hpr.as_ref().unwrap(), scene.hpr.as_ref().unwrap());
+    assert_eq!((a.density, a.diagonal), (b.density, b.diagonal));
     common::assert_clean(&ctx);
 }

@@ -20,7 +20,7 @@ use surfel::methods::lod::gpu::{
 };
 use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use surfel::scene::Cloud;
-use surfel::streams::UploadOptions;
+use surfel::upload::UploadOptions;
 
 const SIZE: f32 = 512.0;
 
@@ -472,7 +472,8 @@ fn pyramid_lod_projects_the_selection_with_its_points_colors() {
 #[test]
 fn lod_methods_need_the_object_texture() {
     let ctx = common::context();
-    let (scene, info) = surfel::render::upload(&ctx, &sphere_cloud(100)).expect("upload");
+    let (scene, info) =
+        surfel::upload::upload(&ctx, &sphere_cloud(100), &Default::default()).expect("upload");
     let config = surfel::methods::MethodConfig::parse("lod-compute").expect("method");
     let err =
         surfel::render::Renderer::new(&ctx, &scene, info, &config, 16, 16, Default::default())
@@ -496,11 +497,11 @@ fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
     const EPSILON: f32 = 0.5;
     let ctx = common::context();
     let cloud = sphere_cloud(8_000);
-    let (scene, info) = surfel::render::upload_with(&ctx, &cloud, with_lod()).expect("upload");
+    let (scene, info) = surfel::upload::upload(&ctx, &cloud, &with_lod()).expect("upload");
     let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
         unreachable!("sphere_cloud has normals and radii");
     };
-    // The object texture `upload_with` built, on the host.
+    // The object texture the upload built, on the host.
     let texture = ObjectTexture::new(
         &Hierarchy::build(&cloud.positions, normals, radii, DEFAULT_LEVELS),
         cloud.colors.as_deref(),

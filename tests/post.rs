@@ -7,8 +7,9 @@ mod common;
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{upload_with, Extras};
+use surfel::render::Extras;
 use surfel::scene::{Camera, Cloud};
+use surfel::upload::upload;
 
 const SIZE: u32 = 64;
 
@@ -49,7 +50,7 @@ fn render(cloud: &Cloud, method: &str, post: PostOptions) -> Frame {
     let ctx = common::context();
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(Default::default());
-    let (scene, info) = upload_with(&ctx, cloud, options).expect("upload");
+    let (scene, info) = upload(&ctx, cloud, &options).expect("upload");
     let extras = Extras {
         post,
         ..Extras::default()

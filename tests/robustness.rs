@@ -11,9 +11,10 @@ use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::gpu::Context;
 use surfel::methods::{MethodConfig, METHODS};
-use surfel::render::{upload_with, Extras, Renderer, View};
+use surfel::render::{Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light};
-use surfel::streams::UploadOptions;
+use surfel::upload::upload;
+use surfel::upload::UploadOptions;
 
 /// Frame size: large enough for the pyramid's levels and the kernels, small for lavapipe.
 const SIZE: u32 = 24;
@@ -124,7 +125,7 @@ fn render(
 ) -> anyhow::Result<Frame> {
     let config = MethodConfig::parse(method)?;
     let options = config.method.upload_options(UploadOptions::default());
-    let (scene, info) = upload_with(ctx, cloud, options)?;
+    let (scene, info) = upload(ctx, cloud, &options)?;
     let camera = camera.unwrap_or_else(|| Camera::framing(info.centre, info.radius));
     let mut renderer = Renderer::new(
         ctx,

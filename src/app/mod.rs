@@ -30,11 +30,12 @@ use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{fit_normal_field, upload_for, upload_lod, Extras, Renderer, SceneInfo, View};
+use crate::render::{Extras, Renderer, View};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
-use crate::streams::UploadOptions;
+use crate::streams::upload::DEFAULT_CHUNK_BYTES;
+use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 use estimate::{EstimateOptions, Estimation};
 use hud::{FrameRate, Hud, Stats};
 use script::{Next, Runner, Script, ViewerKey};
@@ -131,7 +132,7 @@ struct Viewer {
     opts: ViewerOptions,
     cloud: Cloud,
     ctx: Option<Arc<Context>>,
-    scene: Option<(crate::methods::GpuScene, SceneInfo)>,
+    scene: Option<(GpuScene, SceneInfo)>,
     gpu: Option<Gpu>,
     orbit: Orbit,
     method: usize,
@@ -334,7 +335,8 @@ impl Viewer {
             // The object texture and the normal fields only when the viewer starts on a method
             // reading them.
             let method = &METHODS[self.method];
-            self.scene = Some(upload_for(&ctx, &self.cloud, self.opts.coloring, method)?);
+            let options = method.upload_options(UploadOptions::colored(self.opts.coloring));
+            self.scene = Some(upload(&ctx, &self.cloud, &options)?);
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -428,7 +430,7 @@ impl Viewer {
     }
 
     /// Adds to the uploaded scene what the method reads and the scene was uploaded without
-    /// (the object texture, the normal fields' stream): an event, not per frame.
+    /// (`GpuScene::complete`): an event, not per frame.
     fn upload_what_the_method_reads(&mut self) -> Result<()> {
         let method = &METHODS[self.method];
         if method.needs_surfels {
@@ -437,16 +439,11 @@ impl Viewer {
         let (Some(ctx), Some((scene, _))) = (self.ctx.clone(), self.scene.as_mut()) else {
             return Ok(());
         };
-        if method.needs_lod && scene.lod.is_none() {
-            scene.lod = Some(Arc::new(upload_lod(&ctx, &self.cloud)?));
-        }
-        if method.needs_normal_field && !scene.streams.normal_field {
-            let field = fit_normal_field(&self.cloud);
-            let chunk = UploadOptions::default().chunk_bytes;
-            scene
-                .streams
-                .add_normal_field(&ctx, &self.cloud, field, chunk)?;
-        }
+        scene.complete(
+            &ctx,
+            &self.cloud,
+            &method.upload_options(Default::default()),
+        )?;
         Ok(())
     }
 
@@ -467,12 +464,8 @@ impl Viewer {
         self.cloud.radii = Some(done.radii);
         if let (Some(ctx), Some((_, info))) = (self.ctx.clone(), self.scene.as_ref()) {
             let coloring = info.coloring;
-            self.scene = Some(upload_for(
-                &ctx,
-                &self.cloud,
-                coloring,
-                &METHODS[self.method],
-            )?);
+            let options = METHODS[self.method].upload_options(UploadOptions::colored(coloring));
+            self.scene = Some(upload(&ctx, &self.cloud, &options)?);
             self.rebuild()?;
         }
         if let Some(e) = done.cache_error {
@@ -514,10 +507,9 @@ impl Viewer {
             color::select(&self.cloud, &name, self.orbit.up).map_err(anyhow::Error::msg)?;
         let ctx = self.ctx.clone().context("context")?;
         if let Some((scene, info)) = self.scene.as_mut() {
-            let chunk = crate::streams::UploadOptions::default().chunk_bytes;
             scene
                 .streams
-                .select_scalar(&ctx, &self.cloud, coloring.scalar, chunk)?;
+                .select_scalar(&ctx, &self.cloud, coloring.scalar, DEFAULT_CHUNK_BYTES)?;
             info.coloring = coloring;
         }
         self.legend = legend_for(&self.cloud, &coloring);

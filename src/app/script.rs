@@ -128,8 +128,8 @@ fn parse_step(command: &str, arg: &str) -> Result<Step, String> {
                 "expected `orbit AZ,EL` in degrees (elevation within -90..=90), got {arg:?}"
             )),
         },
-        "size" => crate::cli::parse_size(arg)
-            .map(|(w, h)| Step::Size(w, h))
+        "size" => crate::frame::Size::parse(arg)
+            .map(|s| Step::Size(s.width, s.height))
             .map_err(|e| format!("expected `size WxH`: {e}")),
         "quit" if arg.is_empty() => Ok(Step::Quit),
         "quit" => Err(format!("expected `quit` alone, got {arg:?} after it")),

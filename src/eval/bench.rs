@@ -23,10 +23,10 @@ use super::results::{PassTiming, Record, Results, Skipped, REFERENCE_METHOD};
 use super::stress;
 use super::Frame;
 use crate::gpu::Context;
-use crate::methods::{GpuScene, MethodConfig};
-use crate::render::{upload_with, Extras, Renderer, SceneInfo, View};
+use crate::methods::MethodConfig;
+use crate::render::{Extras, Renderer, View};
 use crate::scene::{lights, load_prepared, sample, Camera, Cloud, LoadOptions, Pose};
-use crate::streams::UploadOptions;
+use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 
 /// Shortest warm-up per job, in seconds of wall time (at most [`WARMUP_MAX_FRAMES`] frames).
 pub const WARMUP_MIN_SECONDS: f64 = 0.5;
@@ -48,7 +48,7 @@ struct Loaded {
 
 /// Uploads `cloud` with `options` (what the sweep's methods read beyond the streams).
 fn load_gpu(ctx: &Arc<Context>, cloud: Cloud, options: UploadOptions) -> Result<Loaded> {
-    let (gpu, info) = upload_with(ctx, &cloud, options)?;
+    let (gpu, info) = upload(ctx, &cloud, &options)?;
     Ok(Loaded { cloud, gpu, info })
 }
 

@@ -463,18 +463,6 @@ struct RawStress {
     values: Vec<f64>,
 }
 
-/// Parses `"WxH"` into positive dimensions.
-pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("expected \"WxH\", got {s:?}"))?;
-    let dim = |t: &str| t.trim().parse::<u32>().ok().filter(|&v| v > 0);
-    match (dim(w), dim(h)) {
-        (Some(w), Some(h)) => Ok((w, h)),
-        _ => Err(format!("expected positive \"WxH\", got {s:?}")),
-    }
-}
-
 fn scalar_string(key: &str, v: &toml::Value) -> Result<String, ConfigError> {
     match v {
         toml::Value::String(s) => Ok(s.clone()),
@@ -658,7 +646,11 @@ impl BenchConfig {
             .resolutions
             .iter()
             .enumerate()
-            .map(|(i, r)| parse_resolution(r).map_err(|e| invalid(format!("resolutions[{i}]"), e)))
+            .map(|(i, r)| {
+                crate::frame::Size::parse(r)
+                    .map(crate::frame::Size::pair)
+                    .map_err(|e| invalid(format!("resolutions[{i}]"), e))
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let poses = if raw.poses.is_empty() {
             vec![NamedPose {

@@ -19,8 +19,19 @@ use crate::hpr::approx::{self, Params, Propagation};
 use crate::hpr::{agreement, exact, spacing, Radius};
 use crate::methods::hpr::{evaluate, Settings};
 use crate::methods::MethodConfig;
-use crate::render::{upload, Extras, Renderer, View};
+use crate::render::{Extras, Renderer, View};
 use crate::scene::Cloud;
+use crate::upload::{upload, UploadOptions};
+
+/// The scenes the evaluations run HPR on keep their bounding sphere between evaluations.
+const HPR_UPLOAD: UploadOptions = UploadOptions {
+    segment_points: None,
+    chunk_bytes: crate::streams::upload::DEFAULT_CHUNK_BYTES,
+    coloring: None,
+    lod: false,
+    normal_field: false,
+    hpr: true,
+};
 
 /// Adaptive propagation as the study runs it: at most 64 rounds.
 const ADAPTIVE: Propagation = Propagation::Adaptive { max_rounds: 64 };
@@ -146,8 +157,12 @@ fn gpu_time(
     config: &str,
     frames: u32,
 ) -> Result<(f64, Vec<(String, f64)>)> {
-    let (scene, info) = upload(ctx, cloud)?;
     let config = MethodConfig::parse(config)?;
+    let (scene, info) = upload(
+        ctx,
+        cloud,
+        &config.method.upload_options(Default::default()),
+    )?;
     let mut renderer = Renderer::new(
         ctx,
         &scene,
@@ -193,7 +208,7 @@ fn gpu_time(
 /// `view`, as indices of the file's order (`order`: stream index to file index), ascending.
 fn complete_on_gpu(
     ctx: &Arc<Context>,
-    scene: &crate::methods::GpuScene,
+    scene: &crate::upload::GpuScene,
     view: &HprView,
     size: (u32, u32),
     (r, side): (f64, u32),
@@ -382,7 +397,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         let points: Vec<DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
         let sphere = approx::bounding_sphere(&points).context("no points")?;
         let from_view = approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), 4096);
-        let (scene, _) = upload(&ctx, &cloud)?;
+        let (scene, _) = upload(&ctx, &cloud, &HPR_UPLOAD)?;
         let order = crate::streams::morton_order(&cloud.positions);
         let mut ks = vec![64, 128, 256, 512, 1024, 2048, from_view];
         ks.sort_unstable();
@@ -559,7 +574,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         });
         // The GPU timing of the largest clouds: one frame after the warm-up.
         let frames = if n > 2_000_000 { 1 } else { options.frames };
-        let (scene, _) = upload(&ctx, &cloud)?;
+        let (scene, _) = upload(&ctx, &cloud, &HPR_UPLOAD)?;
         let order = crate::streams::morton_order(&cloud.positions);
         // The complete set, at its default grid on the CPU and the GPU; where the cloud is the
         // one closest to a million points, on the CPU also against the grid (sectors per

@@ -3,8 +3,9 @@
 
 use anyhow::{bail, Context as _, Result};
 
-use crate::render::{upload_for, Extras, Renderer, View};
+use crate::render::{Extras, Renderer, View};
 use crate::scene::{Camera, Cloud};
+use crate::upload::{upload, UploadOptions};
 
 /// The view HPR measures pixels in: the camera from the eye to the target and the image size.
 pub struct HprView {
@@ -58,12 +59,8 @@ pub fn render_once(cloud: &Cloud, view: &HprView, method: &str) -> Result<crate:
         &crate::gpu::ContextOptions::from_env(),
     )?);
     let config = crate::methods::MethodConfig::parse(method)?;
-    let (scene, info) = upload_for(
-        &ctx,
-        cloud,
-        crate::color::Coloring::default_for(cloud.colors.is_some()),
-        config.method,
-    )?;
+    let options = config.method.upload_options(UploadOptions::default());
+    let (scene, info) = upload(&ctx, cloud, &options)?;
     let mut renderer = Renderer::new(
         &ctx,
         &scene,

@@ -32,6 +32,8 @@ pub(super) enum ImageSlot {
 
 pub(super) enum BufferSlot {
     Owned(Buffer),
+    /// A transient buffer no pass left after culling reads or writes: not allocated.
+    Unused(u64),
     Imported(Arc<Buffer>),
     External {
         size: u64,
@@ -219,10 +221,12 @@ impl GraphBuilder {
             }
         }
         let mut used = vec![false; self.images.len()];
+        let mut buffer_used = vec![false; self.buffers.len()];
         for pass in &self.passes {
             for (sub, _) in &pass.uses {
-                if let Subresource::Image { id, .. } = sub {
-                    used[id.0 as usize] = true;
+                match sub {
+                    Subresource::Image { id, .. } => used[id.0 as usize] = true,
+                    Subresource::Buffer(id, _) => buffer_used[id.0 as usize] = true,
                 }
             }
         }
@@ -253,8 +257,10 @@ impl GraphBuilder {
             .buffers
             .into_iter()
             .zip(buffer_usage)
-            .map(|(r, usage)| {
+            .zip(buffer_used)
+            .map(|((r, usage), used)| {
                 let slot = match r.source {
+                    BufferSource::Transient { size, .. } if !used => BufferSlot::Unused(size),
                     BufferSource::Transient { size, .. } => BufferSlot::Owned(Buffer::new(
                         ctx,
                         &r.name,
@@ -391,6 +397,7 @@ impl CompiledGraph {
             BufferSlot::Owned(b) => (b.raw, b.size),
             BufferSlot::Imported(b) => (b.raw, b.size),
             BufferSlot::External { raw, size, .. } => (*raw, *size),
+            BufferSlot::Unused(size) => (vk::Buffer::null(), *size),
         }
     }
 

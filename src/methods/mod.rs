@@ -18,9 +18,9 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::{Buffer, Capabilities, Context};
+use crate::gpu::{Capabilities, Context};
 use crate::graph::{BufferId, GraphBuilder, ImageId};
-use crate::streams::{GpuStreams, UploadOptions};
+use crate::upload::{GpuScene, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
@@ -55,6 +55,8 @@ pub struct MethodInfo {
     pub culls_batches: bool,
     /// Draws the scene's object texture (`GpuScene::lod`, level of detail of 000 ch. 7).
     pub needs_lod: bool,
+    /// Reads hidden point removal's flipping-radius data (`UploadOptions::hpr`).
+    pub needs_hpr: bool,
     /// Reads the linear normal fields of Phong splatting (`Stream::NormalField`).
     pub needs_normal_field: bool,
     /// Reads per-point normals and splat radii: a cloud without them gets them estimated
@@ -130,6 +132,7 @@ impl MethodInfo {
         UploadOptions {
             lod: options.lod || self.needs_lod,
             normal_field: options.normal_field || self.needs_normal_field,
+            hpr: options.hpr || self.needs_hpr,
             ..options
         }
     }
@@ -260,28 +263,6 @@ impl MethodConfig {
             format!("{}:{}", self.method.name, params.join(","))
         }
     }
-}
-
-/// The scene on the GPU.
-pub struct GpuScene {
-    pub streams: GpuStreams,
-    pub indices: Option<Arc<Buffer>>,
-    /// One bit per point in stream order (32 to a word): set for the vertices a face or a
-    /// line references (hybrid scenes draw those as triangles or lines, the rest as points).
-    pub face_vertices: Option<Arc<Buffer>>,
-    /// Ribbon and tube segments (index pairs in stream order) and their index counts.
-    pub ribbons: Option<(Arc<Buffer>, u32)>,
-    pub tubes: Option<(Arc<Buffer>, u32)>,
-    pub point_count: u32,
-    pub index_count: u32,
-    /// R / D² of hidden point removal's flipping radius from the sampling density
-    /// (`hpr::Radius::Density`: κ / the sample spacing).
-    pub hpr_density: f32,
-    /// The bounding box's diagonal: hidden point removal's `radius` factor multiplies it.
-    pub diagonal: f32,
-    /// The object texture of level of detail (000 ch. 7), when uploaded
-    /// (`UploadOptions::lod`).
-    pub lod: Option<Arc<crate::methods::lod::gpu::GpuLod>>,
 }
 
 /// The standard outputs every method writes.

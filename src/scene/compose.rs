@@ -11,13 +11,13 @@
 //! scale = 0.2
 //! ```
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::Cloud;
+use super::{Cloud, Estimator, LoadOptions};
 
 /// How an input joins the scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -159,6 +159,38 @@ pub fn append(base: &mut Cloud, mut other: Cloud) -> Result<()> {
     base.stats.dropped_invalid += other.stats.dropped_invalid;
     base.sensor = None;
     Ok(())
+}
+
+/// Loads `file` and merges `inputs` (a scene file's) into it, each completed by
+/// `scene::complete_with` and `estimate` before the merge; also the seconds spent estimating
+/// normals and radii.
+pub fn load(
+    file: &Path,
+    inputs: &[SceneInput],
+    options: &LoadOptions,
+    estimate: Estimator,
+) -> Result<(Cloud, f64)> {
+    let mut estimate_s = 0.0;
+    let mut load = |path: &Path| -> Result<Cloud> {
+        let mut cloud = super::load_with(path, &options.read())?;
+        let start = std::time::Instant::now();
+        if super::complete_with(&mut cloud, path, options, estimate)? {
+            estimate_s += start.elapsed().as_secs_f64();
+        }
+        Ok(cloud)
+    };
+    let mut cloud = load(file)?;
+    for input in inputs {
+        let name = input.path.display().to_string();
+        let mut other = with_role(load(&input.path)?, input.role, &name)?;
+        transform(
+            &mut other,
+            input.scale.unwrap_or(1.0),
+            input.translate.map_or(Vec3::ZERO, Vec3::from),
+        );
+        append(&mut cloud, other).with_context(|| name.clone())?;
+    }
+    Ok((cloud, estimate_s))
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ use crate::gpu::layout::{GpuBatch, BATCH_POINTS, QUANT_BITS};
 use crate::scene::pack::oct_encode;
 use crate::scene::Cloud;
 
-pub use upload::{GpuStreams, UploadOptions};
+pub use upload::GpuStreams;
 
 /// Bits of a full quantized coordinate (three words of `QUANT_BITS`).
 pub const QUANT_FULL_BITS: u32 = 3 * QUANT_BITS;

@@ -14,35 +14,8 @@ use crate::gpu::{Buffer, Context};
 use crate::scene::progress::Progress;
 use crate::scene::Cloud;
 
-/// Upload settings.
-#[derive(Clone, Copy, Debug)]
-pub struct UploadOptions {
-    /// Points per segment; `None` fits segments to the device's `maxStorageBufferRange`.
-    pub segment_points: Option<u64>,
-    /// Bytes per staging chunk.
-    pub chunk_bytes: u64,
-    /// The scalar field (index into `Cloud::scalars`) to upload: the one the frame is colored
-    /// by. Only that one reaches the GPU.
-    pub scalar: Option<usize>,
-    /// Also build and upload the object texture of level of detail (`crate::lod`, for the
-    /// methods with `needs_lod`; the cloud needs normals and radii).
-    pub lod: bool,
-    /// Also fit and upload the linear normal fields of Phong splatting
-    /// (`crate::scene::normal_field`, for the methods with `needs_normal_field`).
-    pub normal_field: bool,
-}
-
-impl Default for UploadOptions {
-    fn default() -> Self {
-        Self {
-            segment_points: None,
-            chunk_bytes: 32 << 20,
-            scalar: None,
-            lod: false,
-            normal_field: false,
-        }
-    }
-}
+/// Bytes per staging chunk by default.
+pub const DEFAULT_CHUNK_BYTES: u64 = 32 << 20;
 
 /// A cloud's streams on the GPU.
 pub struct GpuStreams {
@@ -237,15 +210,15 @@ pub fn upload(
     ctx: &Arc<Context>,
     cloud: &Cloud,
     layout: &StreamLayout,
-    options: UploadOptions,
+    chunk_bytes: u64,
 ) -> Result<GpuStreams> {
     let per_point: u64 = layout.streams.iter().map(|&s| s.bytes_per_point()).sum();
     // Whole radius pairs per chunk: an even number of points.
-    let chunk_points = (options.chunk_bytes / per_point.max(1)) & !1;
+    let chunk_points = (chunk_bytes / per_point.max(1)) & !1;
     if chunk_points == 0 {
         bail!(
             "upload chunk of {} bytes is smaller than two points ({per_point} bytes each)",
-            options.chunk_bytes
+            chunk_bytes
         );
     }
     let mut uploader = Uploader::new(ctx, chunk_points * per_point + 8)?;

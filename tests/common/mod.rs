@@ -68,13 +68,13 @@ pub fn render_view(
     cloud: &Cloud,
     method: &str,
     size: u32,
-    options: surfel::streams::UploadOptions,
+    options: surfel::upload::UploadOptions,
     camera: impl Fn(Vec3, f32) -> surfel::scene::Camera,
 ) -> surfel::eval::Frame {
     let ctx = context();
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(options);
-    let (scene, info) = surfel::render::upload_with(&ctx, cloud, options).expect("upload");
+    let (scene, info) = surfel::upload::upload(&ctx, cloud, &options).expect("upload");
     let camera = camera(info.centre, info.radius);
     two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
 }
@@ -84,8 +84,8 @@ pub fn render_view(
 /// Fails on any validation error.
 pub fn two_frames(
     ctx: &Arc<Context>,
-    scene: &surfel::methods::GpuScene,
-    info: surfel::render::SceneInfo,
+    scene: &surfel::upload::GpuScene,
+    info: surfel::upload::SceneInfo,
     method: &str,
     size: u32,
     extras: surfel::render::Extras,
@@ -124,7 +124,7 @@ pub fn render_with(
     cloud: &Cloud,
     method: &str,
     size: u32,
-    options: surfel::streams::UploadOptions,
+    options: surfel::upload::UploadOptions,
 ) -> surfel::eval::Frame {
     render_view(cloud, method, size, options, surfel::scene::Camera::framing)
 }
@@ -143,7 +143,12 @@ pub fn render_colored(
     coloring: surfel::color::Coloring,
 ) -> surfel::eval::Frame {
     let ctx = context();
-    let (scene, info) = surfel::render::upload_colored(&ctx, cloud, coloring).expect("upload");
+    let (scene, info) = surfel::upload::upload(
+        &ctx,
+        cloud,
+        &surfel::upload::UploadOptions::colored(coloring),
+    )
+    .expect("upload");
     let camera = surfel::scene::Camera::framing(info.centre, info.radius);
     two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
 }

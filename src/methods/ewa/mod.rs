@@ -103,6 +103,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_hpr: false,
     needs_normal_field: true,
     needs_surfels: true,
     build,

@@ -27,7 +27,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::compute::{self, storage, ProjectOptions};
-use super::{BuildContext, Feature, GpuScene, MethodInfo, ParamSpec};
+use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_COMPLETE, BINDING_HPR_DST,
     BINDING_HPR_EMPTY, BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
@@ -39,6 +39,7 @@ use crate::gpu::layout::{
 use crate::gpu::{Buffer, Context, Pipeline};
 use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, Stages};
 use crate::hpr::approx::Propagation;
+use crate::upload::GpuScene;
 
 /// Points per thread of the sphere reduction (`ITEMS` in `glsl/hpr/sphere.comp`).
 const SPHERE_ITEMS: u32 = 16;
@@ -121,9 +122,27 @@ fn pipeline(
     )?))
 }
 
-/// The bounding sphere of `scene`'s points (centre xyz, radius bits), by parallel reduction
-/// in a one-frame graph: a 16-byte device buffer the HPR passes read.
+/// The bounding sphere of `scene`'s points (centre xyz, radius bits): a 16-byte device buffer
+/// the HPR passes read, reduced once per scene and kept in `HprScene::sphere` when the scene
+/// was uploaded with HPR's data.
 pub fn bounding_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
+    let Some(hpr) = &scene.hpr else {
+        return reduce_sphere(ctx, scene);
+    };
+    let mut cached = hpr
+        .sphere
+        .lock()
+        .map_err(|_| anyhow::anyhow!("the HPR sphere cache was poisoned"))?;
+    if let Some(sphere) = cached.as_ref() {
+        return Ok(sphere.clone());
+    }
+    let sphere = reduce_sphere(ctx, scene)?;
+    *cached = Some(sphere.clone());
+    Ok(sphere)
+}
+
+/// The bounding sphere of `scene`'s points by parallel reduction in a one-frame graph.
+fn reduce_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
     let n = scene.point_count;
     if n == 0 {
         bail!("hidden point removal needs at least one point");
@@ -802,6 +821,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_hpr: true,
     needs_normal_field: false,
     needs_surfels: false,
     build: build_points,
@@ -815,28 +835,31 @@ pub const MESH_INFO: MethodInfo = MethodInfo {
     features: &[Feature::Int64Atomics],
     culls_batches: false,
     needs_lod: false,
+    needs_hpr: true,
     needs_normal_field: false,
     needs_surfels: true,
     build: build_mesh,
 };
 
 /// The settings of a method configuration; `density` is R / |C − C_e|² from the sampling
-/// density (`GpuScene::hpr_density`).
-fn settings(b: &BuildContext<'_>) -> Settings {
+/// density (`HprScene::density`).
+fn settings(b: &BuildContext<'_>) -> Result<Settings> {
     let cfg = b.config;
+    let hpr = b.scene.hpr.as_ref().with_context(|| {
+        format!(
+            "method '{}' needs the scene's HPR data (UploadOptions::hpr)",
+            cfg.method.name
+        )
+    })?;
     let m = cfg.get("m").round() as u32;
     let factor = cfg.get("radius");
-    Settings {
+    Ok(Settings {
         sqrt_k_max: cfg.get("max_sectors").round() as u32,
         params: HprParams {
             sqrt_k: cfg.get("sectors").round() as u32,
             max_rounds: cfg.get("rounds").round() as u32,
-            radius: factor * b.scene.diagonal,
-            density: if factor > 0.0 {
-                0.0
-            } else {
-                b.scene.hpr_density
-            },
+            radius: factor * hpr.diagonal,
+            density: if factor > 0.0 { 0.0 } else { hpr.density },
             max_edge: cfg.get("max_edge"),
             // `hpr-mesh` reads the hidden mask only through the pyramid; by default (not asked
             // for) a device without double precision runs the sector extremes alone.
@@ -859,7 +882,7 @@ fn settings(b: &BuildContext<'_>) -> Settings {
         },
         sort: cfg.get("sort") >= 0.5,
         extremes: cfg.method.name == MESH_INFO.name,
-    }
+    })
 }
 
 fn add_for_method(b: &mut BuildContext<'_>) -> Result<(Hpr, Inputs, Settings)> {
@@ -873,7 +896,7 @@ fn add_for_method(b: &mut BuildContext<'_>) -> Result<(Hpr, Inputs, Settings)> {
             Access::StorageWrite(Stages::Compute),
         ),
     };
-    let settings = settings(b);
+    let settings = settings(b)?;
     let hpr = add(b.graph, b.ctx, b.scene.point_count, inputs, &settings)?;
     Ok((hpr, inputs, settings))
 }

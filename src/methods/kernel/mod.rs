@@ -78,6 +78,7 @@ pub const KERNEL3: MethodInfo = MethodInfo {
     params: PARAMS,
     needs_faces: false,
     needs_lod: false,
+    needs_hpr: false,
     needs_normal_field: false,
     needs_surfels: true,
     features: &[Feature::Int64Atomics],

@@ -79,6 +79,7 @@ const fn info(
         features: &[],
         culls_batches: false,
         needs_lod: false,
+        needs_hpr: false,
         needs_normal_field: false,
         needs_surfels: true,
         build,

@@ -27,6 +27,7 @@ pub const INFO: MethodInfo = MethodInfo {
     features: &[],
     culls_batches: false,
     needs_lod: false,
+    needs_hpr: false,
     needs_normal_field: false,
     needs_surfels: false,
     build,

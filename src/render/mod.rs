@@ -1,218 +1,30 @@
-//! The frame loop shared by the headless renderer, the benchmark and the viewer: uploads a
-//! scene, builds one method's graph once, keeps frames in flight (`FrameRing`), updates each
+//! The frame loop shared by the headless renderer, the benchmark and the viewer: on an
+//! uploaded scene (`crate::upload`), builds one method's graph once, keeps frames in flight (`FrameRing`), updates each
 //! slot's uniforms, submits, reads back.
+
+pub mod settings;
 
 use std::sync::Arc;
 
 use anyhow::{bail, Context as _, Result};
 use ash::vk;
 use bytemuck::Zeroable;
-use glam::{Vec3, Vec4};
+use glam::Vec4;
 use gpu_allocator::MemoryLocation;
 
-use crate::color::Coloring;
 use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
-use crate::lod::{self, Hierarchy, ObjectTexture};
-use crate::methods::lod::gpu::GpuLod;
 use crate::methods::{
-    BuildContext, GpuScene, MethodConfig, MethodInfo, SampleCounters, Targets, COLOR_FORMAT,
-    DEPTH_FORMAT, NORMAL_FORMAT,
+    BuildContext, MethodConfig, SampleCounters, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
 use crate::overlay::{pass::OverlayPass, Panel};
 use crate::post::{self, PostOptions};
-use crate::scene::preprocess::Neighbours;
-use crate::scene::{lights, normal_field, Camera, Cloud, Light, Up};
-use crate::streams::{upload, StreamLayout, UploadOptions};
+use crate::scene::{lights, Camera, Light};
+use crate::upload::{GpuScene, SceneInfo};
 
-/// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
-pub const MAX_EDGE: u32 = 8192;
-
-/// Scene facts the frame loop needs after upload.
-#[derive(Clone, Copy, Debug)]
-pub struct SceneInfo {
-    pub centre: Vec3,
-    pub radius: f32,
-    pub points: u32,
-    pub has_colors: bool,
-    pub has_normals: bool,
-    /// The cloud's up axis.
-    pub up: Up,
-    /// What the points are colored by (`color::select`); its scalar field is the one uploaded.
-    pub coloring: Coloring,
-}
-
-/// Uploads `cloud` as point streams (Morton-ordered batches, segments fitted to the device)
-/// and, when present, its triangle indices (remapped to stream order), colored by its colors
-/// when it has them.
-pub fn upload(ctx: &Arc<Context>, cloud: &Cloud) -> Result<(GpuScene, SceneInfo)> {
-    upload_with(ctx, cloud, UploadOptions::default())
-}
-
-/// `upload` colored by `coloring` (its scalar field is the one uploaded).
-pub fn upload_colored(
-    ctx: &Arc<Context>,
-    cloud: &Cloud,
-    coloring: Coloring,
-) -> Result<(GpuScene, SceneInfo)> {
-    upload_colored_with(ctx, cloud, coloring, UploadOptions::default())
-}
-
-/// `upload_colored`, with what `method` reads beyond the streams (`MethodInfo::upload_options`).
-pub fn upload_for(
-    ctx: &Arc<Context>,
-    cloud: &Cloud,
-    coloring: Coloring,
-    method: &MethodInfo,
-) -> Result<(GpuScene, SceneInfo)> {
-    let options = method.upload_options(UploadOptions::default());
-    upload_colored_with(ctx, cloud, coloring, options)
-}
-
-/// `upload_with` `options`, the scalar field and coloring from `coloring`.
-fn upload_colored_with(
-    ctx: &Arc<Context>,
-    cloud: &Cloud,
-    coloring: Coloring,
-    options: UploadOptions,
-) -> Result<(GpuScene, SceneInfo)> {
-    let options = UploadOptions {
-        scalar: coloring.scalar,
-        ..options
-    };
-    let (scene, mut info) = upload_with(ctx, cloud, options)?;
-    info.coloring = coloring;
-    Ok((scene, info))
-}
-
-/// `upload` with explicit segment and chunk sizes (and scalar field to upload), colored by the
-/// cloud's colors when it has them.
-pub fn upload_with(
-    ctx: &Arc<Context>,
-    cloud: &Cloud,
-    options: UploadOptions,
-) -> Result<(GpuScene, SceneInfo)> {
-    // The passes assume finite positions (a NaN projects to pixel 0): a cloud built without a
-    // loader, which drops them, is uploaded without them.
-    let finite;
-    let cloud = if cloud.positions.iter().all(|p| p.is_finite()) {
-        cloud
-    } else {
-        let mut copy = cloud.clone();
-        copy.retain_finite();
-        finite = copy;
-        &finite
-    };
-    let (centre, radius) = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
-    let segment_points = options
-        .segment_points
-        .unwrap_or_else(|| upload::default_segment_points(ctx));
-    let mut layout =
-        StreamLayout::new(cloud, segment_points, options.scalar).map_err(anyhow::Error::msg)?;
-    if options.normal_field {
-        layout = layout.with_normal_field(fit_normal_field(cloud));
-    }
-    let streams = upload::upload(ctx, cloud, &layout, options)?;
-    let inverse = layout.inverse();
-    let remap = |i: u32| inverse.get(i as usize).copied().unwrap_or(0);
-    // Vertices of faces and lines are drawn as those primitives by hybrid methods.
-    let mut mask = vec![0u32; cloud.len().div_ceil(32).max(1)];
-    let mut primitive_buffer = |name: &str, indices: Vec<u32>, usage| -> Result<_> {
-        for &i in &indices {
-            mask[(i / 32) as usize] |= 1 << (i % 32);
-        }
-        let count = u32::try_from(indices.len()).context("more than 4G indices")?;
-        let buffer = Buffer::with_data(ctx, name, bytemuck::cast_slice(&indices), usage)?;
-        Ok((Arc::new(buffer), count))
-    };
-    let index_usage = vk::BufferUsageFlags::INDEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER;
-    let faces = match &cloud.faces {
-        Some(f) if !f.is_empty() => {
-            let indices = f.iter().flatten().map(|&i| remap(i)).collect();
-            Some(primitive_buffer("indices", indices, index_usage)?)
-        }
-        _ => None,
-    };
-    let mut segments = |name: &str, pairs: &[[u32; 2]]| -> Result<_> {
-        if pairs.is_empty() {
-            return Ok(None);
-        }
-        let indices = pairs.iter().flatten().map(|&i| remap(i)).collect();
-        primitive_buffer(name, indices, vk::BufferUsageFlags::INDEX_BUFFER).map(Some)
-    };
-    let (ribbons, tubes) = match &cloud.lines {
-        Some(l) => (
-            segments("ribbons", &l.ribbons)?,
-            segments("tubes", &l.tubes)?,
-        ),
-        None => (None, None),
-    };
-    let face_vertices = if faces.is_some() || ribbons.is_some() || tubes.is_some() {
-        Some(Arc::new(Buffer::with_data(
-            ctx,
-            "face-vertices",
-            bytemuck::cast_slice(&mask),
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-        )?))
-    } else {
-        None
-    };
-    let (indices, index_count) = faces.map_or((None, 0), |(b, n)| (Some(b), n));
-    let point_count = streams.point_count;
-    let lod = if options.lod {
-        Some(Arc::new(upload_lod(ctx, cloud)?))
-    } else {
-        None
-    };
-    Ok((
-        GpuScene {
-            streams,
-            indices,
-            face_vertices,
-            ribbons,
-            tubes,
-            point_count,
-            index_count,
-            hpr_density: (crate::hpr::DENSITY_KAPPA / crate::hpr::spacing(cloud)) as f32,
-            diagonal: crate::hpr::diagonal(&cloud.positions) as f32,
-            lod,
-        },
-        SceneInfo {
-            centre,
-            radius,
-            points: point_count,
-            has_colors: cloud.colors.is_some(),
-            has_normals: cloud.normals.is_some(),
-            up: cloud.up,
-            coloring: Coloring::default_for(cloud.colors.is_some()),
-        },
-    ))
-}
-
-/// Builds the object texture of `cloud` (`lod::DEFAULT_LEVELS` levels) and uploads it.
-pub fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
-    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
-        bail!("level of detail needs a cloud with normals and radii");
-    };
-    let hierarchy = Hierarchy::build(&cloud.positions, normals, radii, lod::DEFAULT_LEVELS);
-    GpuLod::upload(
-        ctx,
-        &ObjectTexture::new(&hierarchy, cloud.colors.as_deref()),
-    )
-}
-
-/// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to
-/// its `normal_field::FIELD_K` nearest neighbours; flat (zero) without normals or radii.
-pub fn fit_normal_field(cloud: &Cloud) -> Vec<[u32; 2]> {
-    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
-        return vec![[0; 2]; cloud.len()];
-    };
-    let neighbours = Neighbours::compute(&cloud.positions, normal_field::FIELD_K, false);
-    let field = normal_field::fit(&cloud.positions, normals, radii, &neighbours);
-    field.into_iter().map(normal_field::pack).collect()
-}
+use crate::frame::MAX_EDGE;
 
 /// Per-frame settings.
 #[derive(Clone, Debug)]

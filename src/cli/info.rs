@@ -1,0 +1,132 @@
+//! `surfel info`: what a file holds (points, attributes, fields, bounds, load statistics).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use super::{context, parse_up, InputArgs};
+use crate::color;
+use crate::scene::camera::Up;
+use crate::scene::load_prepared;
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    pub file: PathBuf,
+    /// Skip the GPU capability report.
+    #[arg(long)]
+    pub no_device: bool,
+    /// The axis pointing up in the data (x, y, z, -x, -y, -z). Default: the format's.
+    #[arg(long, value_name = "AXIS", allow_hyphen_values = true, value_parser = parse_up)]
+    pub up: Option<Up>,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+pub(super) fn info(a: InfoArgs) -> Result<()> {
+    let cloud = load_prepared(&a.file, &a.input.options(false))?;
+    println!("file              {}", a.file.display());
+    println!("points            {}", cloud.len());
+    println!("records in file   {}", cloud.stats.records);
+    println!("dropped (NaN/inf) {}", cloud.stats.dropped_non_finite);
+    println!("dropped (invalid) {}", cloud.stats.dropped_invalid);
+    let duplicates = cloud.duplicates();
+    println!(
+        "duplicates        {} points at {} distinct positions",
+        duplicates.points, duplicates.positions
+    );
+    if let Some(columns) = &cloud.stats.guessed_columns {
+        println!("columns guessed   {columns} (from their count; name them with a first row or --columns)");
+    }
+    if let Some(levels) = &cloud.stats.levels {
+        let per_level: Vec<String> = levels.points.iter().map(u64::to_string).collect();
+        println!(
+            "octree levels     read {} of {} (points per level: {}); {} points skipped",
+            levels.read,
+            levels.points.len(),
+            per_level.join(", "),
+            levels.points_skipped()
+        );
+    }
+    println!(
+        "faces             {}",
+        cloud.faces.as_ref().map_or(0, |f| f.len())
+    );
+    let mut attrs = vec!["position"];
+    attrs.extend(cloud.normals.as_ref().map(|_| "normal"));
+    attrs.extend(cloud.colors.as_ref().map(|_| "color"));
+    attrs.extend(cloud.radii.as_ref().map(|_| "radius"));
+    let scalars: Vec<&str> = cloud.scalars.iter().map(|s| s.name.as_str()).collect();
+    attrs.extend(scalars);
+    println!("attributes        {}", attrs.join(", "));
+    if !cloud.scalars.is_empty() {
+        println!("scalar fields     min .. max (2nd .. 98th percentile)");
+        for s in &cloud.scalars {
+            let (min, max) = color::min_max(&s.values);
+            let [lo, hi] = color::robust_range(&s.values);
+            println!("  {:<22} {min} .. {max} ({lo} .. {hi})", s.name);
+        }
+    }
+    let mut fields = color::fields(&cloud);
+    let normals = match (&cloud.normals, &cloud.radii, a.input.k) {
+        (Some(_), Some(_), _) => "from the file".to_owned(),
+        (_, _, 0) => "none (--k 0)".to_owned(),
+        _ => {
+            if cloud.normals.is_none() {
+                let at = fields
+                    .iter()
+                    .position(|f| f == "elevation")
+                    .map_or(0, |i| i + 1);
+                fields.insert(at, "normal".to_owned());
+            }
+            format!(
+                "estimated (k = {}) for the methods that read them and for --color-by normal",
+                a.input.k
+            )
+        }
+    };
+    println!("normals, radii    {normals}");
+    println!("color by          {}", fields.join(", "));
+    if let Some((lo, hi)) = cloud.bounds() {
+        let o = cloud.origin;
+        println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
+        println!("bounds (local)    {lo:.6} .. {hi:.6}");
+    }
+    let (up, source) = match a.up {
+        Some(up) => (up, "--up"),
+        None => (cloud.up, "format default"),
+    };
+    println!("up axis           {} ({source})", up.name());
+    let n = cloud.len() as u64;
+    let streams = crate::streams::StreamLayout::streams_for(&cloud, None);
+    let mut total = 0;
+    println!("GPU streams       bytes/point  MiB");
+    for s in streams {
+        let bytes = crate::streams::StreamLayout::stream_bytes(s, n);
+        total += bytes;
+        println!(
+            "  {:<22} {:>5}  {:>9.2}",
+            s.name(),
+            s.bytes_per_point(),
+            bytes as f64 / (1 << 20) as f64
+        );
+    }
+    if !cloud.scalars.is_empty() {
+        println!(
+            "  {:<22} {:>5}  (the field colored by, when one is)",
+            "scalar f32", 4
+        );
+    }
+    let batches = n.div_ceil(u64::from(crate::gpu::layout::BATCH_POINTS));
+    println!(
+        "GPU memory        {:.2} bytes/point, {:.2} MiB in {batches} batches of {} points",
+        total as f64 / n.max(1) as f64,
+        total as f64 / (1 << 20) as f64,
+        crate::gpu::layout::BATCH_POINTS
+    );
+    if !a.no_device {
+        let ctx = context(false)?;
+        println!("{}", ctx.caps);
+    }
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! `surfel view`: the interactive viewer (or a scripted tour of it).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+
+use super::{check_surfels, estimates, view_settings, CameraArgs, InputArgs};
+use crate::color;
+use crate::frame::Size;
+use crate::methods::MethodConfig;
+use crate::scene::compose;
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    pub file: PathBuf,
+    #[arg(long, short, default_value = "points")]
+    pub method: String,
+    /// Initial window size WxH (default: 80 % of the monitor).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Quit after N frames (smoke tests).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    #[arg(long)]
+    pub validation: bool,
+    /// Run a tour: one command per line (`key NAME`, `frames N`, `screenshot PATH`,
+    /// `orbit AZ,EL`, `quit`), then quit.
+    #[arg(long)]
+    pub script: Option<PathBuf>,
+    /// Scene file where `K` saves and `L` loads the camera (.toml or .json).
+    #[arg(long, default_value = "surfel-camera.toml")]
+    pub camera_file: PathBuf,
+    /// Directory for `P` screenshots (surfel-<n>.png; default: the current directory).
+    #[arg(long)]
+    pub screenshot_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+pub(super) fn view(a: ViewArgs) -> Result<()> {
+    let config = MethodConfig::parse(&a.method)?;
+    let size = a
+        .size
+        .as_deref()
+        .map(|s| Size::parse(s).map(Size::pair))
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let settings = view_settings(&a.camera)?;
+    let script = a
+        .script
+        .as_deref()
+        .map(crate::app::script::Script::load)
+        .transpose()?;
+    crate::app::script::check_camera_file(&a.camera_file)?;
+    if let Some(dir) = &a.screenshot_dir {
+        if !dir.is_dir() {
+            bail!("{}: the screenshot directory does not exist", dir.display());
+        }
+    }
+    let (cloud, _) = compose::load(
+        &a.file,
+        &settings.inputs,
+        &a.input.options(estimates(config.method, &settings)),
+        &crate::scene::input::estimate_on_cpu,
+    )?;
+    check_surfels(config.method, &cloud, &a.file)?;
+    // What the first method does not read is estimated while the viewer shows the raw points.
+    let lacking = cloud.normals.is_none() || cloud.radii.is_none();
+    let estimate = (lacking && a.input.k > 0).then(|| crate::app::estimate::EstimateOptions {
+        k: a.input.k,
+        cache: (a.input.cache && settings.inputs.is_empty()).then(|| a.file.clone()),
+    });
+    let coloring = settings.coloring(&a.file, &cloud)?;
+    let color_by = settings
+        .color_by
+        .clone()
+        .unwrap_or_else(|| color::default_field(&cloud).to_owned());
+    let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
+    let up = settings.up(cloud.up);
+    crate::app::run(
+        cloud,
+        crate::app::ViewerOptions {
+            title: format!("surfel - {}", a.file.display()),
+            file: a.file.file_name().map_or_else(
+                || a.file.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
+            method: config,
+            camera: settings.camera(centre, radius, up),
+            up,
+            lights: settings.lights,
+            size,
+            post: settings.post,
+            color_by,
+            coloring,
+            frames: a.frames,
+            validation: a.validation || crate::gpu::context::validation_requested(),
+            script,
+            camera_file: a.camera_file,
+            screenshot_dir: a.screenshot_dir,
+            estimate,
+        },
+    )
+}
