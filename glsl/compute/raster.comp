@@ -15,14 +15,14 @@ layout(local_size_x = RASTER_GROUP) in;
 
 #define MODE_VISIBILITY 0u
 #define MODE_ACCUMULATE 1u
-layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
+layout(constant_id = RASTER_SPEC_MODE) const uint MODE = MODE_VISIBILITY;
 // Read the quantized position words (true) or the f32 position stream (false).
-layout(constant_id = 1) const bool QUANTIZED = true;
+layout(constant_id = RASTER_SPEC_QUANTIZED) const bool QUANTIZED = true;
 // Back-face culling by normal (the pyramid's projection, 000 4.2.1): reads the normal stream
 // (4 more bytes per point) and skips points whose normal faces away from the eye.
-layout(constant_id = 2) const bool CULL = false;
+layout(constant_id = RASTER_SPEC_CULL) const bool CULL = false;
 // Hybrid scenes: skip the points a face references (drawn as triangles), one bit per point.
-layout(constant_id = 3) const bool SKIP_FACE_VERTICES = false;
+layout(constant_id = RASTER_SPEC_SKIP) const bool SKIP_FACE_VERTICES = false;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };

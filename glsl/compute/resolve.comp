@@ -7,7 +7,7 @@
 
 layout(local_size_x = RESOLVE_GROUP, local_size_y = RESOLVE_GROUP) in;
 
-layout(constant_id = 0) const bool HIGH_QUALITY = false;
+layout(constant_id = RESOLVE_SPEC_HIGH_QUALITY) const bool HIGH_QUALITY = false;
 
 layout(std430, set = 0, binding = BINDING_VISIBILITY) readonly buffer Visibility {
     uint64_t keys[];

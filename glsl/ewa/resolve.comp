@@ -17,9 +17,9 @@
 layout(local_size_x = RESOLVE_GROUP, local_size_y = RESOLVE_GROUP) in;
 
 // Half the weight sum of a pixel inside the surface, in the accumulators' fixed-point units.
-layout(constant_id = 0) const float COVERAGE = 0.0;
+layout(constant_id = EWA_SPEC_COVERAGE) const float COVERAGE = 0.0;
 // The accumulators hold lit colors (splat.comp's SHADE_FRAGMENTS): normalized, not lit again.
-layout(constant_id = 1) const bool SHADED = true;
+layout(constant_id = EWA_SPEC_SHADED) const bool SHADED = true;
 
 layout(std430, set = 0, binding = BINDING_VISIBILITY) readonly buffer Visibility {
     uint64_t keys[];

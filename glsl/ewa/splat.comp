@@ -33,15 +33,15 @@ layout(local_size_x = RASTER_GROUP) in;
 
 #define MODE_VISIBILITY 0u
 #define MODE_ACCUMULATE 1u
-layout(constant_id = 0) const uint MODE = MODE_VISIBILITY;
+layout(constant_id = EWA_SPEC_MODE) const uint MODE = MODE_VISIBILITY;
 // One workgroup per splat of the large splats' list (dispatched indirectly) instead of one per
 // batch.
-layout(constant_id = 1) const bool LARGE = false;
+layout(constant_id = EWA_SPEC_LARGE) const bool LARGE = false;
 // The accumulation blends each fragment's lit color (lit at the point of the splat's plane the
 // pixel sees with the splat's linear normal field, as Phong splatting does: the shaded surface
 // is what is filtered, as the ground truth's supersampling filters shaded samples) instead of
 // its albedo, for deferred lighting.
-layout(constant_id = 2) const bool SHADE_FRAGMENTS = true;
+layout(constant_id = EWA_SPEC_SHADE_FRAGMENTS) const bool SHADE_FRAGMENTS = true;
 
 layout(std430, set = 0, binding = BINDING_BATCHES) readonly buffer Batches { GpuBatch batches[]; };
 layout(std430, set = 0, binding = BINDING_VISIBILITY) buffer Visibility { uint64_t keys[]; };

@@ -12,8 +12,8 @@
 
 layout(local_size_x = POST_GROUP, local_size_y = POST_GROUP) in;
 
-layout(constant_id = 0) const bool EDL = false;
-layout(constant_id = 1) const bool BACKGROUND = false;
+layout(constant_id = POST_SPEC_EDL) const bool EDL = false;
+layout(constant_id = POST_SPEC_BACKGROUND) const bool BACKGROUND = false;
 
 layout(set = 0, binding = BINDING_INPUT0, rgba8) uniform readonly image2D in_color;
 layout(set = 0, binding = BINDING_INPUT1, r32f) uniform readonly image2D in_depth;

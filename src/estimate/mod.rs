@@ -32,10 +32,9 @@ use crate::gpu::layout::{
     KnnParams, BINDING_KNN_OUT, BINDING_KNN_POSITIONS, BINDING_KNN_SORTED, BINDING_KNN_TABLE,
     BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GROUP, KNN_MAX_K, KNN_SPEC_K,
 };
-use crate::gpu::{Buffer, Context, Pipeline};
+use crate::gpu::{Binding, Buffer, Context, Pipeline};
 use crate::graph::{Access, BufferRange, GraphBuilder, Stages};
 use crate::methods::common::sort::{add_sort, compute_pass, SortPipelines};
-use crate::methods::compute::storage;
 use crate::scene::knn::{finite_indices, GridFrame};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::Cloud;
@@ -87,7 +86,7 @@ impl KnnPipelines {
             "the GPU estimate keeps 1 to {KNN_MAX_K} neighbours per point, not {k}"
         );
         let pipeline = |shader: &str, bindings: &[u32], spec: &[(u32, u32)]| {
-            let bindings: Vec<_> = bindings.iter().map(|&b| storage(b)).collect();
+            let bindings: Vec<_> = bindings.iter().map(|&b| Binding::storage(b)).collect();
             Pipeline::compute_specialized(ctx, shader, &bindings, spec).map(Arc::new)
         };
         Ok(KnnPipelines {

@@ -109,6 +109,21 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("OVERLAY_SOLID", 1),
     // Eye-dome lighting samples this many neighbours on a circle (Potree, CloudCompare: 8).
     ("EDL_NEIGHBOURS", 8),
+    // Specialization constant ids of the post pass (glsl/post/post.comp).
+    ("POST_SPEC_EDL", 0),
+    ("POST_SPEC_BACKGROUND", 1),
+    // Compute rasterizer (src/methods/compute): raster.comp and resolve.comp.
+    ("RASTER_SPEC_MODE", 0),
+    ("RASTER_SPEC_QUANTIZED", 1),
+    ("RASTER_SPEC_CULL", 2),
+    ("RASTER_SPEC_SKIP", 3),
+    ("RESOLVE_SPEC_HIGH_QUALITY", 0),
+    // EWA splatting (src/methods/ewa): splat.comp and resolve.comp.
+    ("EWA_SPEC_MODE", 0),
+    ("EWA_SPEC_LARGE", 1),
+    ("EWA_SPEC_SHADE_FRAGMENTS", 2),
+    ("EWA_SPEC_COVERAGE", 0),
+    ("EWA_SPEC_SHADED", 1),
     // Splatting family (src/methods/splat, 002 sections 5.2-5.3): specialization constant ids
     // and their values.
     ("SPLAT_SPEC_RASTER", 0),

@@ -76,6 +76,24 @@ impl Binding {
             stages,
         }
     }
+
+    /// A storage buffer of a compute shader.
+    pub fn storage(binding: u32) -> Self {
+        Self::new(
+            binding,
+            vk::DescriptorType::STORAGE_BUFFER,
+            vk::ShaderStageFlags::COMPUTE,
+        )
+    }
+
+    /// A storage image of a compute shader.
+    pub fn storage_image(binding: u32) -> Self {
+        Self::new(
+            binding,
+            vk::DescriptorType::STORAGE_IMAGE,
+            vk::ShaderStageFlags::COMPUTE,
+        )
+    }
 }
 
 /// Size of the push-constant block every pipeline may use (all stages).

@@ -22,6 +22,7 @@
 //! `compile.rs` (allocation with derived usage flags, views, samplers) and `record.rs`
 //! (recording; `PassContext` checks every command against the pass's declarations).
 
+pub mod bind;
 mod compile;
 mod derive;
 mod record;
@@ -35,6 +36,7 @@ use ash::vk;
 
 use crate::gpu::{Buffer, Image, ImageDesc};
 
+pub use bind::Bind;
 pub use compile::CompiledGraph;
 pub use derive::{Barrier, BarrierTarget};
 pub use record::{Descriptor, PassContext, Sampler};
@@ -228,6 +230,8 @@ pub(crate) struct PassDecl {
     pub colors: Vec<Attachment>,
     pub depth: Option<Attachment>,
     pub on_demand: bool,
+    /// The placeholder buffer of the pass's `Bind::unused` bindings.
+    pub unused: Option<BufferId>,
     pub record: RecordFn,
 }
 
@@ -396,6 +400,7 @@ impl GraphBuilder {
                 colors: Vec::new(),
                 depth: None,
                 on_demand: false,
+                unused: None,
                 record: Box::new(|_| {}),
             }),
         }
@@ -477,6 +482,47 @@ impl PassBuilder<'_> {
         self.decl()
             .uses
             .push((Subresource::Buffer(id, range), access));
+        self
+    }
+
+    /// The accesses of `binds` (a placeholder buffer of the pass's own for the unused ones);
+    /// `PassContext::bind_all` pushes their descriptors.
+    pub fn binds(mut self, binds: &[bind::Bind]) -> Self {
+        for b in binds {
+            let sub = match b.resource {
+                bind::Resource::Buffer(id, range) => Subresource::Buffer(id, range),
+                bind::Resource::Uniform(id) => Subresource::Buffer(id, BufferRange::WHOLE),
+                bind::Resource::StorageImage(id, mip) => Subresource::Image {
+                    id,
+                    base: mip,
+                    count: 1,
+                },
+                bind::Resource::Sampled {
+                    image, base, count, ..
+                } => Subresource::Image {
+                    id: image,
+                    base,
+                    count,
+                },
+                bind::Resource::Unused => {
+                    let id = match self.decl().unused {
+                        Some(id) => id,
+                        None => {
+                            let name = format!("{}.unused", self.decl().name);
+                            let id = self.graph.buffer(
+                                &name,
+                                bind::UNUSED_BYTES,
+                                vk::BufferUsageFlags::STORAGE_BUFFER,
+                            );
+                            self.decl().unused = Some(id);
+                            id
+                        }
+                    };
+                    Subresource::Buffer(id, BufferRange::WHOLE)
+                }
+            };
+            self.decl().uses.push((sub, b.access));
+        }
         self
     }
 

@@ -6,6 +6,7 @@ use ash::vk;
 
 use std::fmt;
 
+use super::bind::{fold_groups, Bind, Resource};
 use super::compile::{BarrierBatch, CompiledGraph};
 use super::{
     Access, Attachment, BufferId, BufferRange, ImageId, Load, PassDecl, Subresource,
@@ -453,6 +454,30 @@ impl PassContext<'_> {
         }
     }
 
+    /// Binds `pipeline` and pushes the descriptors of `binds` (declared with
+    /// `PassBuilder::binds`).
+    pub fn bind_all(&self, pipeline: &Pipeline, binds: &[Bind]) {
+        let unused = self.pass.unused;
+        let mut descriptors = [Descriptor::Buffer(0, BufferId(0)); MAX_DESCRIPTORS];
+        assert!(
+            binds.len() <= MAX_DESCRIPTORS,
+            "pass '{}': {} bindings (at most {MAX_DESCRIPTORS})",
+            self.pass.name,
+            binds.len()
+        );
+        for (d, b) in descriptors.iter_mut().zip(binds) {
+            let placeholder = match (b.resource, unused) {
+                (Resource::Unused, None) => panic!(
+                    "pass '{}': binding {} is unused but the pass did not declare its binds",
+                    self.pass.name, b.binding
+                ),
+                (_, id) => id.unwrap_or(BufferId(0)),
+            };
+            *d = b.descriptor(placeholder);
+        }
+        self.bind(pipeline, &descriptors[..binds.len()]);
+    }
+
     /// Pushes constants (at most `PUSH_CONSTANT_BYTES`) to every stage of `pipeline`.
     pub fn push(&self, pipeline: &Pipeline, bytes: &[u8]) {
         // SAFETY: recording; range within the layout's push-constant range.
@@ -625,6 +650,13 @@ impl PassContext<'_> {
                 stride,
             )
         };
+    }
+
+    /// A 1D dispatch of `groups` workgroups, folded into rows past `bind::MAX_GROUPS`
+    /// (`bind::fold_groups`).
+    pub fn dispatch_groups(&self, groups: u64) {
+        let (x, y) = fold_groups(groups);
+        self.dispatch(x, y, 1);
     }
 
     pub fn dispatch(&self, x: u32, y: u32, z: u32) {

@@ -18,8 +18,9 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
+use crate::gpu::layout::{BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::gpu::{Capabilities, Context};
-use crate::graph::{BufferId, GraphBuilder, ImageId};
+use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
 use crate::upload::{GpuScene, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
@@ -273,6 +274,21 @@ pub struct Targets {
     pub normal: ImageId,
 }
 
+impl Targets {
+    /// The three targets as storage images a compute pass writes, at `BINDING_OUTPUT0` and the
+    /// two bindings after it (color, depth, normal).
+    pub fn compute_writes(&self) -> [Bind; 3] {
+        let write = Access::StorageWrite(Stages::Compute);
+        [self.color, self.depth, self.normal]
+            .iter()
+            .zip(BINDING_OUTPUT0..)
+            .map(|(&image, binding)| Bind::image(binding, image, 0, write))
+            .collect::<Vec<_>>()
+            .try_into()
+            .unwrap_or_else(|_| unreachable!("three targets"))
+    }
+}
+
 /// A method's per-level sample counts on the GPU: `levels` u32 words at byte `offset` of
 /// `buffer`, written every frame (the level-of-detail methods' vertices emitted per level).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -300,4 +316,23 @@ pub struct BuildContext<'a> {
     /// Set by methods that count their samples per level on the GPU; the renderer reads the
     /// counts back every frame (`Renderer::samples_per_level`).
     pub samples: Option<SampleCounters>,
+}
+
+impl BuildContext<'_> {
+    /// The bindings of a draw whose vertex shader reads the point streams: the frame block
+    /// (every graphics stage) and the segment table.
+    pub fn draw_binds(&self) -> [Bind; 2] {
+        [
+            Bind::buffer(
+                BINDING_FRAME,
+                self.frame,
+                Access::UniformRead(Stages::Graphics),
+            ),
+            Bind::buffer(
+                BINDING_SEGMENTS,
+                self.segments,
+                Access::StorageRead(Stages::Vertex),
+            ),
+        ]
+    }
 }

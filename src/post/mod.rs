@@ -18,9 +18,12 @@ use ash::vk;
 use glam::Vec4;
 
 use crate::frame::Frame;
-use crate::gpu::layout::{PostParams, BINDING_INPUT0, BINDING_INPUT1, BINDING_OUTPUT0, POST_GROUP};
-use crate::gpu::{Binding, Context, ImageDesc, Pipeline};
-use crate::graph::{Access, Descriptor, GraphBuilder, ImageId, Stages};
+use crate::gpu::layout::{
+    PostParams, BINDING_INPUT0, BINDING_INPUT1, BINDING_OUTPUT0, POST_GROUP, POST_SPEC_BACKGROUND,
+    POST_SPEC_EDL,
+};
+use crate::gpu::{Context, ImageDesc, Pipeline};
+use crate::graph::{bind, Access, Bind, GraphBuilder, ImageId, Stages};
 use crate::methods::{Targets, COLOR_FORMAT};
 pub use crate::scene::appearance::{
     Background, Edl, DEFAULT_RADIUS, DEFAULT_STRENGTH, EDL_DEFAULT_ARG, MAX_STRENGTH, RADIUS_RANGE,
@@ -129,23 +132,6 @@ pub fn build(
     }
     let edl = options.edl.is_some();
     let background = options.background != Background::Transparent;
-    let storage = |binding| {
-        Binding::new(
-            binding,
-            vk::DescriptorType::STORAGE_IMAGE,
-            vk::ShaderStageFlags::COMPUTE,
-        )
-    };
-    let pipeline = Arc::new(Pipeline::compute_specialized(
-        ctx,
-        "post/post.comp",
-        &[
-            storage(BINDING_INPUT0),
-            storage(BINDING_INPUT1),
-            storage(BINDING_OUTPUT0),
-        ],
-        &[(0, u32::from(edl)), (1, u32::from(background))],
-    )?);
     // Usage flags follow from the accesses (storage here, transfer for present and readback).
     let color = g.image(
         "post.color",
@@ -157,21 +143,31 @@ pub fn build(
             usage: vk::ImageUsageFlags::empty(),
         },
     );
+    let read = Access::StorageRead(Stages::Compute);
+    let binds = [
+        Bind::image(BINDING_INPUT0, targets.color, 0, read),
+        Bind::image(BINDING_INPUT1, targets.depth, 0, read),
+        Bind::image(
+            BINDING_OUTPUT0,
+            color,
+            0,
+            Access::StorageWrite(Stages::Compute),
+        ),
+    ];
+    let pipeline = Arc::new(Pipeline::compute_specialized(
+        ctx,
+        "post/post.comp",
+        &bind::compute_layout(&binds),
+        &[
+            (POST_SPEC_EDL, u32::from(edl)),
+            (POST_SPEC_BACKGROUND, u32::from(background)),
+        ],
+    )?);
     let push = options.params();
-    let (input, depth) = (targets.color, targets.depth);
     g.pass(if edl { "post.edl" } else { "post.background" })
-        .image(input, Access::StorageRead(Stages::Compute))
-        .image(depth, Access::StorageRead(Stages::Compute))
-        .image(color, Access::StorageWrite(Stages::Compute))
+        .binds(&binds)
         .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::StorageImage(BINDING_INPUT0, input, 0),
-                    Descriptor::StorageImage(BINDING_INPUT1, depth, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0, color, 0),
-                ],
-            );
+            ctx.bind_all(&pipeline, &binds);
             ctx.push(&pipeline, bytemuck::bytes_of(&push));
             ctx.dispatch(width.div_ceil(POST_GROUP), height.div_ceil(POST_GROUP), 1);
         });

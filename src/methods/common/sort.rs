@@ -33,9 +33,8 @@ use crate::gpu::layout::{
     BINDING_SORT_VALUES, BINDING_SORT_VALUES_OUT, SCAN_GROUP, SCAN_ITEMS, SEGMAX_GROUP,
     SORT_DIGIT_BITS, SORT_GROUP, SORT_ITEMS, SORT_RADIX, SORT_SPEC_SUBGROUPS,
 };
-use crate::gpu::{Context, Pipeline};
+use crate::gpu::{Binding, Context, Pipeline};
 use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, Stages};
-use crate::methods::compute::storage;
 
 /// Elements per tile of the count and scatter passes.
 const TILE: u32 = SORT_GROUP * SORT_ITEMS;
@@ -93,7 +92,7 @@ impl SortPipelines {
             );
         }
         let pipeline = |shader: &str, bindings: &[u32], specialization: &[(u32, u32)]| {
-            let bindings: Vec<_> = bindings.iter().map(|&b| storage(b)).collect();
+            let bindings: Vec<_> = bindings.iter().map(|&b| Binding::storage(b)).collect();
             Pipeline::compute_specialized(ctx, shader, &bindings, specialization).map(Arc::new)
         };
         Ok(Self {

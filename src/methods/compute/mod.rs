@@ -17,11 +17,12 @@ use ash::vk;
 
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
-    BINDING_ACCUM, BINDING_BATCHES, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_OUTPUT0,
-    BINDING_SEGMENTS, BINDING_VISIBILITY, RESOLVE_GROUP,
+    BINDING_ACCUM, BINDING_BATCHES, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_SEGMENTS,
+    BINDING_VISIBILITY, RASTER_SPEC_CULL, RASTER_SPEC_MODE, RASTER_SPEC_QUANTIZED,
+    RASTER_SPEC_SKIP, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
-use crate::gpu::{Binding, Pipeline};
-use crate::graph::{Access, BufferId, BufferRange, Descriptor, Stages};
+use crate::gpu::Pipeline;
+use crate::graph::{bind, Bind, BufferId, BufferRange};
 
 const QUANTIZED: ParamSpec = ParamSpec {
     name: "quantized",
@@ -70,22 +71,6 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
 
 /// Bytes of the high-quality accumulators per pixel: r, g, b, count, nx, ny, nz, unused.
 const ACCUM_BYTES: u64 = 32;
-
-pub(crate) fn storage(binding: u32) -> Binding {
-    Binding::new(
-        binding,
-        vk::DescriptorType::STORAGE_BUFFER,
-        vk::ShaderStageFlags::COMPUTE,
-    )
-}
-
-pub(crate) fn storage_image(binding: u32) -> Binding {
-    Binding::new(
-        binding,
-        vk::DescriptorType::STORAGE_IMAGE,
-        vk::ShaderStageFlags::COMPUTE,
-    )
-}
 
 /// The visibility pass (and, for the high-quality mode, the accumulation pass) of the compute
 /// rasterizer, writing into graph buffers; reusable by any method that needs points projected
@@ -137,40 +122,34 @@ pub fn project(
     } else {
         visibility
     };
-    let bindings = [
-        storage(BINDING_FRAME),
-        storage(BINDING_SEGMENTS),
-        storage(BINDING_BATCHES),
-        storage(BINDING_VISIBILITY),
-        storage(BINDING_ACCUM),
-        storage(BINDING_FACE_VERTICES),
+    let (frame, segments, batches) = (b.frame, b.segments, b.batches);
+    let visibility_binds = vec![
+        Bind::constants(BINDING_FRAME, frame),
+        Bind::reads(BINDING_SEGMENTS, segments),
+        Bind::reads(BINDING_BATCHES, batches),
+        Bind::updates(BINDING_VISIBILITY, visibility),
+        // The visibility pass never touches the accumulators.
+        Bind::unused(BINDING_ACCUM),
+        match skip {
+            Some(mask) => Bind::reads(BINDING_FACE_VERTICES, mask),
+            None => Bind::unused(BINDING_FACE_VERTICES),
+        },
     ];
+    let layout = bind::compute_layout(&visibility_binds);
     let raster = |mode: u32| {
         Pipeline::compute_specialized(
             b.ctx,
             "compute/raster.comp",
-            &bindings,
+            &layout,
             &[
-                (0, mode),
-                (1, quantized),
-                (2, u32::from(cull)),
-                (3, u32::from(skip.is_some())),
+                (RASTER_SPEC_MODE, mode),
+                (RASTER_SPEC_QUANTIZED, quantized),
+                (RASTER_SPEC_CULL, u32::from(cull)),
+                (RASTER_SPEC_SKIP, u32::from(skip.is_some())),
             ],
         )
         .map(Arc::new)
     };
-    let (frame, segments, batches) = (b.frame, b.segments, b.batches);
-    let descriptors = [
-        Descriptor::Buffer(BINDING_FRAME, frame),
-        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-        Descriptor::Buffer(BINDING_BATCHES, batches),
-        Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-        Descriptor::Buffer(BINDING_ACCUM, accum),
-        // Without a mask the shader never reads it (dead code under its specialization, but
-        // statically present): alias it to the visibility buffer every pass declares.
-        Descriptor::Buffer(BINDING_FACE_VERTICES, skip.unwrap_or(visibility)),
-    ];
-    let compute = Stages::Compute;
     // Empty pixels hold the largest key; the accumulators start at zero.
     b.graph.fill_buffer(
         &format!("{prefix}.clear"),
@@ -186,48 +165,31 @@ pub fn project(
             0,
         );
     }
-    // One workgroup per batch, folded into 2D past the 65,535 groups every device allows.
-    let batch_count = b.scene.streams.batch_count;
-    let (gx, gy) = (batch_count.min(65_535), batch_count.div_ceil(65_535));
+    // One workgroup per batch.
+    let batch_count = u64::from(b.scene.streams.batch_count);
     let push = tolerance.to_le_bytes();
     let nearest = raster(0)?;
-    // The visibility pass never touches the accumulators (dead code under its specialization,
-    // but statically present): alias them to the visibility buffer it declares.
-    let mut visibility_only = descriptors;
-    visibility_only[4] = Descriptor::Buffer(BINDING_ACCUM, visibility);
-    let mut pass = b
-        .graph
+    let mut accumulate_binds = visibility_binds.clone();
+    accumulate_binds[3] = Bind::reads(BINDING_VISIBILITY, visibility);
+    accumulate_binds[4] = Bind::updates(BINDING_ACCUM, accum);
+    b.graph
         .pass(&format!("{prefix}.project"))
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(batches, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageReadWrite(compute));
-    if let Some(mask) = skip {
-        pass = pass.buffer(mask, Access::StorageRead(compute));
-    }
-    pass.record(move |ctx| {
-        ctx.bind(&nearest, &visibility_only);
-        ctx.push(&nearest, &push);
-        ctx.dispatch(gx, gy, 1);
-    });
+        .binds(&visibility_binds)
+        .record(move |ctx| {
+            ctx.bind_all(&nearest, &visibility_binds);
+            ctx.push(&nearest, &push);
+            ctx.dispatch_groups(batch_count);
+        });
     if high_quality {
         let blend = raster(1)?;
-        let mut pass = b
-            .graph
+        b.graph
             .pass(&format!("{prefix}.accumulate"))
-            .buffer(frame, Access::UniformRead(compute))
-            .buffer(segments, Access::StorageRead(compute))
-            .buffer(batches, Access::StorageRead(compute))
-            .buffer(visibility, Access::StorageRead(compute))
-            .buffer(accum, Access::StorageReadWrite(compute));
-        if let Some(mask) = skip {
-            pass = pass.buffer(mask, Access::StorageRead(compute));
-        }
-        pass.record(move |ctx| {
-            ctx.bind(&blend, &descriptors);
-            ctx.push(&blend, &push);
-            ctx.dispatch(gx, gy, 1);
-        });
+            .binds(&accumulate_binds)
+            .record(move |ctx| {
+                ctx.bind_all(&blend, &accumulate_binds);
+                ctx.push(&blend, &push);
+                ctx.dispatch_groups(batch_count);
+            });
     }
     Ok(Projection { visibility, accum })
 }
@@ -246,85 +208,63 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
             ..Default::default()
         },
     )?;
-    let resolve = resolve_pipeline(b, "compute/resolve.comp", &[(0, u32::from(high_quality))])?;
+    let binds = resolve_binds(b, projection, high_quality);
     add_resolve(
         b,
         &format!("{prefix}.resolve"),
-        resolve,
-        projection,
-        high_quality,
-    );
+        "compute/resolve.comp",
+        &[(RESOLVE_SPEC_HIGH_QUALITY, u32::from(high_quality))],
+        binds,
+    )?;
     Ok(())
 }
 
-/// The pipeline of a per-pixel resolve shader (`compute` and `compute-hq`, `ewa`): the frame,
-/// the point streams, a projection's visibility and accumulator buffers in, the three
-/// standard targets out.
-pub(crate) fn resolve_pipeline(
+/// The bindings of a per-pixel resolve shader (`compute` and `compute-hq`, `ewa`): the frame,
+/// the point streams, a projection's visibility buffer and, when `reads_accum`, its
+/// accumulators in, the three standard targets out.
+pub(crate) fn resolve_binds(
     b: &BuildContext<'_>,
-    shader: &str,
-    specialization: &[(u32, u32)],
-) -> Result<Arc<Pipeline>> {
-    Ok(Arc::new(Pipeline::compute_specialized(
-        b.ctx,
-        shader,
-        &[
-            storage(BINDING_FRAME),
-            storage(BINDING_SEGMENTS),
-            storage(BINDING_VISIBILITY),
-            storage(BINDING_ACCUM),
-            storage_image(BINDING_OUTPUT0),
-            storage_image(BINDING_OUTPUT0 + 1),
-            storage_image(BINDING_OUTPUT0 + 2),
-        ],
-        specialization,
-    )?))
+    projection: Projection,
+    reads_accum: bool,
+) -> Vec<Bind> {
+    let mut binds = vec![
+        Bind::constants(BINDING_FRAME, b.frame),
+        Bind::reads(BINDING_SEGMENTS, b.segments),
+        Bind::reads(BINDING_VISIBILITY, projection.visibility),
+        if reads_accum {
+            Bind::reads(BINDING_ACCUM, projection.accum)
+        } else {
+            Bind::unused(BINDING_ACCUM)
+        },
+    ];
+    binds.extend(b.targets.compute_writes());
+    binds
 }
 
-/// Adds the resolve pass `name`: one thread per pixel of `resolve` (`resolve_pipeline`) over
-/// `projection`, reading its accumulators only when `reads_accum`, writing the standard
-/// targets.
+/// Adds the resolve pass `name`: one thread per pixel of `shader` specialized with
+/// `specialization`, bound to `binds` (`resolve_binds`).
 pub(crate) fn add_resolve(
     b: &mut BuildContext<'_>,
     name: &str,
-    resolve: Arc<Pipeline>,
-    projection: Projection,
-    reads_accum: bool,
-) {
-    let (frame, segments, t) = (b.frame, b.segments, b.targets);
-    let Projection { visibility, accum } = projection;
-    let compute = Stages::Compute;
-    let mut pass = b
-        .graph
-        .pass(name)
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageRead(compute));
-    if reads_accum {
-        pass = pass.buffer(accum, Access::StorageRead(compute));
-    }
+    shader: &str,
+    specialization: &[(u32, u32)],
+    binds: Vec<Bind>,
+) -> Result<()> {
+    let resolve = Pipeline::compute_specialized(
+        b.ctx,
+        shader,
+        &bind::compute_layout(&binds),
+        specialization,
+    )?;
     let groups = (
         b.width.div_ceil(RESOLVE_GROUP),
         b.height.div_ceil(RESOLVE_GROUP),
     );
-    pass.image(t.color, Access::StorageWrite(compute))
-        .image(t.depth, Access::StorageWrite(compute))
-        .image(t.normal, Access::StorageWrite(compute))
-        .record(move |ctx| {
-            ctx.bind(
-                &resolve,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-                    Descriptor::Buffer(BINDING_ACCUM, accum),
-                    Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
-                ],
-            );
-            ctx.dispatch(groups.0, groups.1, 1);
-        });
+    b.graph.pass(name).binds(&binds).record(move |ctx| {
+        ctx.bind_all(&resolve, &binds);
+        ctx.dispatch(groups.0, groups.1, 1);
+    });
+    Ok(())
 }
 
 fn build_nearest(b: &mut BuildContext<'_>) -> Result<()> {

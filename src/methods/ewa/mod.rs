@@ -41,14 +41,15 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use super::compute::{add_resolve, resolve_pipeline, storage, Projection};
+use super::compute::{add_resolve, resolve_binds, Projection};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_SEGMENTS,
-    BINDING_VISIBILITY, EWA_WEIGHT_SCALE,
+    BINDING_VISIBILITY, EWA_SPEC_COVERAGE, EWA_SPEC_LARGE, EWA_SPEC_MODE, EWA_SPEC_SHADED,
+    EWA_SPEC_SHADE_FRAGMENTS, EWA_WEIGHT_SCALE,
 };
 use crate::gpu::Pipeline;
-use crate::graph::{Access, BufferRange, Descriptor, Stages};
+use crate::graph::{bind, Access, Bind, BufferRange};
 
 pub const INFO: MethodInfo = MethodInfo {
     name: "ewa",
@@ -144,20 +145,33 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         LARGE_HEADER + 4 * u64::from(b.scene.point_count.max(1)),
         usage,
     );
-    let bindings = [
-        storage(BINDING_FRAME),
-        storage(BINDING_SEGMENTS),
-        storage(BINDING_BATCHES),
-        storage(BINDING_VISIBILITY),
-        storage(BINDING_ACCUM),
-        storage(BINDING_EWA_LARGE),
+    let (frame, segments, batches) = (b.frame, b.segments, b.batches);
+    // The visibility passes never touch the accumulators. Only `ewa.visibility` appends to the
+    // large splats' list, but every variant of the shader declares it writable, so every
+    // splat pass declares it read-write (synchronization validation tracks the shader's static
+    // access).
+    let visibility_binds = vec![
+        Bind::constants(BINDING_FRAME, frame),
+        Bind::reads(BINDING_SEGMENTS, segments),
+        Bind::reads(BINDING_BATCHES, batches),
+        Bind::updates(BINDING_VISIBILITY, visibility),
+        Bind::unused(BINDING_ACCUM),
+        Bind::updates(BINDING_EWA_LARGE, large),
     ];
+    let mut accumulate_binds = visibility_binds.clone();
+    accumulate_binds[3] = Bind::reads(BINDING_VISIBILITY, visibility);
+    accumulate_binds[4] = Bind::updates(BINDING_ACCUM, accum);
+    let layout = bind::compute_layout(&visibility_binds);
     let splat = |mode: u32, large: bool| {
         Pipeline::compute_specialized(
             b.ctx,
             "ewa/splat.comp",
-            &bindings,
-            &[(0, mode), (1, u32::from(large)), (2, shade_fragments)],
+            &layout,
+            &[
+                (EWA_SPEC_MODE, mode),
+                (EWA_SPEC_LARGE, u32::from(large)),
+                (EWA_SPEC_SHADE_FRAGMENTS, shade_fragments),
+            ],
         )
         .map(Arc::new)
     };
@@ -166,13 +180,6 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let accumulate_small = splat(1, false)?;
     let accumulate_large = splat(1, true)?;
     let coverage = 0.5 * full_weight(params.radius, params.cutoff) * EWA_WEIGHT_SCALE as f32;
-    let resolve = resolve_pipeline(
-        b,
-        "ewa/resolve.comp",
-        &[(0, coverage.to_bits()), (1, shade_fragments)],
-    )?;
-    let (frame, segments, batches) = (b.frame, b.segments, b.batches);
-    let compute = Stages::Compute;
     // Empty pixels hold the largest key; the accumulators start at zero.
     b.graph
         .fill_buffer("ewa.clear", visibility, BufferRange::WHOLE, u32::MAX);
@@ -181,24 +188,8 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let empty: [u32; 4] = [0, 1, 1, 0];
     b.graph
         .update_buffer("ewa.clear-large", large, 0, bytemuck::bytes_of(&empty));
-    // One workgroup per batch, folded into 2D past the 65,535 groups every device allows.
-    let batch_count = b.scene.streams.batch_count;
-    let (gx, gy) = (batch_count.min(65_535), batch_count.div_ceil(65_535));
-    let descriptors = [
-        Descriptor::Buffer(BINDING_FRAME, frame),
-        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-        Descriptor::Buffer(BINDING_BATCHES, batches),
-        Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-        Descriptor::Buffer(BINDING_ACCUM, accum),
-        Descriptor::Buffer(BINDING_EWA_LARGE, large),
-    ];
-    // The visibility passes never touch the accumulators (dead code under its specialization,
-    // but statically present): alias them to the visibility buffer it declares.
-    let mut visibility_only = descriptors;
-    visibility_only[4] = Descriptor::Buffer(BINDING_ACCUM, visibility);
-    // The dispatch arguments of the large splats. Only `ewa.visibility` appends to the list,
-    // but every variant of the shader declares it writable, so every splat pass declares it
-    // read-write (synchronization validation tracks the shader's static access).
+    // One workgroup per batch; the large splats' dispatch arguments come from the list.
+    let batch_count = u64::from(b.scene.streams.batch_count);
     let args = BufferRange::new(0, 12);
     for (name, pipeline, accumulates, listed) in [
         ("ewa.visibility", visibility_small, false, false),
@@ -206,43 +197,35 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         ("ewa.accumulate", accumulate_small, true, false),
         ("ewa.accumulate-large", accumulate_large, true, true),
     ] {
-        let descriptors = if accumulates {
-            descriptors
+        let binds = if accumulates {
+            accumulate_binds.clone()
         } else {
-            visibility_only
+            visibility_binds.clone()
         };
-        let mut pass = b
-            .graph
-            .pass(name)
-            .buffer(frame, Access::UniformRead(compute))
-            .buffer(segments, Access::StorageRead(compute))
-            .buffer(batches, Access::StorageRead(compute));
-        pass = if accumulates {
-            pass.buffer(visibility, Access::StorageRead(compute))
-                .buffer(accum, Access::StorageReadWrite(compute))
-        } else {
-            pass.buffer(visibility, Access::StorageReadWrite(compute))
-        };
-        pass = pass.buffer(large, Access::StorageReadWrite(compute));
+        let mut pass = b.graph.pass(name).binds(&binds);
         if listed {
             pass = pass.buffer_range(large, args, Access::IndirectRead);
         }
         pass.record(move |ctx| {
-            ctx.bind(&pipeline, &descriptors);
+            ctx.bind_all(&pipeline, &binds);
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
             if listed {
                 ctx.dispatch_indirect(large, 0);
             } else {
-                ctx.dispatch(gx, gy, 1);
+                ctx.dispatch_groups(batch_count);
             }
         });
     }
+    let binds = resolve_binds(b, Projection { visibility, accum }, true);
     add_resolve(
         b,
         "ewa.resolve",
-        resolve,
-        Projection { visibility, accum },
-        true,
-    );
+        "ewa/resolve.comp",
+        &[
+            (EWA_SPEC_COVERAGE, coverage.to_bits()),
+            (EWA_SPEC_SHADED, shade_fragments),
+        ],
+        binds,
+    )?;
     Ok(())
 }

@@ -26,7 +26,7 @@ use anyhow::{bail, Context as _, Result};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::compute::{self, storage, ProjectOptions};
+use super::compute::{self, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_COMPLETE, BINDING_HPR_DST,
@@ -34,7 +34,7 @@ use crate::gpu::layout::{
     BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
     BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_COMPLETE_LEVELS, HPR_GROUP, HPR_SECTOR_ATOMIC,
     HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE, HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH,
-    HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM,
+    HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_SPEC_HIGH_QUALITY,
 };
 use crate::gpu::{Buffer, Context, Pipeline};
 use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, Stages};
@@ -105,7 +105,9 @@ pub struct Hpr {
 }
 
 fn bind(ids: &[u32]) -> Vec<crate::gpu::Binding> {
-    ids.iter().map(|&b| storage(b)).collect()
+    ids.iter()
+        .map(|&b| crate::gpu::Binding::storage(b))
+        .collect()
 }
 
 fn pipeline(
@@ -911,9 +913,14 @@ fn build_points(b: &mut BuildContext<'_>) -> Result<()> {
             ..Default::default()
         },
     )?;
-    let resolve = compute::resolve_pipeline(b, "compute/resolve.comp", &[(0, 0)])?;
-    compute::add_resolve(b, "hpr.points.resolve", resolve, projection, false);
-    Ok(())
+    let binds = compute::resolve_binds(b, projection, false);
+    compute::add_resolve(
+        b,
+        "hpr.points.resolve",
+        "compute/resolve.comp",
+        &[(RESOLVE_SPEC_HIGH_QUALITY, 0)],
+        binds,
+    )
 }
 
 fn build_mesh(b: &mut BuildContext<'_>) -> Result<()> {

@@ -46,10 +46,10 @@ use crate::gpu::layout::{
     PYRAMID_SPEC_KERNEL,
 };
 use crate::gpu::{Context, ImageDesc, Pipeline};
-use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, Stages};
-use crate::methods::compute::{storage, ProjectOptions};
+use crate::graph::{bind, Access, Bind, BufferId, GraphBuilder, Stages};
+use crate::methods::compute::ProjectOptions;
 use crate::methods::pyramid::{
-    add_level0, add_shade, dispatch, group_bindings, groups, specialization, Group, Passes, Pyramid,
+    add_level0, add_shade, dispatch, groups, specialization, Group, Passes, Pyramid,
 };
 use crate::methods::{BuildContext, Feature, MethodConfig, MethodInfo, ParamSpec};
 use reference::searched_levels;
@@ -205,61 +205,52 @@ impl KernelPyramid {
         let compute = Stages::Compute;
         let (width, height) = (self.pyramid.width, self.pyramid.height);
         let source = self.level0();
-        let mut bindings = vec![storage(BINDING_FRAME)];
-        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-        bindings.extend(group_bindings(BINDING_KERNEL_ACCUM));
-        let interpolate = Arc::new(Pipeline::compute_specialized(
-            ctx,
-            "kernel/interpolate.comp",
-            &bindings,
-            &self.spec,
-        )?);
-        for level in 0..self.pyramid.levels {
-            let mut pass = graph
-                .pass(&format!("kernel.interpolate.{level}"))
-                .buffer(frame, Access::UniformRead(compute));
-            for image in source.images() {
-                pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
-            }
+        let interpolate_binds = |level: u32| {
             // The first pass starts the sums (its statically present read is dead code).
-            let access = if level == 0 {
+            let sums = if level == 0 {
                 Access::StorageWrite(compute)
             } else {
                 Access::StorageReadWrite(compute)
             };
-            for image in self.accum.images() {
-                pass = pass.image(image, access);
-            }
-            let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
-            d.extend(source.descriptors(BINDING_PYRAMID_LEVEL, level));
-            d.extend(self.accum.descriptors(BINDING_KERNEL_ACCUM, 0));
+            let mut binds = vec![Bind::constants(BINDING_FRAME, frame)];
+            binds.extend(source.binds(BINDING_PYRAMID_LEVEL, level, Access::StorageRead(compute)));
+            binds.extend(self.accum.binds(BINDING_KERNEL_ACCUM, 0, sums));
+            binds
+        };
+        let interpolate = Arc::new(Pipeline::compute_specialized(
+            ctx,
+            "kernel/interpolate.comp",
+            &bind::compute_layout(&interpolate_binds(0)),
+            &self.spec,
+        )?);
+        for level in 0..self.pyramid.levels {
+            let pass = graph.pass(&format!("kernel.interpolate.{level}"));
             let push = PyramidParams { level, ..params };
-            dispatch(pass, interpolate.clone(), d, push, groups(width, height, 0));
+            let binds = interpolate_binds(level);
+            dispatch(
+                pass,
+                interpolate.clone(),
+                binds,
+                push,
+                groups(width, height, 0),
+            );
         }
 
-        let mut bindings = vec![storage(BINDING_FRAME)];
-        bindings.extend(group_bindings(BINDING_KERNEL_ACCUM));
-        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let mut binds = vec![Bind::constants(BINDING_FRAME, frame)];
+        binds.extend(
+            self.accum
+                .binds(BINDING_KERNEL_ACCUM, 0, Access::StorageRead(compute)),
+        );
+        binds.extend(source.binds(BINDING_PYRAMID_OUT, 0, Access::StorageWrite(compute)));
         let resolve = Arc::new(Pipeline::compute_specialized(
             ctx,
             "kernel/resolve.comp",
-            &bindings,
+            &bind::compute_layout(&binds),
             &self.spec,
         )?);
-        let mut pass = graph
-            .pass("kernel.resolve")
-            .buffer(frame, Access::UniformRead(compute));
-        for image in self.accum.images() {
-            pass = pass.image(image, Access::StorageRead(compute));
-        }
-        for image in source.images() {
-            pass = pass.image_mips(image, 0, 1, Access::StorageWrite(compute));
-        }
-        let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
-        d.extend(self.accum.descriptors(BINDING_KERNEL_ACCUM, 0));
-        d.extend(source.descriptors(BINDING_PYRAMID_OUT, 0));
+        let pass = graph.pass("kernel.resolve");
         let push = PyramidParams { level: 0, ..params };
-        dispatch(pass, resolve, d, push, groups(width, height, 0));
+        dispatch(pass, resolve, binds, push, groups(width, height, 0));
         Ok(source)
     }
 }

@@ -29,10 +29,9 @@ use crate::gpu::layout::{
 };
 use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, Pipeline};
 use crate::graph::{
-    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
+    bind, Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
 use crate::lod::ObjectTexture;
-use crate::methods::compute::storage;
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 
 /// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
@@ -228,13 +227,6 @@ fn draw_params(lod: &GpuLod, options: &DrawOptions) -> LodParams {
     }
 }
 
-/// Workgroups of one thread per patch, folded into 2D past the 65,535 groups every device
-/// allows.
-fn patch_groups(lod: &GpuLod) -> (u32, u32) {
-    let groups = lod.patch_count.div_ceil(LOD_GROUP);
-    (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1))
-}
-
 /// Declares `name`: one dispatch of `shader` with one thread per patch, reading the frame
 /// and the patches, updating the counters and, when given, writing the list.
 fn add_patch_pass(
@@ -246,35 +238,20 @@ fn add_patch_pass(
     (frame, patches, counters): (BufferId, BufferId, BufferId),
     list: Option<BufferId>,
 ) -> Result<()> {
-    let mut bindings = vec![
-        storage(BINDING_FRAME),
-        storage(BINDING_LOD_PATCHES),
-        storage(BINDING_LOD_COUNTERS),
-    ];
-    let mut descriptors = vec![
-        Descriptor::Buffer(BINDING_FRAME, frame),
-        Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-        Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
+    let mut binds = vec![
+        Bind::constants(BINDING_FRAME, frame),
+        Bind::reads(BINDING_LOD_PATCHES, patches),
+        Bind::updates(BINDING_LOD_COUNTERS, counters),
     ];
     if let Some(list) = list {
-        bindings.push(storage(BINDING_LOD_LIST));
-        descriptors.push(Descriptor::Buffer(BINDING_LOD_LIST, list));
+        binds.push(Bind::writes(BINDING_LOD_LIST, list));
     }
-    let pipeline = Arc::new(Pipeline::compute(ctx, shader, &bindings)?);
-    let (gx, gy) = patch_groups(lod);
-    let compute = Stages::Compute;
-    let mut pass = graph
-        .pass(name)
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(patches, Access::StorageRead(compute))
-        .buffer(counters, Access::StorageReadWrite(compute));
-    if let Some(list) = list {
-        pass = pass.buffer(list, Access::StorageWrite(compute));
-    }
-    pass.record(move |ctx| {
-        ctx.bind(&pipeline, &descriptors);
+    let pipeline = Pipeline::compute(ctx, shader, &bind::compute_layout(&binds))?;
+    let groups = u64::from(lod.patch_count.div_ceil(LOD_GROUP));
+    graph.pass(name).binds(&binds).record(move |ctx| {
+        ctx.bind_all(&pipeline, &binds);
         ctx.push(&pipeline, bytemuck::bytes_of(&params));
-        ctx.dispatch(gx, gy, 1);
+        ctx.dispatch_groups(groups);
     });
     Ok(())
 }
@@ -323,20 +300,17 @@ pub fn add_budget(
         (frame, patches, counters),
         None,
     )?;
-    let compute = Stages::Compute;
-    let threshold = Arc::new(Pipeline::compute(
+    let binds = [Bind::updates(BINDING_LOD_COUNTERS, counters)];
+    let threshold = Pipeline::compute(
         ctx,
         "lod/budget_threshold.comp",
-        &[storage(BINDING_LOD_COUNTERS)],
-    )?);
+        &bind::compute_layout(&binds),
+    )?;
     graph
         .pass(&format!("{prefix}.budget.threshold"))
-        .buffer(counters, Access::StorageReadWrite(compute))
+        .binds(&binds)
         .record(move |ctx| {
-            ctx.bind(
-                &threshold,
-                &[Descriptor::Buffer(BINDING_LOD_COUNTERS, counters)],
-            );
+            ctx.bind_all(&threshold, &binds);
             ctx.push(&threshold, bytemuck::bytes_of(&params));
             ctx.dispatch(1, 1, 1);
         });
@@ -446,10 +420,6 @@ fn draw_pipeline(
     )?))
 }
 
-fn binding(binding: u32, stages: vk::ShaderStageFlags) -> Binding {
-    Binding::new(binding, vk::DescriptorType::STORAGE_BUFFER, stages)
-}
-
 /// The compute path: `add_select`, then one indirect draw of the list into `targets`.
 pub fn add_compute(
     ctx: &Arc<Context>,
@@ -476,33 +446,28 @@ pub fn add_compute(
         options.budget,
     )?;
     let Selection { list, counters } = selection;
-    let vertex = vk::ShaderStageFlags::VERTEX;
+    let vertex_read = Access::StorageRead(Stages::Vertex);
+    let binds = [
+        Bind::buffer(BINDING_FRAME, frame, Access::UniformRead(Stages::Graphics)),
+        Bind::buffer(BINDING_LOD_VERTICES, vertices, vertex_read),
+        Bind::buffer(BINDING_LOD_LIST, list, vertex_read),
+    ];
     let pipeline = draw_pipeline(
         ctx,
         &["lod/points.vert", "splat/flat.frag"],
-        &[
-            binding(BINDING_FRAME, vertex | vk::ShaderStageFlags::FRAGMENT),
-            binding(BINDING_LOD_VERTICES, vertex),
-            binding(BINDING_LOD_LIST, vertex),
-        ],
+        &bind::layout(
+            &binds,
+            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+        ),
         &options,
     )?;
     let params = draw_params(lod, &options);
     let pass = graph
         .pass(&format!("{prefix}.draw"))
-        .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(vertices, Access::StorageRead(Stages::Vertex))
-        .buffer(list, Access::StorageRead(Stages::Vertex))
+        .binds(&binds)
         .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
     targets.cleared(pass).record(move |ctx| {
-        ctx.bind(
-            &pipeline,
-            &[
-                Descriptor::Buffer(BINDING_FRAME, frame),
-                Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
-                Descriptor::Buffer(BINDING_LOD_LIST, list),
-            ],
-        );
+        ctx.bind_all(&pipeline, &binds);
         ctx.push(&pipeline, bytemuck::bytes_of(&params));
         ctx.draw_indirect(counters, 0, 1, 16);
     });
@@ -512,53 +477,72 @@ pub fn add_compute(
 /// How an expansion draw launches its patches.
 #[derive(Clone, Copy)]
 enum Launch {
-    /// Task workgroups (x, y).
-    MeshTasks(u32, u32),
+    /// Task workgroups, folded into rows past `bind::MAX_GROUPS`.
+    MeshTasks(u64),
     /// One vertex per patch.
     Vertices(u32),
 }
 
-/// Declares `{prefix}.draw` for the mesh and geometry paths: `pipeline` reads the frame, the
-/// patches and the vertices in `stages`, updates the counters and (under `options.record`)
-/// writes the list, drawing into the cleared `targets`.
+/// The bindings of the mesh and geometry paths' draw: the frame, the patches and the vertices
+/// read in `stages`, the counters updated and, under `record`, the list written.
+fn expansion_binds(
+    inputs: LodInputs,
+    selection: Selection,
+    stages: Stages,
+    record: bool,
+) -> [Bind; 5] {
+    [
+        Bind::buffer(
+            BINDING_FRAME,
+            inputs.frame,
+            Access::UniformRead(Stages::Graphics),
+        ),
+        Bind::buffer(
+            BINDING_LOD_PATCHES,
+            inputs.patches,
+            Access::StorageRead(stages),
+        ),
+        Bind::buffer(
+            BINDING_LOD_VERTICES,
+            inputs.vertices,
+            Access::StorageRead(stages),
+        ),
+        if record {
+            Bind::buffer(
+                BINDING_LOD_LIST,
+                selection.list,
+                Access::StorageWrite(stages),
+            )
+        } else {
+            Bind::unused_in(BINDING_LOD_LIST, stages)
+        },
+        Bind::buffer(
+            BINDING_LOD_COUNTERS,
+            selection.counters,
+            Access::StorageReadWrite(stages),
+        ),
+    ]
+}
+
+/// Declares `{prefix}.draw` for the mesh and geometry paths: `pipeline` bound to `binds`
+/// (`expansion_binds`), drawing into the cleared `targets`.
 fn add_expansion_draw(
     graph: &mut GraphBuilder,
     prefix: &str,
     (pipeline, params): (Arc<Pipeline>, LodParams),
-    (stages, launch): (Stages, Launch),
-    (inputs, selection): (LodInputs, Selection),
-    options: DrawOptions,
+    launch: Launch,
+    binds: [Bind; 5],
     t: DrawTargets,
 ) {
-    let LodInputs {
-        frame,
-        patches,
-        vertices,
-    } = inputs;
-    let Selection { list, counters } = selection;
-    let mut pass = graph
-        .pass(&format!("{prefix}.draw"))
-        .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(patches, Access::StorageRead(stages))
-        .buffer(vertices, Access::StorageRead(stages))
-        .buffer(counters, Access::StorageReadWrite(stages));
-    if options.record {
-        pass = pass.buffer(list, Access::StorageWrite(stages));
-    }
+    let pass = graph.pass(&format!("{prefix}.draw")).binds(&binds);
     t.cleared(pass).record(move |ctx| {
-        ctx.bind(
-            &pipeline,
-            &[
-                Descriptor::Buffer(BINDING_FRAME, frame),
-                Descriptor::Buffer(BINDING_LOD_PATCHES, patches),
-                Descriptor::Buffer(BINDING_LOD_VERTICES, vertices),
-                Descriptor::Buffer(BINDING_LOD_LIST, list),
-                Descriptor::Buffer(BINDING_LOD_COUNTERS, counters),
-            ],
-        );
+        ctx.bind_all(&pipeline, &binds);
         ctx.push(&pipeline, bytemuck::bytes_of(&params));
         match launch {
-            Launch::MeshTasks(x, y) => ctx.draw_mesh_tasks(x, y, 1),
+            Launch::MeshTasks(groups) => {
+                let (x, y) = bind::fold_groups(groups);
+                ctx.draw_mesh_tasks(x, y, 1)
+            }
             Launch::Vertices(n) => ctx.draw(n, 1),
         }
     });
@@ -586,35 +570,19 @@ pub fn add_mesh(
         (inputs.frame, inputs.patches),
         (options.epsilon, options.budget),
     )?;
-    let task = vk::ShaderStageFlags::TASK_EXT;
-    let mesh = vk::ShaderStageFlags::MESH_EXT;
+    let binds = expansion_binds(inputs, selection, Stages::Mesh, options.record);
+    let stages = vk::ShaderStageFlags::TASK_EXT
+        | vk::ShaderStageFlags::MESH_EXT
+        | vk::ShaderStageFlags::FRAGMENT;
     let pipeline = draw_pipeline(
         ctx,
         &["lod/select.task", "lod/points.mesh", "splat/flat.frag"],
-        &[
-            binding(BINDING_FRAME, task | mesh | vk::ShaderStageFlags::FRAGMENT),
-            binding(BINDING_LOD_PATCHES, task),
-            binding(BINDING_LOD_VERTICES, mesh),
-            binding(BINDING_LOD_LIST, mesh),
-            binding(BINDING_LOD_COUNTERS, task | mesh),
-        ],
+        &bind::layout(&binds, stages),
         &options,
     )?;
     let params = draw_params(lod, &options);
-    let groups = lod.patch_count.div_ceil(LOD_TASK_GROUP);
-    let (gx, gy) = (groups.clamp(1, 65_535), groups.div_ceil(65_535).max(1));
-    let inputs = (inputs, selection);
-    let launch = Launch::MeshTasks(gx, gy);
-    let stages = (Stages::Mesh, launch);
-    add_expansion_draw(
-        graph,
-        prefix,
-        (pipeline, params),
-        stages,
-        inputs,
-        options,
-        targets,
-    );
+    let launch = Launch::MeshTasks(u64::from(lod.patch_count.div_ceil(LOD_TASK_GROUP)));
+    add_expansion_draw(graph, prefix, (pipeline, params), launch, binds, targets);
     Ok(selection)
 }
 
@@ -666,31 +634,18 @@ pub fn add_geometry(
         (inputs.frame, inputs.patches),
         (options.epsilon, options.budget),
     )?;
-    let geometry = vk::ShaderStageFlags::GEOMETRY;
+    let binds = expansion_binds(inputs, selection, Stages::Graphics, options.record);
     let pipeline = draw_pipeline(
         ctx,
         &["lod/patch.vert", "lod/expand.geom", "splat/flat.frag"],
-        &[
-            binding(BINDING_FRAME, geometry | vk::ShaderStageFlags::FRAGMENT),
-            binding(BINDING_LOD_PATCHES, geometry),
-            binding(BINDING_LOD_VERTICES, geometry),
-            binding(BINDING_LOD_LIST, geometry),
-            binding(BINDING_LOD_COUNTERS, geometry),
-        ],
+        &bind::layout(
+            &binds,
+            vk::ShaderStageFlags::GEOMETRY | vk::ShaderStageFlags::FRAGMENT,
+        ),
         &options,
     )?;
     let params = draw_params(lod, &options);
-    let inputs = (inputs, selection);
     let launch = Launch::Vertices(lod.patch_count);
-    let stages = (Stages::Graphics, launch);
-    add_expansion_draw(
-        graph,
-        prefix,
-        (pipeline, params),
-        stages,
-        inputs,
-        options,
-        targets,
-    );
+    add_expansion_draw(graph, prefix, (pipeline, params), launch, binds, targets);
     Ok(selection)
 }

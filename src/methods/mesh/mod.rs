@@ -6,12 +6,9 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{
-    BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
-    BINDING_SEGMENTS, RESOLVE_GROUP,
-};
-use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{Access, BufferId, BufferRange, Descriptor, Load, Stages};
+use crate::gpu::layout::{BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, RESOLVE_GROUP};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{bind, Access, Bind, BufferId, BufferRange, Load, Stages};
 use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
@@ -75,18 +72,12 @@ pub fn add_mesh(
         bail!("{w}x{h} supersampled target exceeds the device limit");
     }
     let gfx = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+    let draw_binds = b.draw_binds();
     let raster = Arc::new(Pipeline::graphics(
         b.ctx,
         &GraphicsDesc {
             shaders: &["mesh/mesh.vert", "mesh/mesh.frag"],
-            bindings: &[
-                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, gfx),
-                Binding::new(
-                    BINDING_SEGMENTS,
-                    vk::DescriptorType::STORAGE_BUFFER,
-                    vk::ShaderStageFlags::VERTEX,
-                ),
-            ],
+            bindings: &bind::layout(&draw_binds, gfx),
             color_formats: &[HI_COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
             blends: &[Blend::Replace; 3],
             depth_format: Some(ZBUFFER_FORMAT),
@@ -98,20 +89,6 @@ pub fn add_mesh(
             specialization: &[],
             geometry_output: None,
         },
-    )?);
-    let comp = vk::ShaderStageFlags::COMPUTE;
-    let storage = vk::DescriptorType::STORAGE_IMAGE;
-    let resolve = Arc::new(Pipeline::compute(
-        b.ctx,
-        "mesh/resolve.comp",
-        &[
-            Binding::new(BINDING_INPUT0, storage, comp),
-            Binding::new(BINDING_INPUT1, storage, comp),
-            Binding::new(BINDING_INPUT2, storage, comp),
-            Binding::new(BINDING_OUTPUT0, storage, comp),
-            Binding::new(BINDING_OUTPUT0 + 1, storage, comp),
-            Binding::new(BINDING_OUTPUT0 + 2, storage, comp),
-        ],
     )?);
     let target = |format, usage| ImageDesc {
         format,
@@ -140,12 +117,8 @@ pub fn add_mesh(
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         ),
     );
-    let (frame, segments, t) = (b.frame, b.segments, b.targets);
-    let mut raster_pass = b
-        .graph
-        .pass(&format!("{prefix}.raster"))
-        .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(segments, Access::StorageRead(Stages::Vertex));
+    let t = b.targets;
+    let mut raster_pass = b.graph.pass(&format!("{prefix}.raster")).binds(&draw_binds);
     raster_pass = match source {
         Indices::Static { indices, .. } => raster_pass.buffer(indices, Access::IndexRead),
         Indices::Indirect {
@@ -164,13 +137,7 @@ pub fn add_mesh(
         .color(hi_normal, Load::Clear([0.0; 4]))
         .depth(zbuffer, Load::Clear([0.0; 4]))
         .record(move |ctx| {
-            ctx.bind(
-                &raster,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                ],
-            );
+            ctx.bind_all(&raster, &draw_binds);
             match source {
                 Indices::Static { indices, count } => ctx.draw_indexed(indices, count),
                 Indices::Indirect {
@@ -180,27 +147,20 @@ pub fn add_mesh(
                 } => ctx.draw_indexed_indirect(indices, args, range.offset, 1, 20),
             }
         });
+    let read = Access::StorageRead(Stages::Compute);
+    let mut binds = vec![
+        Bind::image(BINDING_INPUT0, hi_color, 0, read),
+        Bind::image(BINDING_INPUT1, hi_depth, 0, read),
+        Bind::image(BINDING_INPUT2, hi_normal, 0, read),
+    ];
+    binds.extend(t.compute_writes());
+    let resolve = Pipeline::compute(b.ctx, "mesh/resolve.comp", &bind::compute_layout(&binds))?;
     let (ow, oh) = (b.width, b.height);
     b.graph
         .pass(&format!("{prefix}.resolve"))
-        .image(hi_color, Access::StorageRead(Stages::Compute))
-        .image(hi_depth, Access::StorageRead(Stages::Compute))
-        .image(hi_normal, Access::StorageRead(Stages::Compute))
-        .image(t.color, Access::StorageWrite(Stages::Compute))
-        .image(t.depth, Access::StorageWrite(Stages::Compute))
-        .image(t.normal, Access::StorageWrite(Stages::Compute))
+        .binds(&binds)
         .record(move |ctx| {
-            ctx.bind(
-                &resolve,
-                &[
-                    Descriptor::StorageImage(BINDING_INPUT0, hi_color, 0),
-                    Descriptor::StorageImage(BINDING_INPUT1, hi_depth, 0),
-                    Descriptor::StorageImage(BINDING_INPUT2, hi_normal, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
-                    Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
-                ],
-            );
+            ctx.bind_all(&resolve, &binds);
             ctx.push(&resolve, &samples.to_le_bytes());
             ctx.dispatch(ow.div_ceil(RESOLVE_GROUP), oh.div_ceil(RESOLVE_GROUP), 1);
         });

@@ -38,17 +38,17 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use super::compute::{project, storage, storage_image, ProjectOptions};
+use super::compute::{project, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 use crate::gpu::layout::{
     PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_LOD_LIST, BINDING_LOD_VERTICES,
-    BINDING_OUTPUT0, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT,
-    BINDING_SEGMENTS, BINDING_VISIBILITY, PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL,
-    PYRAMID_SPEC_HYBRID, PYRAMID_SPEC_TUBE,
+    BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT, BINDING_SEGMENTS,
+    BINDING_VISIBILITY, PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID,
+    PYRAMID_SPEC_TUBE,
 };
-use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
+use crate::gpu::{Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
 use crate::graph::{
-    Access, BufferId, BufferRange, Descriptor, GraphBuilder, ImageId, Load, PassBuilder, Stages,
+    bind, Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
 use crate::methods::lod::gpu::{add_select, LodInputs};
 
@@ -200,27 +200,28 @@ impl Group {
         [Some(self.a), Some(self.b), self.c].into_iter().flatten()
     }
 
-    /// The three descriptors of mip `mip` at bindings `base`, `base + 1`, `base + 2`.
-    pub(crate) fn descriptors(&self, base: u32, mip: u32) -> [Descriptor; 3] {
+    /// The three storage images of mip `mip` at bindings `base`, `base + 1`, `base + 2`,
+    /// accessed with `access`.
+    pub(crate) fn binds(&self, base: u32, mip: u32, access: Access) -> [Bind; 3] {
         [
-            Descriptor::StorageImage(base, self.a, mip),
-            Descriptor::StorageImage(base + 1, self.b, mip),
-            Descriptor::StorageImage(base + 2, self.c.unwrap_or(self.a), mip),
+            Bind::image(base, self.a, mip, access),
+            Bind::image(base + 1, self.b, mip, access),
+            Bind::image(base + 2, self.c.unwrap_or(self.a), mip, access),
         ]
     }
 }
 
-/// Records one dispatch of `pipeline` over `groups` with `descriptors` (bound once per frame,
-/// built at compile: recording allocates nothing) and the push constants `push`.
+/// Adds `pass` bound to `binds` (the frame block first): one dispatch of `pipeline` over
+/// `groups` with the push constants `push`.
 pub(crate) fn dispatch(
     pass: PassBuilder<'_>,
     pipeline: Arc<Pipeline>,
-    descriptors: Vec<Descriptor>,
+    binds: Vec<Bind>,
     push: PyramidParams,
     (gx, gy): (u32, u32),
 ) {
-    pass.record(move |ctx| {
-        ctx.bind(&pipeline, &descriptors);
+    pass.binds(&binds).record(move |ctx| {
+        ctx.bind_all(&pipeline, &binds);
         ctx.push(&pipeline, bytemuck::bytes_of(&push));
         ctx.dispatch(gx, gy, 1);
     });
@@ -232,14 +233,6 @@ pub(crate) fn groups(width: u32, height: u32, level: u32) -> (u32, u32) {
         (width >> level).max(1).div_ceil(PYRAMID_GROUP),
         (height >> level).max(1).div_ceil(PYRAMID_GROUP),
     )
-}
-
-pub(crate) fn group_bindings(base: u32) -> [Binding; 3] {
-    [
-        storage_image(base),
-        storage_image(base + 1),
-        storage_image(base + 2),
-    ]
 }
 
 /// The specialization constants of the pyramid shaders.
@@ -355,35 +348,34 @@ impl Pyramid {
         passes: Passes<'_>,
     ) -> Result<()> {
         let compute = Stages::Compute;
-        let mut bindings = vec![storage(BINDING_FRAME)];
-        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let binds = |level: u32| {
+            let (src, dst) = (self.holder(level - 1), self.holder(level));
+            let mut binds = vec![Bind::constants(BINDING_FRAME, frame)];
+            binds.extend(src.binds(
+                BINDING_PYRAMID_LEVEL,
+                level - 1,
+                Access::StorageRead(compute),
+            ));
+            binds.extend(dst.binds(BINDING_PYRAMID_OUT, level, Access::StorageWrite(compute)));
+            binds
+        };
         let analysis = Arc::new(Pipeline::compute_specialized(
             ctx,
             passes.shader,
-            &bindings,
+            &bind::compute_layout(&binds(1)),
             passes.spec,
         )?);
         let prefix = passes.prefix;
         for level in 1..=top.min(self.levels - 1) {
-            let (src, dst) = (self.holder(level - 1), self.holder(level));
-            let mut pass = graph
-                .pass(&format!("{prefix}.analysis.{level}"))
-                .buffer(frame, Access::UniformRead(compute));
-            for image in src.images() {
-                pass = pass.image_mips(image, level - 1, 1, Access::StorageRead(compute));
-            }
-            for image in dst.images() {
-                pass = pass.image_mips(image, level, 1, Access::StorageWrite(compute));
-            }
-            let (input, out) = (
-                src.descriptors(BINDING_PYRAMID_LEVEL, level - 1),
-                dst.descriptors(BINDING_PYRAMID_OUT, level),
-            );
-            let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
-            d.extend(input.into_iter().chain(out));
+            let pass = graph.pass(&format!("{prefix}.analysis.{level}"));
             let push = PyramidParams { level, ..params };
-            dispatch(pass, analysis.clone(), d, push, self.groups(level));
+            dispatch(
+                pass,
+                analysis.clone(),
+                binds(level),
+                push,
+                self.groups(level),
+            );
         }
         Ok(())
     }
@@ -401,14 +393,32 @@ impl Pyramid {
         if self.levels < 2 {
             return Ok(self.holder(0));
         }
-        let mut bindings = vec![storage(BINDING_FRAME)];
-        bindings.extend(group_bindings(BINDING_PYRAMID_PARENT));
-        bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-        bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+        let binds = |level: u32| {
+            let read = self.holder(level);
+            let write = self.holder(level + 1 - u32::from(self.single));
+            let (input, output) = if self.single {
+                // One image set: level `level` is read and written in place.
+                (
+                    Access::StorageReadWrite(compute),
+                    Access::StorageReadWrite(compute),
+                )
+            } else {
+                (Access::StorageRead(compute), Access::StorageWrite(compute))
+            };
+            let mut binds = vec![Bind::constants(BINDING_FRAME, frame)];
+            binds.extend(read.binds(
+                BINDING_PYRAMID_PARENT,
+                level + 1,
+                Access::StorageRead(compute),
+            ));
+            binds.extend(read.binds(BINDING_PYRAMID_LEVEL, level, input));
+            binds.extend(write.binds(BINDING_PYRAMID_OUT, level, output));
+            (binds, write)
+        };
         let synthesis = Arc::new(Pipeline::compute_specialized(
             ctx,
             "pyramid/synthesis.comp",
-            &bindings,
+            &bind::compute_layout(&binds(0).0),
             &specialization(self.color, false, false),
         )?);
         // Synthesis of level l reads image l mod 2; the first one (l = levels - 2) needs the
@@ -433,32 +443,10 @@ impl Pyramid {
         }
         let mut result = self.holder(0);
         for level in (0..top).rev() {
-            let read = self.holder(level);
-            let write = self.holder(level + 1 - u32::from(self.single));
-            let mut pass = graph
-                .pass(&format!("pyramid.synthesis.{level}"))
-                .buffer(frame, Access::UniformRead(compute));
-            for image in read.images() {
-                pass = pass.image_mips(image, level + 1, 1, Access::StorageRead(compute));
-                if !self.single {
-                    pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
-                }
-            }
-            for image in write.images() {
-                let access = if self.single {
-                    Access::StorageReadWrite(compute)
-                } else {
-                    Access::StorageWrite(compute)
-                };
-                pass = pass.image_mips(image, level, 1, access);
-            }
-            let parent = read.descriptors(BINDING_PYRAMID_PARENT, level + 1);
-            let input = read.descriptors(BINDING_PYRAMID_LEVEL, level);
-            let out = write.descriptors(BINDING_PYRAMID_OUT, level);
-            let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
-            d.extend(parent.into_iter().chain(input).chain(out));
+            let (binds, write) = binds(level);
+            let pass = graph.pass(&format!("pyramid.synthesis.{level}"));
             let push = PyramidParams { level, ..params };
-            dispatch(pass, synthesis.clone(), d, push, self.groups(level));
+            dispatch(pass, synthesis.clone(), binds, push, self.groups(level));
             result = write;
         }
         Ok(result)
@@ -692,39 +680,24 @@ pub(crate) fn add_level0(
 ) -> Result<()> {
     let compute = Stages::Compute;
     let projection = project(b, prefix, options)?;
-    let mut bindings = vec![
-        storage(BINDING_FRAME),
-        storage(BINDING_SEGMENTS),
-        storage(BINDING_VISIBILITY),
+    // Level 0 is read (with triangles or lines they are there; without, the shader's
+    // statically present read is dead code) and written in place.
+    let in_place = Access::StorageReadWrite(compute);
+    let mut binds = vec![
+        Bind::constants(BINDING_FRAME, b.frame),
+        Bind::reads(BINDING_SEGMENTS, b.segments),
+        Bind::reads(BINDING_VISIBILITY, projection.visibility),
     ];
-    bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-    bindings.extend(group_bindings(BINDING_PYRAMID_OUT));
+    binds.extend(first.binds(BINDING_PYRAMID_LEVEL, 0, in_place));
+    binds.extend(first.binds(BINDING_PYRAMID_OUT, 0, in_place));
     let pipeline = Arc::new(Pipeline::compute_specialized(
         b.ctx,
         "pyramid/level0.comp",
-        &bindings,
+        &bind::compute_layout(&binds),
         spec,
     )?);
-    let (frame, segments, visibility) = (b.frame, b.segments, projection.visibility);
-    let mut pass = b
-        .graph
-        .pass(&format!("{prefix}.level0"))
-        .buffer(frame, Access::UniformRead(compute))
-        .buffer(segments, Access::StorageRead(compute))
-        .buffer(visibility, Access::StorageRead(compute));
-    // Level 0 is read (with triangles or lines they are there; without, the shader's
-    // statically present read is dead code) and written in place.
-    for image in first.images() {
-        pass = pass.image_mips(image, 0, 1, Access::StorageReadWrite(compute));
-    }
-    let mut d = vec![
-        Descriptor::Buffer(BINDING_FRAME, frame),
-        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-        Descriptor::Buffer(BINDING_VISIBILITY, visibility),
-    ];
-    d.extend(first.descriptors(BINDING_PYRAMID_LEVEL, 0));
-    d.extend(first.descriptors(BINDING_PYRAMID_OUT, 0));
-    dispatch(pass, pipeline, d, params, groups(b.width, b.height, 0));
+    let pass = b.graph.pass(&format!("{prefix}.level0"));
+    dispatch(pass, pipeline, binds, params, groups(b.width, b.height, 0));
     Ok(())
 }
 
@@ -737,38 +710,22 @@ pub(crate) fn add_shade(
     spec: &[(u32, u32)],
     params: PyramidParams,
 ) -> Result<()> {
-    let compute = Stages::Compute;
-    let mut bindings = vec![storage(BINDING_FRAME)];
-    bindings.extend(group_bindings(BINDING_PYRAMID_LEVEL));
-    bindings.extend(group_bindings(BINDING_OUTPUT0));
+    let mut binds = vec![Bind::constants(BINDING_FRAME, b.frame)];
+    binds.extend(source.binds(
+        BINDING_PYRAMID_LEVEL,
+        level,
+        Access::StorageRead(Stages::Compute),
+    ));
+    binds.extend(b.targets.compute_writes());
     let shade = Arc::new(Pipeline::compute_specialized(
         b.ctx,
         "pyramid/shade.comp",
-        &bindings,
+        &bind::compute_layout(&binds),
         spec,
     )?);
-    let (t, frame) = (b.targets, b.frame);
-    let mut pass = b
-        .graph
-        .pass(&format!("{prefix}.shade"))
-        .buffer(frame, Access::UniformRead(compute));
-    for image in source.images() {
-        pass = pass.image_mips(image, level, 1, Access::StorageRead(compute));
-    }
-    let input = source.descriptors(BINDING_PYRAMID_LEVEL, level);
-    let pass = pass
-        .image(t.color, Access::StorageWrite(compute))
-        .image(t.depth, Access::StorageWrite(compute))
-        .image(t.normal, Access::StorageWrite(compute));
-    let mut d = vec![Descriptor::Buffer(BINDING_FRAME, frame)];
-    d.extend(input);
-    d.extend([
-        Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-        Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.depth, 0),
-        Descriptor::StorageImage(BINDING_OUTPUT0 + 2, t.normal, 0),
-    ]);
+    let pass = b.graph.pass(&format!("{prefix}.shade"));
     let push = PyramidParams { level, ..params };
-    dispatch(pass, shade, d, push, groups(b.width, b.height, 0));
+    dispatch(pass, shade, binds, push, groups(b.width, b.height, 0));
     Ok(())
 }
 
@@ -874,24 +831,33 @@ fn rasterize(
         PYRAMID_SPEC_TUBE,
         u32::from(matches!(primitives, Primitives::Tubes(..))),
     ));
-    let vertex_only = vk::ShaderStageFlags::VERTEX;
-    let buffer =
-        |binding, stages| Binding::new(binding, vk::DescriptorType::STORAGE_BUFFER, stages);
-    // The object texture's list reads its vertices; every other draw the point streams (and
-    // the mask of points drawn as faces).
-    let inputs = match primitives {
-        Primitives::LodList(..) => [BINDING_LOD_VERTICES, BINDING_LOD_LIST],
-        _ => [BINDING_SEGMENTS, BINDING_FACE_VERTICES],
-    };
+    // The object texture's list reads its vertices; every other draw the point streams and
+    // the mask of points drawn as faces, read only by the hybrid variant of project.vert.
+    let vertex_read = Access::StorageRead(Stages::Vertex);
+    let mut binds = vec![Bind::buffer(
+        BINDING_FRAME,
+        b.frame,
+        Access::UniformRead(Stages::Graphics),
+    )];
+    binds.extend(match primitives {
+        Primitives::LodList(vertices, list, _) => [
+            Bind::buffer(BINDING_LOD_VERTICES, vertices, vertex_read),
+            Bind::buffer(BINDING_LOD_LIST, list, vertex_read),
+        ],
+        Primitives::Points(Some(mask)) => [
+            Bind::buffer(BINDING_SEGMENTS, b.segments, vertex_read),
+            Bind::buffer(BINDING_FACE_VERTICES, mask, vertex_read),
+        ],
+        _ => [
+            Bind::buffer(BINDING_SEGMENTS, b.segments, vertex_read),
+            Bind::unused_in(BINDING_FACE_VERTICES, Stages::Vertex),
+        ],
+    });
     let pipeline = Arc::new(Pipeline::graphics(
         b.ctx,
         &GraphicsDesc {
             shaders: &[vertex, "pyramid/project.frag"],
-            bindings: &[
-                buffer(BINDING_FRAME, stages),
-                buffer(inputs[0], vertex_only),
-                buffer(inputs[1], vertex_only),
-            ],
+            bindings: &bind::layout(&binds, stages),
             color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
             blends: &[Blend::Replace; 3],
             depth_format: Some(ZBUFFER_FORMAT),
@@ -909,33 +875,13 @@ fn rasterize(
     } else {
         Load::Load
     };
-    let (frame, segments) = (b.frame, b.segments);
     let points = b.scene.point_count;
-    let vertex_read = Access::StorageRead(Stages::Vertex);
-    let mut pass = b
-        .graph
-        .pass(name)
-        .buffer(frame, Access::UniformRead(Stages::Graphics));
-    // The buffers bound at `inputs`. The mask is read only by the hybrid variant of
-    // project.vert; otherwise its binding (statically present) aliases the segment table.
-    let mut bound = [segments, segments];
-    match primitives {
-        Primitives::LodList(vertices, list, counters) => {
-            pass = pass
-                .buffer(vertices, vertex_read)
-                .buffer(list, vertex_read)
-                .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
-            bound = [vertices, list];
-        }
-        _ => pass = pass.buffer(segments, vertex_read),
+    let mut pass = b.graph.pass(name).binds(&binds);
+    if let Primitives::LodList(_, _, counters) = primitives {
+        pass = pass.buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
     }
     match primitives {
-        Primitives::Points(Some(m)) => {
-            pass = pass.buffer(m, vertex_read);
-            bound[1] = m;
-        }
-        Primitives::LodList(..) => {}
-        Primitives::Points(None) => {}
+        Primitives::Points(_) | Primitives::LodList(..) => {}
         Primitives::Triangles(indices, _)
         | Primitives::Ribbons(indices, _)
         | Primitives::Tubes(indices, _) => pass = pass.buffer(indices, Access::IndexRead),
@@ -952,14 +898,7 @@ fn rasterize(
         .color_mip(t.c, 0, load)
         .depth(t.zbuffer, load)
         .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(inputs[0], bound[0]),
-                    Descriptor::Buffer(inputs[1], bound[1]),
-                ],
-            );
+            ctx.bind_all(&pipeline, &binds);
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
             match primitives {
                 Primitives::Points(_) => ctx.draw(points, 1),

@@ -21,13 +21,12 @@ use super::{
 };
 use crate::gpu::layout::{
     SplatParams, BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
-    BINDING_SEGMENTS, RESOLVE_GROUP, SPLAT_RASTER_AFFINE, SPLAT_RASTER_PERSPECTIVE,
-    SPLAT_RASTER_POINTS, SPLAT_RASTER_SQUARES, SPLAT_SHADING_DEFERRED, SPLAT_SHADING_FLAT,
-    SPLAT_SHADING_GOURAUD, SPLAT_SHADING_PHONG, SPLAT_SPEC_CULL, SPLAT_SPEC_RASTER,
-    SPLAT_SPEC_SHADING,
+    RESOLVE_GROUP, SPLAT_RASTER_AFFINE, SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_POINTS,
+    SPLAT_RASTER_SQUARES, SPLAT_SHADING_DEFERRED, SPLAT_SHADING_FLAT, SPLAT_SHADING_GOURAUD,
+    SPLAT_SHADING_PHONG, SPLAT_SPEC_CULL, SPLAT_SPEC_RASTER, SPLAT_SPEC_SHADING,
 };
-use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{Access, Descriptor, ImageId, Load, Stages};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{bind, Access, Bind, ImageId, Load, Stages};
 
 /// The accumulation targets: (sum w c, sum w) and (sum w n, sum w), 16-bit float (002 5.3.2).
 const ACCUM_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
@@ -262,14 +261,7 @@ impl Splats {
             b.ctx,
             &GraphicsDesc {
                 shaders: &["splat/splat.vert", fragment],
-                bindings: &[
-                    Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
-                    Binding::new(
-                        BINDING_SEGMENTS,
-                        vk::DescriptorType::STORAGE_BUFFER,
-                        vk::ShaderStageFlags::VERTEX,
-                    ),
-                ],
+                bindings: &bind::layout(&b.draw_binds(), stages),
                 color_formats: formats,
                 blends: &blends,
                 depth_format: Some(ZBUFFER_FORMAT),
@@ -298,24 +290,17 @@ impl Splats {
             Blend::Replace,
             true,
         )?;
-        let (frame, segments, t) = (b.frame, b.segments, b.targets);
+        let (binds, t) = (b.draw_binds(), b.targets);
         let (count, params) = (b.scene.point_count, self.params);
         b.graph
             .pass("splat.flat")
-            .buffer(frame, Access::UniformRead(Stages::Graphics))
-            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .binds(&binds)
             .color(t.color, Load::Clear([0.0; 4]))
             .color(t.depth, Load::Clear([0.0; 4]))
             .color(t.normal, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Clear([0.0; 4]))
             .record(move |ctx| {
-                ctx.bind(
-                    &pipeline,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    ],
-                );
+                ctx.bind_all(&pipeline, &binds);
                 ctx.push(&pipeline, bytemuck::bytes_of(&params));
                 ctx.draw(count, 1);
             });
@@ -338,21 +323,6 @@ impl Splats {
             Blend::Additive,
             false,
         )?;
-        let comp = vk::ShaderStageFlags::COMPUTE;
-        let storage = vk::DescriptorType::STORAGE_IMAGE;
-        let normalize = Arc::new(Pipeline::compute_specialized(
-            b.ctx,
-            "splat/normalize.comp",
-            &[
-                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, comp),
-                Binding::new(BINDING_INPUT0, storage, comp),
-                Binding::new(BINDING_INPUT1, storage, comp),
-                Binding::new(BINDING_INPUT2, storage, comp),
-                Binding::new(BINDING_OUTPUT0, storage, comp),
-                Binding::new(BINDING_OUTPUT0 + 1, storage, comp),
-            ],
-            &self.specialization,
-        )?);
         let accum = |b: &mut BuildContext<'_>, name| {
             b.graph.image(
                 name,
@@ -367,55 +337,48 @@ impl Splats {
         };
         let accum_color = accum(b, "splat.accum_color");
         let accum_normal = accum(b, "splat.accum_normal");
-        let (frame, segments, t) = (b.frame, b.segments, b.targets);
+        let (binds, t) = (b.draw_binds(), b.targets);
         let (count, params) = (b.scene.point_count, self.params);
         let draw = move |ctx: &crate::graph::PassContext<'_>, pipeline: &Pipeline| {
-            ctx.bind(
-                pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                ],
-            );
+            ctx.bind_all(pipeline, &binds);
             ctx.push(pipeline, bytemuck::bytes_of(&params));
             ctx.draw(count, 1);
         };
         b.graph
             .pass("splat.visibility")
-            .buffer(frame, Access::UniformRead(Stages::Graphics))
-            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .binds(&binds)
             .color(t.depth, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Clear([0.0; 4]))
             .record(move |ctx| draw(ctx, &visibility));
         b.graph
             .pass("splat.accumulate")
-            .buffer(frame, Access::UniformRead(Stages::Graphics))
-            .buffer(segments, Access::StorageRead(Stages::Vertex))
+            .binds(&binds)
             .color(accum_color, Load::Clear([0.0; 4]))
             .color(accum_normal, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Load)
             .record(move |ctx| draw(ctx, &accumulate));
+        let read = Access::StorageRead(Stages::Compute);
+        let write = Access::StorageWrite(Stages::Compute);
+        let normalize_binds = [
+            Bind::constants(BINDING_FRAME, b.frame),
+            Bind::image(BINDING_INPUT0, accum_color, 0, read),
+            Bind::image(BINDING_INPUT1, accum_normal, 0, read),
+            Bind::image(BINDING_INPUT2, t.depth, 0, read),
+            Bind::image(BINDING_OUTPUT0, t.color, 0, write),
+            Bind::image(BINDING_OUTPUT0 + 1, t.normal, 0, write),
+        ];
+        let normalize = Pipeline::compute_specialized(
+            b.ctx,
+            "splat/normalize.comp",
+            &bind::compute_layout(&normalize_binds),
+            &self.specialization,
+        )?;
         let (w, h) = (b.width, b.height);
         b.graph
             .pass("splat.normalize")
-            .buffer(frame, Access::UniformRead(Stages::Compute))
-            .image(accum_color, Access::StorageRead(Stages::Compute))
-            .image(accum_normal, Access::StorageRead(Stages::Compute))
-            .image(t.depth, Access::StorageRead(Stages::Compute))
-            .image(t.color, Access::StorageWrite(Stages::Compute))
-            .image(t.normal, Access::StorageWrite(Stages::Compute))
+            .binds(&normalize_binds)
             .record(move |ctx| {
-                ctx.bind(
-                    &normalize,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::StorageImage(BINDING_INPUT0, accum_color, 0),
-                        Descriptor::StorageImage(BINDING_INPUT1, accum_normal, 0),
-                        Descriptor::StorageImage(BINDING_INPUT2, t.depth, 0),
-                        Descriptor::StorageImage(BINDING_OUTPUT0, t.color, 0),
-                        Descriptor::StorageImage(BINDING_OUTPUT0 + 1, t.normal, 0),
-                    ],
-                );
+                ctx.bind_all(&normalize, &normalize_binds);
                 ctx.dispatch(w.div_ceil(RESOLVE_GROUP), h.div_ceil(RESOLVE_GROUP), 1);
             });
         Ok(())

@@ -5,10 +5,8 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk;
 
-use crate::gpu::layout::{BINDING_FRAME, BINDING_SEGMENTS};
-use crate::gpu::{Binding, Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::Descriptor;
-use crate::graph::{Access, Load, Stages};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
+use crate::graph::{bind, Load};
 use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
@@ -34,19 +32,13 @@ pub const INFO: MethodInfo = MethodInfo {
 };
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    let binds = b.draw_binds();
     let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
     let pipeline = Arc::new(Pipeline::graphics(
         b.ctx,
         &GraphicsDesc {
             shaders: &["splat/points.vert", "splat/points.frag"],
-            bindings: &[
-                Binding::new(BINDING_FRAME, vk::DescriptorType::STORAGE_BUFFER, stages),
-                Binding::new(
-                    BINDING_SEGMENTS,
-                    vk::DescriptorType::STORAGE_BUFFER,
-                    vk::ShaderStageFlags::VERTEX,
-                ),
-            ],
+            bindings: &bind::layout(&binds, stages),
             color_formats: &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
             blends: &[Blend::Replace; 3],
             depth_format: Some(ZBUFFER_FORMAT),
@@ -69,24 +61,16 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         },
     );
-    let (frame, segments, t) = (b.frame, b.segments, b.targets);
-    let count = b.scene.point_count;
+    let (t, count) = (b.targets, b.scene.point_count);
     b.graph
         .pass("points.project")
-        .buffer(frame, Access::UniformRead(Stages::Graphics))
-        .buffer(segments, Access::StorageRead(Stages::Vertex))
+        .binds(&binds)
         .color(t.color, Load::Clear([0.0; 4]))
         .color(t.depth, Load::Clear([0.0; 4]))
         .color(t.normal, Load::Clear([0.0; 4]))
         .depth(zbuffer, Load::Clear([0.0; 4]))
         .record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                ],
-            );
+            ctx.bind_all(&pipeline, &binds);
             ctx.draw(count, 1);
         });
     Ok(())
