@@ -55,8 +55,8 @@ void main() {
     h.coarse = coarse;
     h.coarse_side = (s + coarse - 1u) / coarse;
     uint groups = (k + HPR_GROUP - 1u) / HPR_GROUP;
-    h.groups_x = min(groups, 32768u);
-    h.groups_y = (groups + 32767u) / 32768u;
+    h.groups_x = min(groups, MAX_GROUPS);
+    h.groups_y = (groups + MAX_GROUPS - 1u) / MAX_GROUPS;
     h.groups_z = 1u;
     h.changed = 0u;
     h.rounds = 0u;

@@ -33,7 +33,7 @@ use crate::gpu::layout::{
     BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GROUP, KNN_MAX_K, KNN_SPEC_K,
 };
 use crate::gpu::{Binding, Buffer, Context, Pipeline};
-use crate::graph::{Access, BufferRange, GraphBuilder, Stages};
+use crate::graph::{Access, Bind, BufferRange, GraphBuilder, Stages};
 use crate::methods::common::sort::{add_sort, compute_pass, SortPipelines};
 use crate::scene::knn::{finite_indices, GridFrame};
 use crate::scene::preprocess::{self, PreprocessOptions};
@@ -187,9 +187,9 @@ pub fn nearest_on_gpu(
         "estimate.key",
         &pipelines.key,
         &[
-            (BINDING_KNN_POSITIONS, input, read),
-            (BINDING_SORT_KEYS, keys, write),
-            (BINDING_SORT_VALUES, values, write),
+            Bind::buffer(BINDING_KNN_POSITIONS, input, read),
+            Bind::buffer(BINDING_SORT_KEYS, keys, write),
+            Bind::buffer(BINDING_SORT_VALUES, values, write),
         ],
         push,
         groups,
@@ -201,11 +201,11 @@ pub fn nearest_on_gpu(
         "estimate.cells",
         &pipelines.cells,
         &[
-            (BINDING_KNN_POSITIONS, input, read),
-            (BINDING_SORT_KEYS, keys, read),
-            (BINDING_SORT_VALUES, values, read),
-            (BINDING_KNN_TABLE, table, write),
-            (BINDING_KNN_SORTED, sorted, write),
+            Bind::buffer(BINDING_KNN_POSITIONS, input, read),
+            Bind::buffer(BINDING_SORT_KEYS, keys, read),
+            Bind::buffer(BINDING_SORT_VALUES, values, read),
+            Bind::buffer(BINDING_KNN_TABLE, table, write),
+            Bind::buffer(BINDING_KNN_SORTED, sorted, write),
         ],
         push,
         groups,
@@ -215,9 +215,9 @@ pub fn nearest_on_gpu(
         "estimate.query",
         &pipelines.query,
         &[
-            (BINDING_KNN_TABLE, table, read),
-            (BINDING_KNN_SORTED, sorted, read),
-            (BINDING_KNN_OUT, out, write),
+            Bind::buffer(BINDING_KNN_TABLE, table, read),
+            Bind::buffer(BINDING_KNN_SORTED, sorted, read),
+            Bind::buffer(BINDING_KNN_OUT, out, write),
         ],
         push,
         groups,

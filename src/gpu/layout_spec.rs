@@ -21,6 +21,10 @@ const fn f(ty: &'static str, name: &'static str) -> FieldSpec {
 
 /// Integer constants (`#define` in GLSL, `pub const` in Rust).
 pub const CONSTANTS: &[(&str, u32)] = &[
+    // Workgroups per dimension every device accepts (maxComputeWorkGroupCount >= 65,535);
+    // larger 1D dispatches fold into rows of this many (graph::bind::fold_groups on the host,
+    // the indirect dispatch of glsl/hpr/frame.comp on the GPU).
+    ("MAX_GROUPS", 65535),
     // Descriptor bindings (set 0, push descriptors).
     ("BINDING_FRAME", 0),
     ("BINDING_INDICES", 2),

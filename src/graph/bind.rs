@@ -26,9 +26,7 @@ use crate::gpu::Binding;
 /// binding it never uses.
 pub const UNUSED_BYTES: u64 = 256;
 
-/// Workgroups per dimension every device accepts (`maxComputeWorkGroupCount` is at least
-/// 65,535); larger 1D dispatches fold into rows of this many groups.
-pub const MAX_GROUPS: u32 = 65_535;
+pub use crate::gpu::layout::MAX_GROUPS;
 
 /// The `(x, y)` group counts covering `groups` workgroups: one row up to `MAX_GROUPS`, then
 /// rows of `MAX_GROUPS`. Shaders recover the flat index as `x + y * gl_NumWorkGroups.x` and

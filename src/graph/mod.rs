@@ -4,15 +4,20 @@
 //! synchronization2, owns transient images and buffers, wraps each pass in a timestamp scope
 //! and a debug label, and prints its schedule.
 //!
-//! A pass reads like a small function:
+//! A pass reads like a small function: its bindings, declared once (`bind::Bind`), give the
+//! pipeline layout, the pass's accesses and the descriptors it pushes.
 //! ```ignore
+//! let binds = [
+//!     Bind::buffer(BINDING_FRAME, frame, Access::UniformRead(Stages::Graphics)),
+//!     Bind::buffer(BINDING_POINTS, points, Access::StorageRead(Stages::Vertex)),
+//! ];
 //! g.pass("project")
-//!     .buffer(points, Access::StorageRead(Stages::Vertex))
+//!     .binds(&binds)
 //!     .buffer_range(args, BufferRange::new(0, 16), Access::IndirectRead)
 //!     .color(color, Load::Clear([0.0; 4]))
 //!     .depth(depth, Load::Clear([0.0; 4]))
 //!     .record(move |ctx| {
-//!         ctx.bind(&pipeline, &[Descriptor::Buffer(BINDING_POINTS, points)]);
+//!         ctx.bind_all(&pipeline, &binds);
 //!         ctx.draw_indirect(args, 0, 1, 16);
 //!     });
 //! ```

@@ -14,9 +14,9 @@ use gpu_allocator::MemoryLocation;
 
 use super::{atlas, layout, Panel, CAPACITY};
 use crate::gpu::layout::{GpuGlyph, BINDING_FRAME, BINDING_OVERLAY_ATLAS, BINDING_OVERLAY_GLYPHS};
-use crate::gpu::{Binding, Blend, Buffer, Context, GraphicsDesc, Pipeline};
+use crate::gpu::{Blend, Buffer, Context, GraphicsDesc, Pipeline};
 use crate::graph::{
-    Access, BufferId, CompiledGraph, Descriptor, GraphBuilder, ImageId, Load, Stages,
+    bind, Access, Bind, BufferId, CompiledGraph, GraphBuilder, ImageId, Load, Stages,
 };
 
 /// The overlay of one renderer: per frame slot a quad buffer, and the quad count of the frame
@@ -63,51 +63,41 @@ impl OverlayPass {
                 )
             })
             .collect::<Result<Vec<_>>>()?;
-        let vertex_fragment = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-        let pipeline = Arc::new(Pipeline::graphics(
+        let glyphs = g.external_buffer("overlay.glyphs", bytes, usage);
+        let atlas_id = g.import_buffer("overlay.atlas", atlas_buffer);
+        let binds = [
+            Bind::buffer(BINDING_FRAME, frame, Access::UniformRead(Stages::Vertex)),
+            Bind::buffer(
+                BINDING_OVERLAY_GLYPHS,
+                glyphs,
+                Access::StorageRead(Stages::Graphics),
+            ),
+            Bind::buffer(
+                BINDING_OVERLAY_ATLAS,
+                atlas_id,
+                Access::StorageRead(Stages::Fragment),
+            ),
+        ];
+        let pipeline = Pipeline::graphics(
             ctx,
             &GraphicsDesc {
                 shaders: &["overlay/text.vert", "overlay/text.frag"],
-                bindings: &[
-                    Binding::new(
-                        BINDING_FRAME,
-                        vk::DescriptorType::STORAGE_BUFFER,
-                        vk::ShaderStageFlags::VERTEX,
-                    ),
-                    Binding::new(
-                        BINDING_OVERLAY_GLYPHS,
-                        vk::DescriptorType::STORAGE_BUFFER,
-                        vertex_fragment,
-                    ),
-                    Binding::new(
-                        BINDING_OVERLAY_ATLAS,
-                        vk::DescriptorType::STORAGE_BUFFER,
-                        vk::ShaderStageFlags::FRAGMENT,
-                    ),
-                ],
+                bindings: &bind::layout(
+                    &binds,
+                    vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                ),
                 color_formats: &[g.desc(color).format],
                 blends: &[Blend::Alpha],
                 ..GraphicsDesc::default()
             },
-        )?);
-        let glyphs = g.external_buffer("overlay.glyphs", bytes, usage);
-        let atlas_id = g.import_buffer("overlay.atlas", atlas_buffer);
+        )?;
         let count = Arc::new(AtomicU32::new(0));
         let quads = count.clone();
         g.pass("overlay.text")
-            .buffer(frame, Access::UniformRead(Stages::Vertex))
-            .buffer(glyphs, Access::StorageRead(Stages::Graphics))
-            .buffer(atlas_id, Access::StorageRead(Stages::Fragment))
+            .binds(&binds)
             .color(color, Load::Load)
             .record(move |ctx| {
-                ctx.bind(
-                    &pipeline,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::Buffer(BINDING_OVERLAY_GLYPHS, glyphs),
-                        Descriptor::Buffer(BINDING_OVERLAY_ATLAS, atlas_id),
-                    ],
-                );
+                ctx.bind_all(&pipeline, &binds);
                 ctx.draw(6, quads.load(Ordering::Relaxed));
             });
         Ok(Self {

@@ -34,14 +34,12 @@ use crate::gpu::layout::{
     SORT_DIGIT_BITS, SORT_GROUP, SORT_ITEMS, SORT_RADIX, SORT_SPEC_SUBGROUPS,
 };
 use crate::gpu::{Binding, Context, Pipeline};
-use crate::graph::{Access, BufferId, Descriptor, GraphBuilder, Stages};
+use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
 
 /// Elements per tile of the count and scatter passes.
 const TILE: u32 = SORT_GROUP * SORT_ITEMS;
 /// Histogram entries per block of the reduce and downsweep passes.
 const SCAN_BLOCK: u32 = SCAN_GROUP * SCAN_ITEMS;
-/// Workgroups per dispatch dimension every device allows; larger counts fold into 2D.
-const MAX_GROUPS: u32 = 65_535;
 
 /// The compute pipelines of `add_sort` and `add_segmented_max`.
 pub struct SortPipelines {
@@ -155,38 +153,24 @@ impl Push {
     }
 }
 
-/// Group counts of a dispatch of `groups` workgroups, folded into 2D past `MAX_GROUPS` (the
-/// shaders skip indices past their group count).
-fn fold(groups: u32) -> (u32, u32) {
-    (groups.min(MAX_GROUPS), groups.div_ceil(MAX_GROUPS))
-}
-
-/// Declares a compute pass binding `pipeline` with `descriptors` (all storage buffers, whose
-/// accesses `uses` declares), pushing `push` and dispatching `groups` workgroups, folded into
-/// 2D past 65,535 (the shader derives its index from `gl_NumWorkGroups.x`).
+/// Declares a compute pass binding `pipeline` to `binds`, pushing `push` and dispatching
+/// `groups` workgroups (folded into rows: the shader derives its index from
+/// `gl_NumWorkGroups.x`).
 pub(crate) fn compute_pass(
     g: &mut GraphBuilder,
     name: &str,
     pipeline: &Arc<Pipeline>,
-    uses: &[(u32, BufferId, Access)],
+    binds: &[Bind],
     push: &[u8],
     groups: u32,
 ) {
-    let mut pass = g.pass(name);
-    for &(_, id, access) in uses {
-        pass = pass.buffer(id, access);
-    }
-    let descriptors: Vec<_> = uses
-        .iter()
-        .map(|&(binding, id, _)| Descriptor::Buffer(binding, id))
-        .collect();
+    let binds = binds.to_vec();
     let pipeline = pipeline.clone();
     let push = push.to_vec();
-    let (x, y) = fold(groups);
-    pass.record(move |ctx| {
-        ctx.bind(&pipeline, &descriptors);
+    g.pass(name).binds(&binds).record(move |ctx| {
+        ctx.bind_all(&pipeline, &binds);
         ctx.push(&pipeline, &push);
-        ctx.dispatch(x, y, 1);
+        ctx.dispatch_groups(u64::from(groups));
     });
 }
 
@@ -242,8 +226,8 @@ pub fn add_sort(
             &format!("sort.count.{digit}"),
             &p.count,
             &[
-                (BINDING_SORT_KEYS, src.0, read),
-                (BINDING_SORT_HIST, hist, write),
+                Bind::buffer(BINDING_SORT_KEYS, src.0, read),
+                Bind::buffer(BINDING_SORT_HIST, hist, write),
             ],
             &push.bytes(),
             tiles,
@@ -253,8 +237,8 @@ pub fn add_sort(
             &format!("sort.reduce.{digit}"),
             &p.reduce,
             &[
-                (BINDING_SORT_HIST, hist, read),
-                (BINDING_SORT_SUMS, sums, write),
+                Bind::buffer(BINDING_SORT_HIST, hist, read),
+                Bind::buffer(BINDING_SORT_SUMS, sums, write),
             ],
             &push.bytes(),
             blocks,
@@ -263,7 +247,7 @@ pub fn add_sort(
             g,
             &format!("sort.scan.{digit}"),
             &p.scan,
-            &[(BINDING_SORT_SUMS, sums, read_write)],
+            &[Bind::buffer(BINDING_SORT_SUMS, sums, read_write)],
             &push.bytes(),
             1,
         );
@@ -272,8 +256,8 @@ pub fn add_sort(
             &format!("sort.downsweep.{digit}"),
             &p.downsweep,
             &[
-                (BINDING_SORT_HIST, hist, read_write),
-                (BINDING_SORT_SUMS, sums, read),
+                Bind::buffer(BINDING_SORT_HIST, hist, read_write),
+                Bind::buffer(BINDING_SORT_SUMS, sums, read),
             ],
             &push.bytes(),
             blocks,
@@ -283,11 +267,11 @@ pub fn add_sort(
             &format!("sort.scatter.{digit}"),
             &p.scatter,
             &[
-                (BINDING_SORT_KEYS, src.0, read),
-                (BINDING_SORT_VALUES, src.1, read),
-                (BINDING_SORT_KEYS_OUT, dst.0, write),
-                (BINDING_SORT_VALUES_OUT, dst.1, write),
-                (BINDING_SORT_HIST, hist, read),
+                Bind::buffer(BINDING_SORT_KEYS, src.0, read),
+                Bind::buffer(BINDING_SORT_VALUES, src.1, read),
+                Bind::buffer(BINDING_SORT_KEYS_OUT, dst.0, write),
+                Bind::buffer(BINDING_SORT_VALUES_OUT, dst.1, write),
+                Bind::buffer(BINDING_SORT_HIST, hist, read),
             ],
             &push.bytes(),
             tiles,
@@ -326,13 +310,9 @@ pub fn add_segmented_max(
         "sort.segmax",
         &p.segmax,
         &[
-            (BINDING_SORT_KEYS, keys, read),
-            (BINDING_SORT_VALUES, values, read),
-            (
-                BINDING_SORT_VALUES_OUT,
-                out,
-                Access::StorageReadWrite(Stages::Compute),
-            ),
+            Bind::buffer(BINDING_SORT_KEYS, keys, read),
+            Bind::buffer(BINDING_SORT_VALUES, values, read),
+            Bind::updates(BINDING_SORT_VALUES_OUT, out),
         ],
         &push.bytes(),
         count.div_ceil(SEGMAX_GROUP),

@@ -37,20 +37,54 @@ use crate::gpu::layout::{
     HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_SPEC_HIGH_QUALITY,
 };
 use crate::gpu::{Buffer, Context, Pipeline};
-use crate::graph::{Access, BufferId, BufferRange, Descriptor, GraphBuilder, Stages};
+use crate::graph::{bind, Access, Bind, BufferId, BufferRange, GraphBuilder, Stages};
 use crate::hpr::approx::Propagation;
 use crate::upload::GpuScene;
 
 /// Points per thread of the sphere reduction (`ITEMS` in `glsl/hpr/sphere.comp`).
 const SPHERE_ITEMS: u32 = 16;
 
-/// Workgroups per row of a folded 1D dispatch (`thread_id` in `glsl/hpr/hpr.glsl`).
-const ROW_GROUPS: u32 = 32_768;
+/// The workgroups covering `threads` threads (folded into rows by `dispatch_groups`).
+fn groups(threads: u64) -> u64 {
+    threads.div_ceil(u64::from(HPR_GROUP)).max(1)
+}
 
-/// The (x, y) workgroups covering `threads` threads.
-fn groups(threads: u64) -> (u32, u32) {
-    let g = threads.div_ceil(u64::from(HPR_GROUP)).max(1) as u32;
-    (g.min(ROW_GROUPS), g.div_ceil(ROW_GROUPS))
+/// How a pass launches.
+#[derive(Clone, Copy, Debug)]
+enum Launch {
+    /// `n` workgroups.
+    Groups(u64),
+    /// `n` workgroups in x alone (the sphere reduction's shader reads only x).
+    Row(u32),
+    /// The propagation rounds' indirect dispatch in the frame state.
+    Indirect(BufferId),
+}
+
+/// Adds `name`: `pipeline` bound to `binds`, the push constants `push` where given, one
+/// dispatch.
+fn add_pass(
+    g: &mut GraphBuilder,
+    name: &str,
+    pipeline: Arc<Pipeline>,
+    binds: Vec<Bind>,
+    push: Option<Vec<u8>>,
+    launch: Launch,
+) {
+    let mut pass = g.pass(name).binds(&binds);
+    if let Launch::Indirect(state) = launch {
+        pass = pass.buffer_range(state, dispatch_range(), Access::IndirectRead);
+    }
+    pass.record(move |ctx| {
+        ctx.bind_all(&pipeline, &binds);
+        if let Some(push) = &push {
+            ctx.push(&pipeline, push);
+        }
+        match launch {
+            Launch::Groups(n) => ctx.dispatch_groups(n),
+            Launch::Row(n) => ctx.dispatch(n, 1, 1),
+            Launch::Indirect(state) => ctx.dispatch_indirect(state, dispatch_range().offset),
+        }
+    });
 }
 
 /// How the GPU approximation runs.
@@ -104,22 +138,16 @@ pub struct Hpr {
     pub hidden: BufferId,
 }
 
-fn bind(ids: &[u32]) -> Vec<crate::gpu::Binding> {
-    ids.iter()
-        .map(|&b| crate::gpu::Binding::storage(b))
-        .collect()
-}
-
 fn pipeline(
     ctx: &Arc<Context>,
     shader: &str,
-    bindings: &[u32],
+    binds: &[Bind],
     spec: &[(u32, u32)],
 ) -> Result<Arc<Pipeline>> {
     Ok(Arc::new(Pipeline::compute_specialized(
         ctx,
         shader,
-        &bind(bindings),
+        &bind::compute_layout(binds),
         spec,
     )?))
 }
@@ -176,60 +204,36 @@ fn reduce_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
         u64::from(partial_count) * 16,
         vk::BufferUsageFlags::empty(),
     );
-    let bindings = [
-        BINDING_FRAME,
-        BINDING_SEGMENTS,
-        BINDING_HPR_SPHERE,
-        BINDING_HPR_PARTIALS,
-    ];
-    // Every variant statically references all four bindings (and validation counts every
-    // store a shader holds): those a step does not use alias a buffer its pass declares, and
-    // the writable ones are declared read-write.
-    let descriptors = |segments: BufferId, sphere: BufferId| {
-        vec![
-            Descriptor::Buffer(BINDING_FRAME, frame),
-            Descriptor::Buffer(BINDING_SEGMENTS, segments),
-            Descriptor::Buffer(BINDING_HPR_SPHERE, sphere),
-            Descriptor::Buffer(BINDING_HPR_PARTIALS, partials),
-        ]
-    };
     let params = HprParams {
         point_count: n,
         // The centre pass reads the number of partials here.
         sqrt_k: partial_count,
         ..Default::default()
     };
-    let c = Stages::Compute;
+    // Every variant statically references all four bindings (and validation counts every
+    // store a shader holds): the writable ones are declared read-write.
     for (name, mode, size) in [
         ("hpr.sphere.sum", HPR_SPHERE_SUM, partial_count),
         ("hpr.sphere.centre", HPR_SPHERE_CENTRE, 1),
         ("hpr.sphere.radius", HPR_SPHERE_RADIUS, partial_count),
     ] {
-        let p = pipeline(ctx, "hpr/sphere.comp", &bindings, &[(HPR_SPEC_MODE, mode)])?;
-        let pass = g.pass(name).buffer(frame, Access::StorageRead(c));
-        let (pass, d) = match mode {
-            HPR_SPHERE_SUM => (
-                pass.buffer(segments, Access::StorageRead(c))
-                    .buffer(partials, Access::StorageReadWrite(c)),
-                descriptors(segments, partials),
-            ),
-            HPR_SPHERE_CENTRE => (
-                pass.buffer(partials, Access::StorageReadWrite(c))
-                    .buffer(sphere_id, Access::StorageReadWrite(c)),
-                descriptors(partials, sphere_id),
-            ),
-            _ => (
-                pass.buffer(segments, Access::StorageRead(c))
-                    .buffer(sphere_id, Access::StorageReadWrite(c))
-                    .buffer(partials, Access::StorageReadWrite(c)),
-                descriptors(segments, sphere_id),
-            ),
-        };
-        pass.record(move |ctx| {
-            ctx.bind(&p, &d);
-            ctx.push(&p, bytemuck::bytes_of(&params));
-            ctx.dispatch(size, 1, 1);
-        });
+        let binds = vec![
+            Bind::reads(BINDING_FRAME, frame),
+            if mode == HPR_SPHERE_CENTRE {
+                Bind::unused(BINDING_SEGMENTS)
+            } else {
+                Bind::reads(BINDING_SEGMENTS, segments)
+            },
+            if mode == HPR_SPHERE_SUM {
+                Bind::unused(BINDING_HPR_SPHERE)
+            } else {
+                Bind::updates(BINDING_HPR_SPHERE, sphere_id)
+            },
+            Bind::updates(BINDING_HPR_PARTIALS, partials),
+        ];
+        let p = pipeline(ctx, "hpr/sphere.comp", &binds, &[(HPR_SPEC_MODE, mode)])?;
+        let push = bytemuck::bytes_of(&params).to_vec();
+        add_pass(&mut g, name, p, binds, Some(push), Launch::Row(size));
     }
     g.compile(ctx)?.run_once(ctx)?;
     Ok(sphere)
@@ -271,34 +275,16 @@ pub fn add(
         u64::from(point_count.div_ceil(32).max(1)) * 4,
         usage,
     );
-    let c = Stages::Compute;
     let push = bytemuck::bytes_of(&params).to_vec();
 
-    let frame_pass = pipeline(
-        ctx,
-        "hpr/frame.comp",
-        &[BINDING_FRAME, BINDING_HPR_SPHERE, BINDING_HPR_FRAME],
-        &[],
-    )?;
-    {
-        let push = push.clone();
-        g.pass("hpr.frame")
-            .buffer(frame, Access::StorageRead(c))
-            .buffer(sphere, Access::StorageRead(c))
-            .buffer(state, Access::StorageWrite(c))
-            .record(move |ctx| {
-                ctx.bind(
-                    &frame_pass,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::Buffer(BINDING_HPR_SPHERE, sphere),
-                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    ],
-                );
-                ctx.push(&frame_pass, &push);
-                ctx.dispatch(1, 1, 1);
-            });
-    }
+    let binds = vec![
+        Bind::reads(BINDING_FRAME, frame),
+        Bind::reads(BINDING_HPR_SPHERE, sphere),
+        Bind::writes(BINDING_HPR_FRAME, state),
+    ];
+    let frame_pass = pipeline(ctx, "hpr/frame.comp", &binds, &[])?;
+    let one = Launch::Row(1);
+    add_pass(g, "hpr.frame", frame_pass, binds, Some(push.clone()), one);
     g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
     if params.complete_side > 0 && !settings.extremes {
         add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
@@ -320,64 +306,37 @@ pub fn add(
     } else {
         HPR_SECTOR_ATOMIC
     };
-    let sector = pipeline(
-        ctx,
-        "hpr/sector.comp",
-        &[
-            BINDING_FRAME,
-            BINDING_SEGMENTS,
-            BINDING_HPR_FRAME,
-            BINDING_HPR_MAX,
-            BINDING_HPR_EMPTY,
-            BINDING_HPR_KEYS,
-            BINDING_HPR_VALUES,
-        ],
-        &[(HPR_SPEC_MODE, mode)],
-    )?;
     let n = u64::from(point_count);
     // The sort outputs are dead code in the sort-free variant and the 64-bit extremes in the
-    // sort variant (statically present): alias them to buffers the pass declares.
+    // sort variant (statically present).
+    let mut binds = vec![
+        Bind::reads(BINDING_FRAME, frame),
+        Bind::reads(BINDING_SEGMENTS, segments),
+        Bind::reads(BINDING_HPR_FRAME, state),
+        Bind::unused(BINDING_HPR_MAX),
+        Bind::writes(BINDING_HPR_EMPTY, occupied),
+        Bind::unused(BINDING_HPR_KEYS),
+        Bind::unused(BINDING_HPR_VALUES),
+    ];
     let (keys, values) = if settings.sort {
-        (
-            g.buffer("hpr.keys", n.max(1) * 4, usage),
-            g.buffer("hpr.values", n.max(1) * 8, usage),
-        )
+        let keys = g.buffer("hpr.keys", n.max(1) * 4, usage);
+        let values = g.buffer("hpr.values", n.max(1) * 8, usage);
+        binds[5] = Bind::writes(BINDING_HPR_KEYS, keys);
+        binds[6] = Bind::updates(BINDING_HPR_VALUES, values);
+        (keys, values)
     } else {
+        binds[3] = Bind::updates(BINDING_HPR_MAX, max64);
         (occupied, max64)
     };
-    {
-        let push = push.clone();
-        let (gx, gy) = groups(n);
-        let extremes = if settings.sort { values } else { max64 };
-        let mut pass = g
-            .pass("hpr.sector")
-            .buffer(frame, Access::StorageRead(c))
-            .buffer(segments, Access::StorageRead(c))
-            .buffer(state, Access::StorageRead(c))
-            .buffer(occupied, Access::StorageWrite(c));
-        pass = if settings.sort {
-            pass.buffer(keys, Access::StorageWrite(c))
-                .buffer(values, Access::StorageReadWrite(c))
-        } else {
-            pass.buffer(max64, Access::StorageReadWrite(c))
-        };
-        pass.record(move |ctx| {
-            ctx.bind(
-                &sector,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    Descriptor::Buffer(BINDING_HPR_MAX, extremes),
-                    Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
-                    Descriptor::Buffer(BINDING_HPR_KEYS, keys),
-                    Descriptor::Buffer(BINDING_HPR_VALUES, values),
-                ],
-            );
-            ctx.push(&sector, &push);
-            ctx.dispatch(gx, gy, 1);
-        });
-    }
+    let sector = pipeline(ctx, "hpr/sector.comp", &binds, &[(HPR_SPEC_MODE, mode)])?;
+    add_pass(
+        g,
+        "hpr.sector",
+        sector,
+        binds,
+        Some(push.clone()),
+        Launch::Groups(groups(n)),
+    );
     if settings.sort {
         // Sector ids run to k_max (the sentinel of points at the eye).
         let key_bits = (32 - (k_max as u32).leading_zeros()).max(1);
@@ -400,20 +359,30 @@ pub fn add(
         );
     }
 
-    // Propagation.
+    // Propagation: a pass gathering into `dst` from the 64-bit extremes (`src` None) or from
+    // `src`; the adaptive round's change flag is a store in every variant.
+    let gather_binds = |src: Option<BufferId>, dst: BufferId| {
+        vec![
+            Bind::reads(BINDING_FRAME, frame),
+            Bind::reads(BINDING_SEGMENTS, segments),
+            Bind::updates(BINDING_HPR_FRAME, state),
+            match src {
+                None => Bind::reads(BINDING_HPR_MAX, max64),
+                Some(_) => Bind::unused(BINDING_HPR_MAX),
+            },
+            match src {
+                None => Bind::unused(BINDING_HPR_SRC),
+                Some(src) => Bind::reads(BINDING_HPR_SRC, src),
+            },
+            Bind::writes(BINDING_HPR_DST, dst),
+            Bind::reads(BINDING_HPR_EMPTY, occupied),
+        ]
+    };
     let propagate = |reach: u32, from_max: bool, adaptive: bool| {
         pipeline(
             ctx,
             "hpr/propagate.comp",
-            &[
-                BINDING_FRAME,
-                BINDING_SEGMENTS,
-                BINDING_HPR_FRAME,
-                BINDING_HPR_MAX,
-                BINDING_HPR_SRC,
-                BINDING_HPR_DST,
-                BINDING_HPR_EMPTY,
-            ],
+            &gather_binds(None, ping),
             &[
                 (HPR_SPEC_REACH, reach),
                 (HPR_SPEC_FROM_MAX, u32::from(from_max)),
@@ -421,53 +390,20 @@ pub fn add(
             ],
         )
     };
-    let sector_groups = groups(k_max);
-    // A pass gathering into `dst` from the 64-bit extremes (`src` None) or from `src`.
+    let sectors = Launch::Groups(groups(k_max));
     let add_gather = |g: &mut GraphBuilder,
                       name: &str,
                       pipeline: Arc<Pipeline>,
                       src: Option<BufferId>,
                       dst: BufferId,
                       indirect: bool| {
-        let push = push.clone();
-        let mut pass = g
-            .pass(name)
-            .buffer(frame, Access::StorageRead(c))
-            .buffer(segments, Access::StorageRead(c))
-            .buffer(occupied, Access::StorageRead(c))
-            .buffer(dst, Access::StorageWrite(c));
-        pass = match src {
-            Some(src) => pass.buffer(src, Access::StorageRead(c)),
-            None => pass.buffer(max64, Access::StorageRead(c)),
+        let launch = if indirect {
+            Launch::Indirect(state)
+        } else {
+            sectors
         };
-        // The adaptive round's change flag is a store in every variant.
-        pass = pass.buffer(state, Access::StorageReadWrite(c));
-        if indirect {
-            pass = pass.buffer_range(state, dispatch_range(), Access::IndirectRead);
-        }
-        // Unused inputs of a variant alias a buffer the pass declares.
-        let source = src.unwrap_or(dst);
-        let extremes = if src.is_some() { source } else { max64 };
-        pass.record(move |ctx| {
-            ctx.bind(
-                &pipeline,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    Descriptor::Buffer(BINDING_HPR_MAX, extremes),
-                    Descriptor::Buffer(BINDING_HPR_SRC, source),
-                    Descriptor::Buffer(BINDING_HPR_DST, dst),
-                    Descriptor::Buffer(BINDING_HPR_EMPTY, occupied),
-                ],
-            );
-            ctx.push(&pipeline, &push);
-            if indirect {
-                ctx.dispatch_indirect(state, dispatch_range().offset);
-            } else {
-                ctx.dispatch(sector_groups.0, sector_groups.1, 1);
-            }
-        });
+        let binds = gather_binds(src, dst);
+        add_pass(g, name, pipeline, binds, Some(push.clone()), launch);
     };
     let result = match settings.propagation {
         Propagation::Fixed(m) => {
@@ -491,7 +427,8 @@ pub fn add(
                 false,
             );
             let round = propagate(1, false, true)?;
-            let advance = pipeline(ctx, "hpr/advance.comp", &[BINDING_HPR_FRAME], &[])?;
+            let advance_binds = vec![Bind::updates(BINDING_HPR_FRAME, state)];
+            let advance = pipeline(ctx, "hpr/advance.comp", &advance_binds, &[])?;
             let pong = g.buffer("hpr.extremes.b", k_max * 4, usage);
             let (mut src, mut dst) = (ping, pong);
             for r in 0..max_rounds.max(1) {
@@ -503,13 +440,8 @@ pub fn add(
                     dst,
                     true,
                 );
-                let advance = advance.clone();
-                g.pass(&format!("hpr.advance.{r}"))
-                    .buffer(state, Access::StorageReadWrite(c))
-                    .record(move |ctx| {
-                        ctx.bind(&advance, &[Descriptor::Buffer(BINDING_HPR_FRAME, state)]);
-                        ctx.dispatch(1, 1, 1);
-                    });
+                let (name, binds) = (format!("hpr.advance.{r}"), advance_binds.clone());
+                add_pass(g, &name, advance.clone(), binds, None, one);
                 std::mem::swap(&mut src, &mut dst);
             }
             src
@@ -524,27 +456,13 @@ pub fn add(
             hidden,
         });
     }
-    let visible = pipeline(
-        ctx,
-        "hpr/visible.comp",
-        &[BINDING_HPR_FRAME, BINDING_HPR_SRC, BINDING_HPR_MASK],
-        &[],
-    )?;
-    g.pass("hpr.visible")
-        .buffer(state, Access::StorageReadWrite(c))
-        .buffer(result, Access::StorageRead(c))
-        .buffer(hidden, Access::StorageReadWrite(c))
-        .record(move |ctx| {
-            ctx.bind(
-                &visible,
-                &[
-                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    Descriptor::Buffer(BINDING_HPR_SRC, result),
-                    Descriptor::Buffer(BINDING_HPR_MASK, hidden),
-                ],
-            );
-            ctx.dispatch(sector_groups.0, sector_groups.1, 1);
-        });
+    let binds = vec![
+        Bind::updates(BINDING_HPR_FRAME, state),
+        Bind::reads(BINDING_HPR_SRC, result),
+        Bind::updates(BINDING_HPR_MASK, hidden),
+    ];
+    let visible = pipeline(ctx, "hpr/visible.comp", &binds, &[])?;
+    add_pass(g, "hpr.visible", visible, binds, None, sectors);
     Ok(Hpr {
         state,
         extremes: Some(result),
@@ -575,93 +493,41 @@ fn add_complete(
     let cells: u64 = (0..HPR_COMPLETE_LEVELS).map(|l| (side >> l).pow(2)).sum();
     let nearest = g.buffer("hpr.complete", cells * 8, vk::BufferUsageFlags::empty());
     g.fill_buffer("hpr.complete.clear", nearest, BufferRange::WHOLE, u32::MAX);
-    let c = Stages::Compute;
     let push = bytemuck::bytes_of(params).to_vec();
-    let points = groups(u64::from(params.point_count));
-    let extremes = pipeline(
-        ctx,
-        "hpr/complete_extremes.comp",
-        &[
-            BINDING_FRAME,
-            BINDING_SEGMENTS,
-            BINDING_HPR_FRAME,
-            BINDING_HPR_COMPLETE,
-        ],
-        &[],
-    )?;
-    {
-        let push = push.clone();
-        g.pass("hpr.complete.nearest")
-            .buffer(frame, Access::StorageRead(c))
-            .buffer(segments, Access::StorageRead(c))
-            .buffer(state, Access::StorageRead(c))
-            .buffer(nearest, Access::StorageReadWrite(c))
-            .record(move |ctx| {
-                ctx.bind(
-                    &extremes,
-                    &[
-                        Descriptor::Buffer(BINDING_FRAME, frame),
-                        Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                        Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                        Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest),
-                    ],
-                );
-                ctx.push(&extremes, &push);
-                ctx.dispatch(points.0, points.1, 1);
-            });
-    }
+    let points = Launch::Groups(groups(u64::from(params.point_count)));
+    let binds = vec![
+        Bind::reads(BINDING_FRAME, frame),
+        Bind::reads(BINDING_SEGMENTS, segments),
+        Bind::reads(BINDING_HPR_FRAME, state),
+        Bind::updates(BINDING_HPR_COMPLETE, nearest),
+    ];
+    let extremes = pipeline(ctx, "hpr/complete_extremes.comp", &binds, &[])?;
+    let name = "hpr.complete.nearest";
+    add_pass(g, name, extremes, binds, Some(push.clone()), points);
     for level in 1..HPR_COMPLETE_LEVELS {
-        let reduce = pipeline(
-            ctx,
-            "hpr/complete_reduce.comp",
-            &[BINDING_HPR_COMPLETE],
-            &[(HPR_SPEC_MODE, level)],
-        )?;
-        let push = push.clone();
-        let (gx, gy) = groups((side >> level).pow(2));
-        g.pass(&format!("hpr.complete.reduce.{level}"))
-            .buffer(nearest, Access::StorageReadWrite(c))
-            .record(move |ctx| {
-                ctx.bind(
-                    &reduce,
-                    &[Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest)],
-                );
-                ctx.push(&reduce, &push);
-                ctx.dispatch(gx, gy, 1);
-            });
+        let binds = vec![Bind::updates(BINDING_HPR_COMPLETE, nearest)];
+        let spec = [(HPR_SPEC_MODE, level)];
+        let reduce = pipeline(ctx, "hpr/complete_reduce.comp", &binds, &spec)?;
+        let launch = Launch::Groups(groups((side >> level).pow(2)));
+        let name = format!("hpr.complete.reduce.{level}");
+        add_pass(g, &name, reduce, binds, Some(push.clone()), launch);
     }
-    let classify = pipeline(
-        ctx,
-        "hpr/complete_classify.comp",
-        &[
-            BINDING_FRAME,
-            BINDING_SEGMENTS,
-            BINDING_HPR_FRAME,
-            BINDING_HPR_COMPLETE,
-            BINDING_HPR_MASK,
-        ],
-        &[],
-    )?;
-    g.pass("hpr.complete.classify")
-        .buffer(frame, Access::StorageRead(c))
-        .buffer(segments, Access::StorageRead(c))
-        .buffer(state, Access::StorageReadWrite(c))
-        .buffer(nearest, Access::StorageRead(c))
-        .buffer(hidden, Access::StorageReadWrite(c))
-        .record(move |ctx| {
-            ctx.bind(
-                &classify,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    Descriptor::Buffer(BINDING_HPR_COMPLETE, nearest),
-                    Descriptor::Buffer(BINDING_HPR_MASK, hidden),
-                ],
-            );
-            ctx.push(&classify, &push);
-            ctx.dispatch(points.0, points.1, 1);
-        });
+    let binds = vec![
+        Bind::reads(BINDING_FRAME, frame),
+        Bind::reads(BINDING_SEGMENTS, segments),
+        Bind::updates(BINDING_HPR_FRAME, state),
+        Bind::reads(BINDING_HPR_COMPLETE, nearest),
+        Bind::updates(BINDING_HPR_MASK, hidden),
+    ];
+    let classify = pipeline(ctx, "hpr/complete_classify.comp", &binds, &[])?;
+    add_pass(
+        g,
+        "hpr.complete.classify",
+        classify,
+        binds,
+        Some(push),
+        points,
+    );
     Ok(())
 }
 
@@ -695,45 +561,20 @@ pub fn add_triangulation(
         sqrt_k_max: settings.sqrt_k_max,
         ..settings.params
     };
-    let triangulate = pipeline(
-        ctx,
-        "hpr/triangulate.comp",
-        &[
-            BINDING_FRAME,
-            BINDING_SEGMENTS,
-            BINDING_HPR_FRAME,
-            BINDING_HPR_SRC,
-            BINDING_HPR_TRIANGLES,
-        ],
-        &[],
-    )?;
-    let (frame, segments) = (inputs.frame, inputs.segments);
-    let state = hpr.state;
     let extremes = hpr
         .extremes
         .context("the reconstruction triangulates the sector extremes, which were skipped")?;
-    let (gx, gy) = groups(blocks);
-    let c = Stages::Compute;
-    g.pass("hpr.triangulate")
-        .buffer(frame, Access::StorageRead(c))
-        .buffer(segments, Access::StorageRead(c))
-        .buffer(state, Access::StorageReadWrite(c))
-        .buffer(extremes, Access::StorageRead(c))
-        .buffer(indices, Access::StorageWrite(c))
-        .record(move |ctx| {
-            ctx.bind(
-                &triangulate,
-                &[
-                    Descriptor::Buffer(BINDING_FRAME, frame),
-                    Descriptor::Buffer(BINDING_SEGMENTS, segments),
-                    Descriptor::Buffer(BINDING_HPR_FRAME, state),
-                    Descriptor::Buffer(BINDING_HPR_SRC, extremes),
-                    Descriptor::Buffer(BINDING_HPR_TRIANGLES, indices),
-                ],
-            );
-            ctx.push(&triangulate, bytemuck::bytes_of(&params));
-            ctx.dispatch(gx, gy, 1);
-        });
+    let binds = vec![
+        Bind::reads(BINDING_FRAME, inputs.frame),
+        Bind::reads(BINDING_SEGMENTS, inputs.segments),
+        Bind::updates(BINDING_HPR_FRAME, hpr.state),
+        Bind::reads(BINDING_HPR_SRC, extremes),
+        Bind::writes(BINDING_HPR_TRIANGLES, indices),
+    ];
+    let triangulate = pipeline(ctx, "hpr/triangulate.comp", &binds, &[])?;
+    let push = bytemuck::bytes_of(&params).to_vec();
+    let launch = Launch::Groups(groups(blocks));
+    add_pass(g, "hpr.triangulate", triangulate, binds, Some(push), launch);
     Ok(indices)
 }
 
