@@ -1,6 +1,6 @@
-//! Imports point down: a module of `src/` uses only modules of its own layer or the layers
-//! below it (`docs/architecture.md`, "Layers"). Every top-level module has a layer here, so a
-//! new one fails until it is placed.
+//! Imports point down: a module of `src/` uses only modules of its own layer or of lower ones
+//! (the list opening `docs/architecture.md`). Every top-level module has a layer here, so a new
+//! one fails until it is placed.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};

@@ -196,7 +196,7 @@ fn brightness(img: &RgbImage) -> u64 {
 
 #[test]
 fn a_lidar_tour_switches_color_by_and_eye_dome_lighting_with_the_hud_shown() {
-    // The tour: a LAS file, the HUD, color-by and EDL switched by keys, screenshots.
+    // A LiDAR tour: a LAS file, the HUD, color-by and EDL switched by keys, screenshots.
     let dir = tmp_dir("lidar");
     std::fs::write(
         dir.join("tour.txt"),
