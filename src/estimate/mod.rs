@@ -15,7 +15,7 @@
 //!   turns distances into radii, with the same floor, after searching the points the GPU left
 //!   unresolved (outliers whose 5×5×5 block holds fewer than k verified neighbours) on the CPU.
 //!
-//! Deviations from the CPU path, measured by `tests/estimate.rs`: single precision (the CPU
+//! Deviations from the CPU path, measured by `tests/suite/estimate.rs`: single precision (the CPU
 //! accumulates the covariance in double), a neighbourhood counts as flat only with spread in
 //! a second direction above 1e-6 of the first (1e-12 on the CPU), and ties in distance go to
 //! the lower GPU-sorted index (the CPU's sort differs), so equidistant k-th neighbours can

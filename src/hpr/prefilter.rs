@@ -14,7 +14,7 @@
 //! A point is left out only when the orientation tests that put it inside the tetrahedron
 //! clear their rounding error bounds by [`TOLERANCE`] (see [`strictly_inside_cone`]): the decision
 //! is never within rounding of the hull's own, so the hull and its vertices are those of the
-//! whole input (`tests/hpr_exact.rs` compares both on scans, shells and both radius rules).
+//! whole input (`tests/suite/hpr_exact.rs` compares both on scans, shells and both radius rules).
 
 use glam::DVec3;
 use rayon::prelude::*;

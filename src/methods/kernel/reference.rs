@@ -2,7 +2,7 @@
 //! `glsl/pyramid/kernel_analysis.comp`, `kernel_interpolate.comp` and `kernel_resolve.comp`
 //! compute, with the half-precision storage of groups A and C (`reference::Level::set`).
 //! Device-free: the unit tests below check it against hand-built pyramids, and
-//! `tests/kernel.rs` checks the GPU passes against it.
+//! `tests/suite/kernel.rs` checks the GPU passes against it.
 
 use glam::{IVec2, Vec2, Vec3};
 

@@ -1,7 +1,7 @@
 //! A CPU model of the pyramid's analysis and synthesis (000 4.2.2), texel for texel what
 //! `glsl/pyramid/analysis.comp` and `synthesis.comp` compute, including the half-precision
 //! storage of groups A and C. Device-free: the unit tests below check it against hand-computed
-//! pyramids, and `tests/pyramid.rs` checks the GPU passes against it.
+//! pyramids, and `tests/suite/pyramid.rs` checks the GPU passes against it.
 
 use glam::{IVec2, Vec2, Vec3, Vec4};
 use half::f16;

@@ -1,7 +1,7 @@
 //! Malformed inputs fail with an error that names the file, the place and what was expected;
 //! none of them panics or allocates according to an absurd header count.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -2,7 +2,7 @@
 //! `compute` reproduces the hardware point pipeline's `points:size=1` image, stream segments
 //! and quantized positions leave it unchanged, and `compute-hq` blends the front surface.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

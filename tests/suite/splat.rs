@@ -3,7 +3,7 @@
 //! and the blending of the three-pass shadings. Lavapipe, validation and synchronization
 //! validation on.
 
-mod common;
+use crate::common;
 
 use glam::Vec3;
 use surfel::eval::{metrics, Frame};

@@ -4,7 +4,7 @@
 //! writes, fill/copy/update buffer passes, a mesh-shader draw, imported initial states, the
 //! usage check of imported resources and the declared-access check of `PassContext`.
 
-mod common;
+use crate::common;
 
 use std::cell::Cell;
 use std::rc::Rc;

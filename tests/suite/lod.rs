@@ -3,7 +3,7 @@
 //! CPU reference (`ObjectTexture::select`) chooses and counts them per level; the methods
 //! render, and the renderer reads their counts per level back.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -1,6 +1,6 @@
 //! The validation layers are really on in GPU tests: a deliberate misuse is counted.
 
-mod common;
+use crate::common;
 
 use ash::vk;
 

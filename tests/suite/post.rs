@@ -2,7 +2,7 @@
 //! eye-dome lighting darkens a depth step by exactly the published formula and leaves flat
 //! regions alone, with every method; the background fills exactly the uncovered pixels.
 
-mod common;
+use crate::common;
 
 use glam::Vec3;
 use surfel::eval::Frame;

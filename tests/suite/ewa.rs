@@ -3,7 +3,7 @@
 //! mesh, and a cloud without faces or normals (normals and radii estimated from its k nearest
 //! neighbours) close to the mesh it was sampled from.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! than the scan workgroup handles at once, and the per-key maximum of sorted data with
 //! segments crossing tiles.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

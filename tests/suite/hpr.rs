@@ -2,7 +2,7 @@
 //! (`hpr::approx`), the complete visible set on the GPU against exact HPR and its CPU
 //! reference (`hpr::complete`), and the `hpr` and `hpr-mesh` methods.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -3,7 +3,7 @@
 //! normals within a small angle (only ties between equally distant neighbours and the
 //! closed-form eigen solve may differ), on a scanned mesh, a dense mesh and a LiDAR tile.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -3,7 +3,7 @@
 //! (`methods::kernel::reference`) on random synthetic level-0 images for each kernel
 //! size, and a sparse plane reconstructed without holes by `kernel3`, `kernel5` and `kernel7`.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 
@@ -21,7 +21,7 @@ use surfel::scene::Cloud;
 
 use common::{assert_levels_match, covered, eroded, render_view, top_view};
 
-/// (proj[0][0] width, proj[1][1] height) of the synthetic frames (see tests/pyramid.rs).
+/// (proj[0][0] width, proj[1][1] height) of the synthetic frames (see tests/suite/pyramid.rs).
 const SCALE: Vec2 = Vec2::new(40.0, -40.0);
 
 fn buffer_with(ctx: &Arc<surfel::gpu::Context>, name: &str, bytes: &[u8]) -> Arc<Buffer> {

@@ -3,7 +3,7 @@
 //! normals) or is refused with a message naming the problem; no validation error, no device
 //! loss. Every method renders the same frame twice bit for bit.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -5,7 +5,7 @@
 //! LiDAR tile; and a cloud of outliers, duplicates and non-finite points that the GPU leaves
 //! partly to the CPU's exact search.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -1,6 +1,6 @@
 //! Headless rendering on lavapipe with validation: coverage, depth and normals of known scenes.
 
-mod common;
+use crate::common;
 
 use common::render;
 

@@ -1,7 +1,7 @@
 //! `surfel bench --quick` on lavapipe: results, charts and report for `points` and the `mesh`
 //! ground truth, with validation on.
 
-mod common;
+use crate::common;
 
 use surfel::eval::bench;
 use surfel::eval::config::{quick_sweep_dir, BenchConfig, SweepOrigin};

@@ -1,7 +1,7 @@
 //! Color by attribute and true colors: exact colors read back from frames rendered on lavapipe
 //! with validation (and synchronization validation) on.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;

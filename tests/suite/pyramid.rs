@@ -3,7 +3,7 @@
 //! on synthetic level-0 images in both layouts; sparse planes reconstructed without holes; a
 //! front surface occluding a back one; the layouts and projections agreeing.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -7,7 +7,7 @@
 //! rules; and the complete approximate visible set (`hpr::complete`), which must hold every
 //! point exact HPR finds.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 
