@@ -36,7 +36,7 @@ pub struct HprArgs {
     /// Sectors k of the approximation (rounded to a square √k × √k grid; `--hull`: its k);
     /// by default one sector per pixel of the bounding sphere's projection in the `--size`
     /// view (`--hull`: 65,536).
-    #[arg(long, alias = "k")]
+    #[arg(long)]
     pub sectors: Option<u64>,
     /// Fixed propagation over an m × m window (odd); adaptive propagation without it.
     #[arg(long)]

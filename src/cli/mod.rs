@@ -257,7 +257,27 @@ fn context(validation: bool) -> Result<Arc<Context>> {
 mod tests {
     use super::*;
     use crate::scene::Camera;
+    use clap::CommandFactory;
     use glam::Vec3;
+
+    #[test]
+    fn every_subcommand_s_flags_are_distinct() {
+        // No two arguments of one subcommand share a long name or alias (`hpr` takes both
+        // `--k`, the neighbours of the estimate, and `--sectors`).
+        for sub in Cli::command().get_subcommands() {
+            let mut seen = std::collections::BTreeSet::new();
+            for arg in sub.get_arguments() {
+                let aliases = arg.get_all_aliases().unwrap_or_default();
+                for name in arg.get_long().into_iter().chain(aliases) {
+                    assert!(
+                        seen.insert(name),
+                        "surfel {}: --{name} names two arguments",
+                        sub.get_name()
+                    );
+                }
+            }
+        }
+    }
 
     fn camera_args(orbit: Option<&str>, up: Option<Up>) -> CameraArgs {
         CameraArgs {

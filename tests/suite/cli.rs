@@ -1148,7 +1148,7 @@ fn hpr_on_the_gpu_agrees_with_the_cpu_and_scores_against_the_mesh() {
     assert!((5_000..60_000).contains(&covered), "{covered}");
     std::fs::remove_file(&png).unwrap();
     // An explicit k and a fixed gather.
-    let fixed = run(&["--k", "65536", "--m", "3", "--gpu"]);
+    let fixed = run(&["--sectors", "65536", "--m", "3", "--gpu"]);
     assert_eq!(f(&fixed, &["sqrt_k"]), 256.0);
 }
 
