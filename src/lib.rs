@@ -17,5 +17,6 @@ pub mod post;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod stream;
 pub mod streams;
 pub mod upload;

@@ -1,7 +1,8 @@
-//! The command line: `surfel render | view | info | sample | convert-lines | hpr | hpr-study |
+//! The command line: `surfel render | view | info | sample | convert | convert-lines | hpr | hpr-study |
 //! bench | report`, one module per subcommand.
 
 mod bench;
+mod convert;
 mod convert_lines;
 mod hpr;
 mod info;
@@ -23,6 +24,7 @@ use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Cloud, Light, LoadOptions};
 pub use bench::{BenchArgs, ReportArgs};
+pub use convert::ConvertArgs;
 pub use convert_lines::ConvertLinesArgs;
 pub use hpr::{HprArgs, HprStudyArgs};
 pub use info::InfoArgs;
@@ -48,6 +50,8 @@ pub enum Command {
     Info(InfoArgs),
     /// Sample a mesh into a point cloud (area-weighted, face normals, radii from density).
     Sample(SampleArgs),
+    /// Convert FILE to a COPC file (octree of LAZ chunks) for streaming.
+    Convert(ConvertArgs),
     /// Convert a mesh's thin parts (leaves, branches) into ribbons and tubes (thesis 000 §5.1).
     ConvertLines(ConvertLinesArgs),
     /// Hidden point removal: the points of FILE visible from a viewpoint (003).
@@ -173,6 +177,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::View(a) => view::view(a),
         Command::Info(a) => info::info(a),
         Command::Sample(a) => sample::sample(a),
+        Command::Convert(a) => convert::convert(a),
         Command::ConvertLines(a) => convert_lines::convert_lines(a),
         Command::Hpr(a) => hpr::hpr(a),
         Command::HprStudy(a) => hpr::hpr_study(a),

@@ -163,6 +163,42 @@ impl Cloud {
         out
     }
 
+    /// Moves scalar fields that hold geometry into place: three normal components (named
+    /// `NormalX`/`nx`/`normal_x` and so on, in any case) become `normals`, a field named
+    /// `radius` becomes `radii`. LAS and COPC files carry them as extra bytes.
+    pub fn adopt_geometry_fields(&mut self) {
+        let find = |scalars: &[Scalar], names: &[&str]| {
+            scalars.iter().position(|s| {
+                let lower = s.name.to_ascii_lowercase();
+                names.contains(&lower.as_str())
+            })
+        };
+        let axes = [
+            ["normalx", "normal_x", "nx"],
+            ["normaly", "normal_y", "ny"],
+            ["normalz", "normal_z", "nz"],
+        ];
+        if self.normals.is_none() && axes.iter().all(|a| find(&self.scalars, a).is_some()) {
+            let mut take = |names: &[&str]| {
+                let at = find(&self.scalars, names).expect("checked above");
+                self.scalars.remove(at).values
+            };
+            let [x, y, z] = axes.map(|a| take(&a));
+            self.normals = Some(
+                x.iter()
+                    .zip(&y)
+                    .zip(&z)
+                    .map(|((&x, &y), &z)| Vec3::new(x, y, z).normalize_or_zero())
+                    .collect(),
+            );
+        }
+        if self.radii.is_none() {
+            if let Some(at) = find(&self.scalars, &["radius"]) {
+                self.radii = Some(self.scalars.remove(at).values);
+            }
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.positions.len()
     }

@@ -183,6 +183,9 @@ fn header_error(file: &str, err: las::Error, size: usize) -> LoadError {
     }
 }
 
+/// Records the `las` crate decodes per call (an error names the first of them).
+const CRATE_BLOCK_POINTS: u64 = 1024;
+
 /// The message for point record `index` of `declared` that a file of `size` bytes cuts short.
 fn truncated(index: u64, declared: u64, size: usize) -> String {
     format!(
@@ -313,9 +316,16 @@ impl Decode {
 /// A field described by the extra-bytes VLR: its name and where it is in the bytes that follow
 /// a record's standard fields.
 #[derive(Clone, Debug)]
-struct ExtraField {
-    name: String,
+pub(crate) struct ExtraField {
+    pub(crate) name: String,
     decode: Decode,
+}
+
+impl ExtraField {
+    /// The field's value in `extra`, the bytes after a record's standard fields.
+    pub(crate) fn read(&self, extra: &[u8]) -> f32 {
+        self.decode.read(extra, 0.0)
+    }
 }
 
 /// Size of one extra-bytes descriptor.
@@ -324,7 +334,7 @@ const DESCRIPTOR_BYTES: usize = 192;
 /// The fields the extra-bytes VLRs of `header` describe. Fails on a VLR that is not a whole
 /// number of descriptors, an unknown data type, or fields that need more bytes than the point
 /// records have after their standard fields.
-fn extra_fields(file: &str, header: &las::Header) -> Result<Vec<ExtraField>, LoadError> {
+pub(crate) fn extra_fields(file: &str, header: &las::Header) -> Result<Vec<ExtraField>, LoadError> {
     let format = header.point_format();
     let available = usize::from(format.extra_bytes);
     let mut fields = Vec::new();
@@ -731,6 +741,7 @@ fn finish(
         },
         ..Cloud::default()
     };
+    cloud.adopt_geometry_fields();
     cloud.retain_finite();
     cloud
 }
@@ -1077,39 +1088,53 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .collect();
     let mut index = 0u64;
     let mut time_origin = None;
-    while let Some(point) = guard::third_party(|| reader.read_point())
-        .map_err(|e| LoadError::whole(file, format!("point record {index} of {declared}: {e}")))?
-        .map_err(|e| {
-            let message = match e {
-                _ if truncated_file => truncated(index, declared, size),
-                las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => {
-                    truncated(index, declared, size)
-                }
-                e => format!("point record {index} of {declared}: {e}"),
-            };
-            LoadError::whole(file, message)
-        })?
-    {
-        world.push(DVec3::new(point.x, point.y, point.z));
-        if let Some(c) = point.color {
-            rgb16.push([c.red, c.green, c.blue]);
+    let mut data = las::PointDataBuilder::new()
+        .for_header(reader.header())
+        .build();
+    loop {
+        // Records are decoded a block at a time; an error names the block's first record.
+        let read = guard::third_party(|| reader.fill_points(CRATE_BLOCK_POINTS, &mut data))
+            .map_err(|e| {
+                LoadError::whole(file, format!("point record {index} of {declared}: {e}"))
+            })?
+            .map_err(|e| {
+                let message = match e {
+                    _ if truncated_file => truncated(index, declared, size),
+                    las::Error::Io(e) if e.kind() == ErrorKind::UnexpectedEof => {
+                        truncated(index, declared, size)
+                    }
+                    e => format!("point record {index} of {declared}: {e}"),
+                };
+                LoadError::whole(file, message)
+            })?;
+        if read == 0 {
+            break;
         }
-        let time = point.gps_time.unwrap_or(0.0);
-        let origin = *time_origin.get_or_insert(time);
-        let standard = standard_values(&point);
-        let optional = [
-            format.has_gps_time.then_some((time - origin) as f32),
-            point.nir.map(f32::from),
-        ];
-        let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes, 0.0));
-        let values = standard
-            .into_iter()
-            .chain(optional.into_iter().flatten())
-            .chain(extras);
-        for (column, value) in columns.iter_mut().zip(values) {
-            column.push(value);
+        for point in data.points() {
+            let point = point.map_err(|e| {
+                LoadError::whole(file, format!("point record {index} of {declared}: {e}"))
+            })?;
+            world.push(DVec3::new(point.x, point.y, point.z));
+            if let Some(c) = point.color {
+                rgb16.push([c.red, c.green, c.blue]);
+            }
+            let time = point.gps_time.unwrap_or(0.0);
+            let origin = *time_origin.get_or_insert(time);
+            let standard = standard_values(&point);
+            let optional = [
+                format.has_gps_time.then_some((time - origin) as f32),
+                point.nir.map(f32::from),
+            ];
+            let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes, 0.0));
+            let values = standard
+                .into_iter()
+                .chain(optional.into_iter().flatten())
+                .chain(extras);
+            for (column, value) in columns.iter_mut().zip(values) {
+                column.push(value);
+            }
+            index += 1;
         }
-        index += 1;
     }
     let bounds = world.iter().fold(Bounds::EMPTY, |mut b, p| {
         b.add(*p);

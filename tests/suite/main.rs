@@ -31,5 +31,6 @@ mod pyramid;
 mod render_methods;
 mod robustness;
 mod splat;
+mod stream;
 mod validation;
 mod viewer;

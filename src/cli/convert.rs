@@ -1,0 +1,47 @@
+//! `surfel convert`: any input written as a COPC file for streaming.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use crate::scene::ReadOptions;
+use crate::stream::convert::{self, ConvertOptions, DEFAULT_NODE_POINTS};
+
+#[derive(Args, Debug)]
+pub struct ConvertArgs {
+    /// Input cloud (ply, las, laz, copc.laz, e57, pcd, obj, xyz, txt, pts, csv).
+    pub input: PathBuf,
+    /// Output COPC file (name ending in .copc.laz).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Target points per octree node (one LAZ chunk each).
+    #[arg(long, default_value_t = DEFAULT_NODE_POINTS, value_name = "N")]
+    pub node_points: u32,
+    /// Text inputs without a row of column names: name the columns (see `surfel render`).
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub columns: Option<Vec<String>>,
+}
+
+pub(super) fn convert(a: ConvertArgs) -> Result<()> {
+    let options = ConvertOptions {
+        node_points: a.node_points,
+        read: ReadOptions {
+            budget: None,
+            columns: a.columns,
+        },
+    };
+    let stats = convert::convert(&a.input, &a.out, &options)?;
+    let rate = |s: f64| stats.points as f64 / s.max(1e-9) / 1e6;
+    eprintln!(
+        "{} points -> {} ({:.1} MB): loaded in {:.2} s ({:.2} M points/s), written in {:.2} s ({:.2} M points/s)",
+        stats.points,
+        a.out.display(),
+        stats.bytes as f64 / 1e6,
+        stats.load_seconds,
+        rate(stats.load_seconds),
+        stats.write_seconds,
+        rate(stats.write_seconds),
+    );
+    Ok(())
+}

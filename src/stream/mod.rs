@@ -1,0 +1,5 @@
+//! Clouds larger than memory: conversion to COPC and view-dependent streaming of a COPC
+//! octree from a local file or an HTTP server.
+
+pub mod convert;
+pub mod source;
