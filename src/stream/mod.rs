@@ -2,4 +2,5 @@
 //! octree from a local file or an HTTP server.
 
 pub mod convert;
+pub mod select;
 pub mod source;

@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
-use surfel::scene::copc::{CopcFile, Entry, Key};
+use surfel::scene::copc::{CopcFile, Entry, Info, Key, Node};
 use surfel::scene::{self, Cloud, Scalar};
 use surfel::stream::convert;
+use surfel::stream::select::{select, select_brute_force, Budget, Hierarchy, SelectView};
 use surfel::stream::source::FileSource;
 
 fn scratch(name: &str) -> PathBuf {
@@ -196,4 +197,132 @@ fn conversion_refuses_what_it_cannot_write() {
     .unwrap_err()
     .to_string();
     assert!(m.contains("ends in .copc.laz"), "{m}");
+}
+
+/// A full octree of `depth` levels over [-8, 8]^3 whose nodes hold pseudo-random point
+/// counts (some empty), with the deepest level's entries behind unread pages.
+fn octree(depth: i32) -> (Hierarchy, Info) {
+    let info = Info {
+        center: DVec3::ZERO,
+        halfsize: 8.0,
+        spacing: 0.5,
+        root: (0, 0),
+        gps_time: (0.0, 0.0),
+    };
+    let mut h = Hierarchy::default();
+    let mut entries = Vec::new();
+    let mut state = 12345u64;
+    for level in 0..depth {
+        let n = 1 << level;
+        for x in 0..n {
+            for y in 0..n {
+                for z in 0..n {
+                    state = state
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let points = (state >> 33) % 30_000;
+                    let key = Key { level, x, y, z };
+                    if level > 0 && points < 3_000 {
+                        continue;
+                    }
+                    entries.push(Entry::Node(Node {
+                        key,
+                        offset: 0,
+                        bytes: 1,
+                        points: points.max(1),
+                        entry_at: 0,
+                    }));
+                }
+            }
+        }
+    }
+    for x in 0..(1 << depth) {
+        entries.push(Entry::Page {
+            key: Key {
+                level: depth,
+                x,
+                y: 1 << (depth - 1),
+                z: 1 << (depth - 1),
+            },
+            offset: 1 + x as u64,
+            bytes: 32,
+        });
+    }
+    assert!(h.add_page(0, entries));
+    (h, info)
+}
+
+fn view(eye: Vec3, target: Vec3, error_px: f32) -> SelectView {
+    let proj = glam::Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 1.5, 0.01);
+    let look = glam::Mat4::look_at_rh(eye, target, Vec3::Z);
+    SelectView {
+        view_proj: proj * look,
+        eye,
+        pixels_per_radian: 540.0 / (30f32.to_radians().tan()),
+        error_px,
+    }
+}
+
+#[test]
+fn node_selection_matches_a_brute_force_reference_within_budget() {
+    let (h, info) = octree(5);
+    let views = [
+        view(Vec3::new(30.0, 0.0, 5.0), Vec3::ZERO, 1.0),
+        view(Vec3::new(2.0, 1.0, 0.5), Vec3::new(-5.0, 0.0, 0.0), 1.0),
+        view(Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 8.0, 0.0), 2.0),
+        view(Vec3::new(-7.0, -7.0, 7.0), Vec3::new(7.0, 7.0, -7.0), 0.5),
+        view(Vec3::new(200.0, 0.0, 0.0), Vec3::ZERO, 1.0),
+    ];
+    let mut sizes = Vec::new();
+    for v in &views {
+        for (points, slots) in [
+            (50_000, 1000),
+            (400_000, 1000),
+            (2_000_000, 60),
+            (u64::MAX, u64::MAX),
+        ] {
+            let budget = Budget { points, slots };
+            let fast = select(&h, &info, DVec3::ZERO, v, budget);
+            let slow = select_brute_force(&h, &info, DVec3::ZERO, v, budget);
+            assert_eq!(fast, slow, "budget {budget:?}");
+            assert!(fast.points <= points && fast.slots <= slots);
+            let sum: u64 = fast.nodes.iter().map(|k| h.nodes[k].points).sum();
+            assert_eq!(sum, fast.points);
+            let chosen: std::collections::HashSet<_> = fast.nodes.iter().collect();
+            for k in &fast.nodes {
+                assert!(
+                    *k == Key::ROOT || chosen.contains(&k.parent()),
+                    "{k} without its parent"
+                );
+            }
+            sizes.push(fast.nodes.len());
+        }
+    }
+    // The views and budgets select differently, and some reach the unread pages.
+    let distinct: std::collections::HashSet<_> = sizes.iter().collect();
+    assert!(distinct.len() > 6, "{sizes:?}");
+    let unbounded = select(
+        &h,
+        &info,
+        DVec3::ZERO,
+        &views[1],
+        Budget {
+            points: u64::MAX,
+            slots: u64::MAX,
+        },
+    );
+    assert!(!unbounded.pages.is_empty());
+    // A far view stops where the spacing projects below the error: the root's spacing of 0.5
+    // at 200 units is 2.3 px, level 1's 1.2 px, level 2's 0.6 px.
+    let far = select(
+        &h,
+        &info,
+        DVec3::ZERO,
+        &views[4],
+        Budget {
+            points: u64::MAX,
+            slots: u64::MAX,
+        },
+    );
+    assert_eq!(far.nodes.iter().map(|k| k.level).max(), Some(2));
 }

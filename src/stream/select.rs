@@ -1,0 +1,264 @@
+//! Which octree nodes a view needs, within a point budget and a memory budget.
+//!
+//! COPC levels are additive: a node holds a subsample of its cube at spacing
+//! `spacing / 2^level`, its children hold the points between. A view therefore draws a set of
+//! nodes closed under parents. The set is grown greedily from the root, as Potree does
+//! (Schütz 2016, §3.3): among the nodes whose parent is chosen, the one with the largest
+//! projected size (`cube half-diagonal / distance to its centre`, in pixels) comes next, while
+//! it fits both budgets; a node's children are candidates only when it is in the view frustum
+//! and its own point spacing projects to more than `error_px` pixels (the screen-space error:
+//! a finer level would add visible detail). The first candidate that does not fit ends the
+//! selection, so a large near node is never skipped for many small far ones.
+//!
+//! [`select`] uses a heap; [`select_brute_force`] rescans every node per step and exists to
+//! check it.
+
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap, HashSet};
+
+use glam::{DVec3, Mat4, Vec3};
+
+use crate::gpu::layout::{GpuBatch, BATCH_POINTS};
+use crate::scene::copc::{Entry, Info, Key, Node};
+use crate::streams::batch_visible;
+
+/// The hierarchy known so far: nodes with points, and pages not read yet.
+#[derive(Clone, Debug, Default)]
+pub struct Hierarchy {
+    pub nodes: HashMap<Key, Node>,
+    /// Keys whose entries (and their subtrees') are in a page not read yet: offset, bytes.
+    pub pages: HashMap<Key, (u64, u64)>,
+    /// Offsets of the pages read (a page referenced twice is refused).
+    read: HashSet<u64>,
+}
+
+impl Hierarchy {
+    /// Adds the entries of the page read at byte `at`; false when that page was read before
+    /// (a cycle in a corrupt hierarchy).
+    pub fn add_page(&mut self, at: u64, entries: Vec<Entry>) -> bool {
+        if !self.read.insert(at) {
+            return false;
+        }
+        for entry in entries {
+            match entry {
+                Entry::Node(n) => {
+                    self.pages.remove(&n.key);
+                    self.nodes.insert(n.key, n);
+                }
+                Entry::Page { key, offset, bytes } => {
+                    if !self.nodes.contains_key(&key) {
+                        self.pages.insert(key, (offset, bytes));
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// Points in all known nodes.
+    pub fn points(&self) -> u64 {
+        self.nodes.values().map(|n| n.points).sum()
+    }
+}
+
+/// The view a selection is made for, in the streamed cloud's local frame (file coordinates
+/// minus the origin).
+#[derive(Clone, Copy, Debug)]
+pub struct SelectView {
+    pub view_proj: Mat4,
+    pub eye: Vec3,
+    /// Pixels per radian at the image centre: `height / (2 tan(fov_y / 2))`.
+    pub pixels_per_radian: f32,
+    /// Screen-space error: a node is refined while its point spacing projects to more pixels.
+    pub error_px: f32,
+}
+
+/// What a selection may take.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Budget {
+    /// Points drawn.
+    pub points: u64,
+    /// Batch slots of the GPU pool (a node takes `ceil(points / BATCH_POINTS)`).
+    pub slots: u64,
+}
+
+/// Batch slots a node of `points` points takes.
+pub fn slots_of(points: u64) -> u64 {
+    points.div_ceil(u64::from(BATCH_POINTS))
+}
+
+/// The nodes a view draws, in the order they were chosen (parents before children, larger
+/// projected size first), with their totals and the unread pages the view reached.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Selection {
+    pub nodes: Vec<Key>,
+    pub points: u64,
+    pub slots: u64,
+    pub pages: Vec<Key>,
+}
+
+/// Geometry of a node for the selection, computed once per node and view.
+struct Measure {
+    /// Projected size (the priority).
+    weight: f64,
+    /// Whether the cube intersects the frustum.
+    visible: bool,
+    /// Whether the node's spacing projects above the error (its children add detail).
+    refine: bool,
+}
+
+fn measure(key: Key, info: &Info, origin: DVec3, view: &SelectView) -> Measure {
+    let (lo, hi) = info.cube(key);
+    let (lo, hi) = ((lo - origin).as_vec3(), (hi - origin).as_vec3());
+    let centre = (lo + hi) * 0.5;
+    let radius = f64::from((hi - lo).length() * 0.5);
+    let distance = f64::from((centre - view.eye).length()).max(radius * 1e-3);
+    let px = f64::from(view.pixels_per_radian);
+    let spacing = info.spacing / f64::from(1u32 << key.level.clamp(0, 31));
+    let cube = GpuBatch {
+        min_x: lo.x,
+        min_y: lo.y,
+        min_z: lo.z,
+        first: 0,
+        max_x: hi.x,
+        max_y: hi.y,
+        max_z: hi.z,
+        count: 0,
+    };
+    Measure {
+        weight: radius / distance * px,
+        visible: batch_visible(view.view_proj, &cube),
+        refine: spacing / distance * px > f64::from(view.error_px),
+    }
+}
+
+/// A candidate in the heap: larger weight first, then the smaller key.
+struct Candidate {
+    weight: f64,
+    key: Key,
+}
+
+impl PartialEq for Candidate {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Candidate {}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Candidate {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.weight
+            .total_cmp(&other.weight)
+            .then_with(|| other.key.cmp(&self.key))
+    }
+}
+
+/// The children of `key` a selection may take next (when `key` is visible and too coarse),
+/// and the unread pages among them.
+fn expand(h: &Hierarchy, key: Key, m: &Measure, pages: &mut Vec<Key>) -> Vec<Key> {
+    if !(m.visible && m.refine) {
+        return Vec::new();
+    }
+    let children = key.children();
+    pages.extend(children.iter().filter(|c| h.pages.contains_key(c)));
+    children
+        .into_iter()
+        .filter(|c| h.nodes.contains_key(c))
+        .collect()
+}
+
+/// The nodes `view` draws from `h` within `budget` (see the module documentation).
+pub fn select(
+    h: &Hierarchy,
+    info: &Info,
+    origin: DVec3,
+    view: &SelectView,
+    budget: Budget,
+) -> Selection {
+    let mut out = Selection::default();
+    let mut heap = BinaryHeap::new();
+    if let Some(root) = h.nodes.get(&Key::ROOT) {
+        heap.push(Candidate {
+            weight: measure(root.key, info, origin, view).weight,
+            key: root.key,
+        });
+    }
+    while let Some(Candidate { key, .. }) = heap.pop() {
+        let node = &h.nodes[&key];
+        let slots = slots_of(node.points);
+        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
+            break;
+        }
+        out.points += node.points;
+        out.slots += slots;
+        out.nodes.push(key);
+        let m = measure(key, info, origin, view);
+        for child in expand(h, key, &m, &mut out.pages) {
+            heap.push(Candidate {
+                weight: measure(child, info, origin, view).weight,
+                key: child,
+            });
+        }
+    }
+    out.pages.sort();
+    out
+}
+
+/// [`select`] by rescanning every known node at each step: the same rule, no heap.
+pub fn select_brute_force(
+    h: &Hierarchy,
+    info: &Info,
+    origin: DVec3,
+    view: &SelectView,
+    budget: Budget,
+) -> Selection {
+    let mut out = Selection::default();
+    let mut chosen = HashSet::new();
+    loop {
+        let best = h
+            .nodes
+            .values()
+            .filter(|n| !chosen.contains(&n.key))
+            .filter(|n| {
+                if n.key == Key::ROOT {
+                    return true;
+                }
+                chosen.contains(&n.key.parent()) && open_parent(&n.key, info, origin, view)
+            })
+            .map(|n| Candidate {
+                weight: measure(n.key, info, origin, view).weight,
+                key: n.key,
+            })
+            .max();
+        let Some(best) = best else { break };
+        let node = &h.nodes[&best.key];
+        let slots = slots_of(node.points);
+        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
+            break;
+        }
+        out.points += node.points;
+        out.slots += slots;
+        out.nodes.push(best.key);
+        chosen.insert(best.key);
+    }
+    out.pages = h
+        .pages
+        .keys()
+        .filter(|k| chosen.contains(&k.parent()) && open_parent(k, info, origin, view))
+        .copied()
+        .collect();
+    out.pages.sort();
+    out
+}
+
+fn open_parent(key: &Key, info: &Info, origin: DVec3, view: &SelectView) -> bool {
+    let m = measure(key.parent(), info, origin, view);
+    m.visible && m.refine
+}
