@@ -5,6 +5,7 @@
 // (project.frag). In hybrid scenes the triangles were drawn first into the same targets.
 #include "streams.glsl"
 #include "pyramid.glsl"
+#include "live.glsl"
 
 layout(constant_id = PYRAMID_SPEC_CULL) const bool CULL = true;
 
@@ -24,8 +25,9 @@ void main() {
     vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
     gl_Position = frame.u.proj * vec4(p, 1.0);
     gl_PointSize = 1.0;
-    // Hybrid scenes: a face's vertex is drawn as part of its triangles, not as a point.
-    if (HYBRID && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) {
+    // Hybrid scenes: a face's vertex is drawn as part of its triangles, not as a point; an
+    // empty index of a streamed pool is not drawn at all.
+    if ((HYBRID && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) || !stream_live(i)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
     if (dot(n, p) > 0.0) {

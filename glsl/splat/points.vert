@@ -1,6 +1,7 @@
 #version 460
 // Fixed-size points (002 §5.2 method 1): one vertex per point, pulled from the point streams.
 #include "streams.glsl"
+#include "live.glsl"
 
 layout(location = 0) out vec3 v_albedo;
 layout(location = 1) out vec3 v_normal;
@@ -10,6 +11,9 @@ void main() {
     uint i = uint(gl_VertexIndex);
     vec4 view_pos = frame.u.view * vec4(stream_position(i), 1.0);
     gl_Position = frame.u.proj * view_pos;
+    if (!stream_live(i)) {
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    }
     gl_PointSize = frame.u.params.x;
     v_albedo = stream_albedo(i);
     v_normal = mat3(frame.u.view) * stream_normal(i);

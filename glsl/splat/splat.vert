@@ -3,6 +3,7 @@
 // flat and Gouraud shading light the splat here, once per splat (002 sections 5.3.1-5.3.2).
 #include "streams.glsl"
 #include "splat.glsl"
+#include "live.glsl"
 
 layout(location = 0) flat out vec3 v_color;
 layout(location = 1) flat out vec3 v_normal;
@@ -38,7 +39,7 @@ void main() {
     gl_Position = frame.u.proj * vec4(p, 1.0);
     // Back-face culling by normal (`cull`): a splat whose normal faces away from the eye is
     // moved outside the clip volume, which discards the point.
-    if (CULL != 0u && dot(n, -p) < 0.0) {
+    if ((CULL != 0u && dot(n, -p) < 0.0) || !stream_live(i)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
     gl_PointSize = size;

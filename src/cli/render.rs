@@ -16,6 +16,10 @@ use crate::render::{Extras, Renderer, View};
 use crate::scene::compose;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
+use crate::stream::loader::LoaderOptions;
+use crate::upload::streamed::{
+    StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
+};
 use crate::upload::{upload, UploadOptions};
 
 #[derive(Args, Debug)]
@@ -58,6 +62,68 @@ pub struct RenderArgs {
     pub input: InputArgs,
     #[command(flatten)]
     pub camera: CameraArgs,
+    #[command(flatten)]
+    pub stream: StreamArgs,
+}
+
+/// Streaming a COPC file (a path or an http(s) URL) by view instead of loading it.
+#[derive(Args, Debug, Clone)]
+pub struct StreamArgs {
+    /// Stream FILE (a COPC path or URL): read only the octree nodes the view needs, within
+    /// the point and GPU budgets. URLs are always streamed.
+    #[arg(long)]
+    pub stream: bool,
+    /// Streaming: points drawn per frame at most.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_POINT_BUDGET)]
+    pub point_budget: u64,
+    /// Streaming: GPU memory for the resident nodes, in bytes (K, M, G suffixes).
+    #[arg(long, value_name = "BYTES", default_value = "1G", value_parser = parse_bytes)]
+    pub gpu_budget: u64,
+    /// Streaming: refine while a node's point spacing projects to more pixels than this.
+    #[arg(long, value_name = "PX", default_value_t = DEFAULT_ERROR_PX)]
+    pub error_px: f32,
+    /// Streaming: render after N frames of refinement instead of when every node the view
+    /// needs is resident.
+    #[arg(long, value_name = "N")]
+    pub refine_frames: Option<u32>,
+}
+
+impl StreamArgs {
+    /// Whether `file` is streamed.
+    pub fn streams(&self, file: &std::path::Path) -> bool {
+        self.stream || crate::stream::source::is_url(&file.to_string_lossy())
+    }
+
+    pub fn options(&self, k: usize) -> StreamOptions {
+        StreamOptions {
+            point_budget: self.point_budget,
+            gpu_bytes: self.gpu_budget,
+            error_px: self.error_px,
+            loader: LoaderOptions {
+                k,
+                ..LoaderOptions::default()
+            },
+        }
+    }
+}
+
+/// Parses a byte count with an optional K, M or G suffix (powers of 1024).
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let (digits, shift) = match t.char_indices().last() {
+        Some((i, 'k' | 'K')) => (&t[..i], 10),
+        Some((i, 'm' | 'M')) => (&t[..i], 20),
+        Some((i, 'g' | 'G')) => (&t[..i], 30),
+        _ => (t, 0),
+    };
+    digits
+        .parse::<u64>()
+        .ok()
+        .and_then(|n| n.checked_mul(1 << shift))
+        .filter(|&n| n > 0)
+        .ok_or_else(|| {
+            format!("expected a positive byte count such as 512M or 2G, found \"{text}\"")
+        })
 }
 
 /// Timings written by `render --timings`.
@@ -103,7 +169,10 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let file = a.file.context("FILE is required")?;
+    let file = a.file.clone().context("FILE is required")?;
+    if a.stream.streams(&file) {
+        return render_streamed(a, &file);
+    }
     let config = MethodConfig::parse(&a.method)?;
     let (width, height) = Size::parse(&a.size).map_err(anyhow::Error::msg)?.pair();
     let settings = view_settings(&a.camera)?;
@@ -273,6 +342,124 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         "{}: {} points, {} -> {}",
         file.display(),
         info.points,
+        config.label(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// Iterations without any progress after which a streamed render gives up.
+const STALL_ROUNDS: u32 = 600;
+
+/// `surfel render --stream`: the nodes of the view streamed in until the view's choice is
+/// resident (or `--refine-frames` frames), then one frame written.
+fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
+    let config = MethodConfig::parse(&a.method)?;
+    let (width, height) = Size::parse(&a.size).map_err(anyhow::Error::msg)?.pair();
+    let settings = view_settings(&a.camera)?;
+    if a.visibility.is_some() {
+        bail!("--visibility reads the whole cloud; it cannot be combined with streaming");
+    }
+    let start = std::time::Instant::now();
+    let ctx = context(a.validation)?;
+    let location = file.to_string_lossy().into_owned();
+    let extras = Extras {
+        readback: true,
+        present: None,
+        post: settings.post.for_readback(),
+        ..Extras::default()
+    };
+    let k = if config.method.needs_surfels {
+        a.input.k
+    } else {
+        0
+    };
+    let mut streamed = StreamedScene::open(
+        &ctx,
+        &location,
+        &a.stream.options(k),
+        |root| settings.coloring(file, root),
+        extras.frames_in_flight,
+    )?;
+    let (centre, radius) = streamed.bounding_sphere();
+    let camera = settings.camera(centre, radius, streamed.root.up);
+    let mut renderer = Renderer::new(
+        &ctx,
+        &streamed.scene,
+        streamed.info,
+        &config,
+        width,
+        height,
+        extras,
+    )?;
+    if a.dump_graph {
+        print!("{}", renderer.schedule());
+    }
+    let view = View {
+        camera,
+        lights: settings.lights,
+        use_color: !a.camera.no_color,
+        time: 0.0,
+    };
+    streamed.update(&camera, width, height)?;
+    renderer.render_batches(&view, Some(streamed.batches()), false)?;
+    let first_pixel_s = start.elapsed().as_secs_f64();
+    let mut frames = 1u32;
+    let mut stalled = 0;
+    loop {
+        for m in streamed.take_messages() {
+            eprintln!("warning: {m}");
+        }
+        match a.stream.refine_frames {
+            Some(n) if frames >= n => break,
+            Some(_) => {}
+            None if streamed.stable() => break,
+            None => {
+                // Nothing to draw until a worker finishes: wait for one.
+                if streamed.wait(std::time::Duration::from_millis(100)) {
+                    stalled = 0;
+                } else {
+                    stalled += 1;
+                    if stalled >= STALL_ROUNDS {
+                        bail!(
+                            "{location}: streaming made no progress for {} s ({} nodes loading)",
+                            STALL_ROUNDS / 10,
+                            streamed.stats().loading
+                        );
+                    }
+                }
+            }
+        }
+        streamed.update(&camera, width, height)?;
+        if a.stream.refine_frames.is_some() {
+            renderer.render_batches(&view, Some(streamed.batches()), false)?;
+            frames += 1;
+        }
+    }
+    let refine_s = start.elapsed().as_secs_f64() - first_pixel_s;
+    let mut frame = renderer
+        .render_batches(&view, Some(streamed.batches()), true)?
+        .context("renderer returned no frame")?;
+    let stats = streamed.stats();
+    crate::post::composite(&mut frame, settings.post.background);
+    drop(renderer);
+    if ctx.validation && ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    image::save_buffer(
+        &a.out,
+        bytemuck::cast_slice(&frame.color),
+        width,
+        height,
+        image::ExtendedColorType::Rgba8,
+    )
+    .with_context(|| format!("{}: cannot write PNG", a.out.display()))?;
+    eprintln!(
+        "first pixel after {first_pixel_s:.2} s; refined in {refine_s:.2} s: {} of {} selected points drawn from {} nodes, {:.1} MB read, {} -> {}",
+        stats.drawn_points,
+        stats.selected_points,
+        stats.selected_nodes,
+        stats.bytes_read as f64 / 1e6,
         config.label(),
         a.out.display()
     );

@@ -18,7 +18,7 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
+use crate::gpu::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::gpu::{Capabilities, Context};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
 use crate::upload::{GpuScene, UploadOptions};
@@ -321,7 +321,7 @@ pub struct BuildContext<'a> {
 impl BuildContext<'_> {
     /// The bindings of a draw whose vertex shader reads the point streams: the frame block
     /// (every graphics stage) and the segment table.
-    pub fn draw_binds(&self) -> [Bind; 2] {
+    pub fn draw_binds(&self) -> [Bind; 3] {
         [
             Bind::buffer(
                 BINDING_FRAME,
@@ -331,6 +331,12 @@ impl BuildContext<'_> {
             Bind::buffer(
                 BINDING_SEGMENTS,
                 self.segments,
+                Access::StorageRead(Stages::Vertex),
+            ),
+            // Which indices hold points (`glsl/common/live.glsl`).
+            Bind::buffer(
+                BINDING_BATCHES,
+                self.batches,
                 Access::StorageRead(Stages::Vertex),
             ),
         ]

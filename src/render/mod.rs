@@ -13,7 +13,10 @@ use glam::Vec4;
 use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
-use crate::gpu::layout::{FrameBlock, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
+use crate::gpu::layout::{FrameBlock, GpuBatch, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
+
+/// Bytes of one `GpuBatch`.
+const BATCH_BYTES: u64 = std::mem::size_of::<GpuBatch>() as u64;
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
@@ -143,6 +146,9 @@ pub struct Renderer {
     schedule: String,
     segment_points: u32,
     batch_count: u32,
+    /// Per frame slot, a streamed scene's batch table (empty for a loaded scene).
+    batch_tables: Vec<Buffer>,
+    batches_id: BufferId,
 }
 
 impl Renderer {
@@ -161,6 +167,13 @@ impl Renderer {
         }
         if let Some(why) = config.method.unsupported(&ctx.caps) {
             bail!(why);
+        }
+        let m = &config.method;
+        if scene.streamed && (m.needs_lod || m.needs_hpr || m.needs_faces || m.needs_normal_field) {
+            bail!(
+                "method '{}' reads the whole cloud (its object texture, visibility, faces or normal fields); a streamed file holds only the nodes a view needs: load it whole (without --stream) for this method",
+                m.name
+            );
         }
         if config.method.needs_lod && scene.lod.is_none() {
             bail!(
@@ -211,7 +224,31 @@ impl Renderer {
         };
         let frame_id = g.external_buffer("frame", frame_bytes, frame_usage);
         let segments_id = g.import_buffer("stream.segments", scene.streams.table.clone());
-        let batches_id = g.import_buffer("stream.batches", scene.streams.batches.clone());
+        let table_bytes = u64::from(scene.streams.batch_count.max(1)) * BATCH_BYTES;
+        let batch_tables = if scene.streamed {
+            (0..slots)
+                .map(|_| {
+                    Buffer::new(
+                        ctx,
+                        "stream.batches",
+                        table_bytes,
+                        vk::BufferUsageFlags::STORAGE_BUFFER,
+                        MemoryLocation::CpuToGpu,
+                    )
+                })
+                .collect::<Result<Vec<_>>>()?
+        } else {
+            Vec::new()
+        };
+        let batches_id = if scene.streamed {
+            g.external_buffer(
+                "stream.batches",
+                table_bytes,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            )
+        } else {
+            g.import_buffer("stream.batches", scene.streams.batches.clone())
+        };
         let indices_id = scene
             .indices
             .as_ref()
@@ -283,6 +320,8 @@ impl Renderer {
             schedule,
             segment_points: scene.streams.segment_points,
             batch_count: scene.streams.batch_count,
+            batch_tables,
+            batches_id,
         })
     }
 
@@ -306,6 +345,9 @@ impl Renderer {
         self.graph.profiler().collect(slot)?;
         self.graph
             .bind_external_buffer(self.frame_id, &self.uniforms[slot]);
+        if let Some(table) = self.batch_tables.get(slot) {
+            self.graph.bind_external_buffer(self.batches_id, table);
+        }
         if let Some(samples) = &mut self.samples {
             samples.collect(slot)?;
             self.graph
@@ -376,6 +418,22 @@ impl Renderer {
         self.uniforms[self.frames.current()].write(bytemuck::bytes_of(&block))
     }
 
+    /// Writes the current slot's batch table (after `begin_frame`, before `record`): for a
+    /// streamed scene, which batch slots hold which points this frame.
+    pub fn set_batches(&mut self, batches: &[GpuBatch]) -> Result<()> {
+        let Some(table) = self.batch_tables.get(self.frames.current()) else {
+            bail!("set_batches: the scene is not streamed (its batch table is fixed)");
+        };
+        if batches.len() != self.batch_count as usize {
+            bail!(
+                "set_batches: {} batches for a pool of {}",
+                batches.len(),
+                self.batch_count
+            );
+        }
+        table.write(bytemuck::cast_slice(batches))
+    }
+
     /// Sets the current slot's overlay text (after `begin_frame`, before `record`); returns the
     /// quads drawn. A renderer built without `Extras::overlay` draws nothing and returns 0.
     pub fn set_overlay(&mut self, panels: &[Panel]) -> Result<usize> {
@@ -439,7 +497,20 @@ impl Renderer {
     /// Renders one frame and waits for it (and for any frame still in flight); returns the
     /// read-back frame when asked (and built with `Extras::readback`).
     pub fn render(&mut self, view: &View, readback: bool) -> Result<Option<Frame>> {
+        self.render_batches(view, None, readback)
+    }
+
+    /// [`Self::render`] of a streamed scene with this frame's batch table.
+    pub fn render_batches(
+        &mut self,
+        view: &View,
+        batches: Option<&[GpuBatch]>,
+        readback: bool,
+    ) -> Result<Option<Frame>> {
         self.begin_frame()?;
+        if let Some(batches) = batches {
+            self.set_batches(batches)?;
+        }
         self.update(view)?;
         self.record(readback)?;
         self.submit(None, None)?;

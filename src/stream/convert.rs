@@ -2,7 +2,8 @@
 //! crate (octree build, LAZ chunk compression, hierarchy pages).
 //!
 //! The input is loaded by the ordinary loader (with its checks), then fed to the writer as LAS
-//! 1.4 records in blocks: the writer spills them to a temporary file in the output's folder and
+//! 1.4 records, in a pseudo-random order (see [`shuffled`]: the writer's coarse levels are the
+//! first points it meets per octant): the writer spills them to a temporary file in the output's folder and
 //! builds the octree from that spill, so its own memory stays bounded whatever the cloud's
 //! size; the loaded cloud is what bounds conversion memory (about 30 bytes per point).
 //!
@@ -111,6 +112,20 @@ pub fn decimal_scale(extent: f64) -> f64 {
     } else {
         1e-9
     }
+}
+
+/// A fixed pseudo-random permutation of `0..n`. The writer fills a parent node with the first
+/// points of each child octant in the order it is given them, so in file order (scan lines,
+/// sorted tiles) a coarse level would cover only part of its cube; in a random order it is a
+/// uniform random subsample of it.
+fn shuffled(n: usize) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let mut rng = crate::rng::SplitMix64::new(0x5eed_c0bc);
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    order
 }
 
 /// Never cancels; the writer polls it.
@@ -232,9 +247,11 @@ pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
         cloud.len(),
         cloud.len() >= PROGRESS_MIN_POINTS,
     );
-    let records = (0..cloud.len()).map(|i| {
-        if i % 65536 == 0 {
-            progress.advance(65536.min(cloud.len() - i));
+    let order = shuffled(cloud.len());
+    let records = order.iter().enumerate().map(|(done, &i)| {
+        let i = i as usize;
+        if done % 65536 == 0 {
+            progress.advance(65536.min(cloud.len() - done));
         }
         let p = cloud.origin + cloud.positions[i].as_dvec3();
         let value = |k: usize| standard[k].map_or(0.0, |v| v[i]);

@@ -2,5 +2,6 @@
 //! octree from a local file or an HTTP server.
 
 pub mod convert;
+pub mod loader;
 pub mod select;
 pub mod source;

@@ -4,11 +4,11 @@
 
 use std::sync::Arc;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use ash::vk;
 
 use super::{Stream, StreamLayout};
-use crate::gpu::layout::{GpuBatch, GpuSegment};
+use crate::gpu::layout::{GpuBatch, GpuSegment, BATCH_POINTS};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
 use crate::scene::progress::Progress;
@@ -205,6 +205,73 @@ impl GpuStreams {
     }
 }
 
+/// An empty pool of `slots` batch slots for a streamed cloud: one segment holding
+/// `slots * BATCH_POINTS` points of each of `streams`, every batch empty (`first` at its slot,
+/// `count` 0). The streamer copies nodes into slots and draws from a per-frame batch table.
+pub fn pool(ctx: &Arc<Context>, streams: &[Stream], slots: u32) -> Result<GpuStreams> {
+    let capacity = u64::from(slots) * u64::from(BATCH_POINTS);
+    let segment_points = u32::try_from(capacity)
+        .ok()
+        .filter(|&c| c > 0)
+        .with_context(|| format!("a pool of {slots} batches does not fit 32-bit point indices"))?;
+    let buffers = streams
+        .iter()
+        .map(|&stream| stream_buffer(ctx, 0, stream, capacity).map(|b| (stream, b)))
+        .collect::<Result<Vec<_>>>()?;
+    let table = vec![segment_entry(&buffers, 0)];
+    let batches: Vec<GpuBatch> = (0..slots)
+        .map(|slot| GpuBatch {
+            first: slot * BATCH_POINTS,
+            ..GpuBatch::default()
+        })
+        .collect();
+    Ok(GpuStreams {
+        segments: vec![buffers],
+        table: table_buffer(ctx, &table)?,
+        entries: table,
+        scalar: streams.iter().find_map(|s| match s {
+            Stream::Scalar(k) => Some(*k),
+            _ => None,
+        }),
+        batches: Arc::new(Buffer::with_data(
+            ctx,
+            "stream.batches",
+            bytemuck::cast_slice(&batches),
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?),
+        host_batches: batches,
+        point_count: segment_points,
+        batch_count: slots,
+        segment_points,
+        normal_field: false,
+    })
+}
+
+/// The segment-table entry of the streams in `buffers`, whose first point is stream index
+/// `first`.
+fn segment_entry(buffers: &[(Stream, Buffer)], first: u64) -> GpuSegment {
+    let address = |stream: Stream| {
+        buffers
+            .iter()
+            .find(|(s, _)| *s == stream)
+            .map_or([0, 0], |(_, b)| address_pair(b.device_address()))
+    };
+    let pair = |a: Stream, b: Stream| {
+        let (a, b) = (address(a), address(b));
+        [a[0], a[1], b[0], b[1]]
+    };
+    let color = address(Stream::Color);
+    let has_scalar = buffers.iter().any(|(s, _)| matches!(s, Stream::Scalar(_)));
+    GpuSegment {
+        position_coarse: pair(Stream::Position, Stream::Coarse),
+        medium_fine: pair(Stream::Medium, Stream::Fine),
+        normal_radius: pair(Stream::Normal, Stream::Radius),
+        color_first: [color[0], color[1], first as u32, u32::from(has_scalar)],
+        scalar: scalar_entry(buffers),
+        normal_field: address_entry(buffers, Stream::NormalField),
+    }
+}
+
 /// Uploads `cloud`'s streams as laid out by `layout`.
 pub fn upload(
     ctx: &Arc<Context>,
@@ -262,32 +329,7 @@ pub fn upload(
             progress.advance((end - start) as usize);
             start = end;
         }
-        let address = |stream: Stream| {
-            buffers
-                .iter()
-                .find(|(s, _)| *s == stream)
-                .map_or([0, 0], |(_, b)| address_pair(b.device_address()))
-        };
-        let pair = |a: Stream, b: Stream| {
-            let (a, b) = (address(a), address(b));
-            [a[0], a[1], b[0], b[1]]
-        };
-        let color = address(Stream::Color);
-        let scalar = scalar_entry(&buffers);
-        let has_scalar = buffers.iter().any(|(s, _)| matches!(s, Stream::Scalar(_)));
-        table.push(GpuSegment {
-            position_coarse: pair(Stream::Position, Stream::Coarse),
-            medium_fine: pair(Stream::Medium, Stream::Fine),
-            normal_radius: pair(Stream::Normal, Stream::Radius),
-            color_first: [
-                color[0],
-                color[1],
-                range.start as u32,
-                u32::from(has_scalar),
-            ],
-            scalar,
-            normal_field: address_entry(&buffers, Stream::NormalField),
-        });
+        table.push(segment_entry(&buffers, range.start));
         segments.push(buffers);
     }
     uploader.finish()?;

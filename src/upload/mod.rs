@@ -3,6 +3,8 @@
 //! normal fields of Phong splatting, hidden point removal's radius data);
 //! [`GpuScene::complete`] adds what a method chosen later reads.
 
+pub mod streamed;
+
 use std::sync::{Arc, Mutex};
 
 use anyhow::{bail, Context as _, Result};
@@ -115,6 +117,9 @@ pub struct GpuScene {
     pub lod: Option<Arc<GpuLod>>,
     /// Hidden point removal's data, when uploaded (`UploadOptions::hpr`).
     pub hpr: Option<HprScene>,
+    /// A streamed cloud's pool (`streamed::StreamedScene`): which batches hold points changes
+    /// per frame, so renderers read a per-frame batch table (`Renderer::set_batches`).
+    pub streamed: bool,
 }
 
 impl GpuScene {
@@ -235,6 +240,7 @@ pub fn upload(
             index_count,
             lod,
             hpr: options.hpr.then(|| HprScene::new(cloud)),
+            streamed: false,
         },
         SceneInfo {
             centre,

@@ -33,6 +33,7 @@
 
 pub mod reference;
 
+use crate::gpu::layout::BINDING_BATCHES;
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -852,6 +853,10 @@ fn rasterize(
             Bind::buffer(BINDING_SEGMENTS, b.segments, vertex_read),
             Bind::unused_in(BINDING_FACE_VERTICES, Stages::Vertex),
         ],
+    });
+    binds.push(match primitives {
+        Primitives::Points(_) => Bind::buffer(BINDING_BATCHES, b.batches, vertex_read),
+        _ => Bind::unused_in(BINDING_BATCHES, Stages::Vertex),
     });
     let pipeline = Arc::new(Pipeline::graphics(
         b.ctx,
