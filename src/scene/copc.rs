@@ -595,6 +595,26 @@ impl CopcFile {
                 column.push(field.read(&p.extra_bytes));
             }
         }
+        // A chunk the arithmetic decoder accepted can still be garbage: its points must lie
+        // in the node's cube (to a quantization step).
+        let (lo, hi) = self.info.cube(node.key);
+        let t = self.header.transforms();
+        let slack = DVec3::new(t.x.scale, t.y.scale, t.z.scale).abs() + (hi - lo) * 1e-6;
+        let outside = out
+            .world
+            .iter()
+            .filter(|p| p.is_finite() && !(p.cmpge(lo - slack).all() && p.cmple(hi + slack).all()))
+            .count();
+        if outside > 0 {
+            return Err(LoadError::at_byte(
+                file,
+                at(0),
+                format!(
+                    "corrupt chunk: {outside} of its {} points lie outside node {}'s cube",
+                    node.points, node.key
+                ),
+            ));
+        }
         Ok(out)
     }
 }

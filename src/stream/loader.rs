@@ -359,7 +359,14 @@ fn encode(shared: &Shared, key: Key, mut cloud: Cloud) -> Result<EncodedNode, Lo
         );
     }
     if cloud.radii.is_none() {
-        let spacing = shared.copc.info.spacing / f64::from(1u32 << key.level.clamp(0, 31));
+        let node = Node {
+            key,
+            offset: 0,
+            bytes: 0,
+            points: n as u64,
+            entry_at: 0,
+        };
+        let spacing = super::select::spacing(&shared.copc.info, &node);
         cloud.radii = Some(vec![spacing as f32; n]);
     }
     if cloud.normals.is_none() {

@@ -6,8 +6,8 @@
 //! (Schütz 2016, §3.3): among the nodes whose parent is chosen, the one with the largest
 //! projected size (`cube half-diagonal / distance to its centre`, in pixels) comes next, while
 //! it fits both budgets; a node's children are candidates only when it is in the view frustum
-//! and its own point spacing projects to more than `error_px` pixels (the screen-space error:
-//! a finer level would add visible detail). The first candidate that does not fit ends the
+//! and its own point spacing ([`spacing`]) projects to more than `error_px` pixels (the
+//! screen-space error: a finer level would add visible detail). The first candidate that does not fit ends the
 //! selection, so a large near node is never skipped for many small far ones.
 //!
 //! [`select`] uses a heap; [`select_brute_force`] rescans every node per step and exists to
@@ -107,14 +107,25 @@ struct Measure {
     refine: bool,
 }
 
-fn measure(key: Key, info: &Info, origin: DVec3, view: &SelectView) -> Measure {
+/// The point spacing of node `n`: the larger of the file's nominal spacing at its level
+/// (`info.spacing / 2^level`) and what its points give on a surface through its cube
+/// (`edge / sqrt(points)`: scans and LiDAR sample 2-manifolds). Writers set the nominal value
+/// from the cube alone (`copc-writer`: half size / 128), whatever the points per node.
+pub fn spacing(info: &Info, n: &Node) -> f64 {
+    let scale = f64::from(1u32 << n.key.level.clamp(0, 31));
+    let edge = 2.0 * info.halfsize / scale;
+    (info.spacing / scale).max(edge / (n.points.max(1) as f64).sqrt())
+}
+
+fn measure(node: &Node, info: &Info, origin: DVec3, view: &SelectView) -> Measure {
+    let key = node.key;
     let (lo, hi) = info.cube(key);
     let (lo, hi) = ((lo - origin).as_vec3(), (hi - origin).as_vec3());
     let centre = (lo + hi) * 0.5;
     let radius = f64::from((hi - lo).length() * 0.5);
     let distance = f64::from((centre - view.eye).length()).max(radius * 1e-3);
     let px = f64::from(view.pixels_per_radian);
-    let spacing = info.spacing / f64::from(1u32 << key.level.clamp(0, 31));
+    let spacing = spacing(info, node);
     let cube = GpuBatch {
         min_x: lo.x,
         min_y: lo.y,
@@ -186,7 +197,7 @@ pub fn select(
     let mut heap = BinaryHeap::new();
     if let Some(root) = h.nodes.get(&Key::ROOT) {
         heap.push(Candidate {
-            weight: measure(root.key, info, origin, view).weight,
+            weight: measure(root, info, origin, view).weight,
             key: root.key,
         });
     }
@@ -199,10 +210,10 @@ pub fn select(
         out.points += node.points;
         out.slots += slots;
         out.nodes.push(key);
-        let m = measure(key, info, origin, view);
+        let m = measure(node, info, origin, view);
         for child in expand(h, key, &m, &mut out.pages) {
             heap.push(Candidate {
-                weight: measure(child, info, origin, view).weight,
+                weight: measure(&h.nodes[&child], info, origin, view).weight,
                 key: child,
             });
         }
@@ -230,10 +241,10 @@ pub fn select_brute_force(
                 if n.key == Key::ROOT {
                     return true;
                 }
-                chosen.contains(&n.key.parent()) && open_parent(&n.key, info, origin, view)
+                chosen.contains(&n.key.parent()) && open_parent(h, &n.key, info, origin, view)
             })
             .map(|n| Candidate {
-                weight: measure(n.key, info, origin, view).weight,
+                weight: measure(n, info, origin, view).weight,
                 key: n.key,
             })
             .max();
@@ -251,14 +262,16 @@ pub fn select_brute_force(
     out.pages = h
         .pages
         .keys()
-        .filter(|k| chosen.contains(&k.parent()) && open_parent(k, info, origin, view))
+        .filter(|k| chosen.contains(&k.parent()) && open_parent(h, k, info, origin, view))
         .copied()
         .collect();
     out.pages.sort();
     out
 }
 
-fn open_parent(key: &Key, info: &Info, origin: DVec3, view: &SelectView) -> bool {
-    let m = measure(key.parent(), info, origin, view);
-    m.visible && m.refine
+fn open_parent(h: &Hierarchy, key: &Key, info: &Info, origin: DVec3, view: &SelectView) -> bool {
+    h.nodes.get(&key.parent()).is_some_and(|p| {
+        let m = measure(p, info, origin, view);
+        m.visible && m.refine
+    })
 }

@@ -10,6 +10,8 @@ use surfel::stream::convert;
 use surfel::stream::select::{select, select_brute_force, Budget, Hierarchy, SelectView};
 use surfel::stream::source::FileSource;
 
+use crate::common;
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("surfel-stream-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -325,4 +327,383 @@ fn node_selection_matches_a_brute_force_reference_within_budget() {
         },
     );
     assert_eq!(far.nodes.iter().map(|k| k.level).max(), Some(2));
+}
+
+/// A loopback HTTP/1.1 server for one file, answering `Range` requests (one request per
+/// connection). `fault(at, attempt)` may replace the answer to the `attempt`-th request
+/// (from 0) for a range starting at byte `at` with a status code.
+mod http {
+    use std::collections::HashMap;
+    use std::io::{BufRead, BufReader, Write};
+    use std::net::TcpListener;
+    use std::sync::{Arc, Mutex};
+
+    pub type Fault = dyn Fn(u64, u32) -> Option<u16> + Send + Sync;
+
+    pub struct Server {
+        pub url: String,
+        pub requests: Arc<Mutex<u64>>,
+    }
+
+    pub fn serve(bytes: Vec<u8>, fault: Box<Fault>) -> Server {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let url = format!("http://{}/cloud.copc.laz", listener.local_addr().unwrap());
+        let requests = Arc::new(Mutex::new(0));
+        let count = requests.clone();
+        let (bytes, fault) = (Arc::new(bytes), Arc::new(fault));
+        let attempts = Arc::new(Mutex::new(HashMap::<u64, u32>::new()));
+        std::thread::spawn(move || {
+            for stream in listener.incoming() {
+                let Ok(mut stream) = stream else { continue };
+                let (bytes, fault, attempts) = (bytes.clone(), fault.clone(), attempts.clone());
+                *count.lock().unwrap() += 1;
+                std::thread::spawn(move || {
+                    let mut reader = BufReader::new(stream.try_clone().unwrap());
+                    let mut line = String::new();
+                    reader.read_line(&mut line).unwrap_or(0);
+                    let path = line.split_whitespace().nth(1).unwrap_or("").to_owned();
+                    let mut range = None;
+                    loop {
+                        let mut h = String::new();
+                        if reader.read_line(&mut h).unwrap_or(0) == 0 || h.trim().is_empty() {
+                            break;
+                        }
+                        let lower = h.to_ascii_lowercase();
+                        if let Some(r) = lower.strip_prefix("range: bytes=") {
+                            let (a, b) = r.trim().split_once('-').unwrap();
+                            range = Some((a.parse::<u64>().unwrap(), b.parse::<u64>().unwrap()));
+                        }
+                    }
+                    let reply = |stream: &mut std::net::TcpStream,
+                                 status: &str,
+                                 headers: String,
+                                 body: &[u8]| {
+                        let head = format!(
+                            "HTTP/1.1 {status}\r\nContent-Length: {}\r\nConnection: close\r\n{headers}\r\n",
+                            body.len()
+                        );
+                        let _ = stream.write_all(head.as_bytes());
+                        let _ = stream.write_all(body);
+                    };
+                    if path != "/cloud.copc.laz" {
+                        return reply(&mut stream, "404 Not Found", String::new(), b"no such file");
+                    }
+                    let Some((a, b)) = range else {
+                        return reply(&mut stream, "200 OK", String::new(), &bytes);
+                    };
+                    let attempt = {
+                        let mut map = attempts.lock().unwrap();
+                        let n = map.entry(a).or_insert(0);
+                        *n += 1;
+                        *n - 1
+                    };
+                    if let Some(code) = fault(a, attempt) {
+                        return reply(&mut stream, &format!("{code} Injected"), String::new(), b"");
+                    }
+                    let end = (b as usize).min(bytes.len() - 1);
+                    reply(
+                        &mut stream,
+                        "206 Partial Content",
+                        format!("Content-Range: bytes {a}-{end}/{}\r\n", bytes.len()),
+                        &bytes[a as usize..=end],
+                    );
+                });
+            }
+        });
+        Server { url, requests }
+    }
+}
+
+mod gpu {
+    use std::time::Duration;
+
+    use surfel::color;
+    use surfel::frame::Frame;
+    use surfel::methods::MethodConfig;
+    use surfel::render::{Extras, Renderer, View};
+    use surfel::scene::{Camera, Up};
+    use surfel::stream::loader::LoaderOptions;
+    use surfel::stream::source::HttpOptions;
+    use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
+
+    use super::*;
+
+    /// The dragon as a COPC of many small nodes (converted once per test process).
+    pub fn dragon() -> PathBuf {
+        static ONCE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+        ONCE.get_or_init(|| {
+            let cloud = scene::load(Path::new("../shared/data/stanford/dragon_vrip.ply")).unwrap();
+            let out = scratch("dragon.copc.laz");
+            convert::write_with(&cloud, &out, 8_000).unwrap();
+            out
+        })
+        .clone()
+    }
+
+    pub fn options(point_budget: u64, gpu_bytes: u64, error_px: f32) -> StreamOptions {
+        StreamOptions {
+            point_budget,
+            gpu_bytes,
+            error_px,
+            loader: LoaderOptions {
+                threads: 2,
+                k: 0,
+                scalar: None,
+                http: HttpOptions {
+                    attempts: 4,
+                    backoff: Duration::from_millis(5),
+                    timeout: Duration::from_secs(10),
+                },
+            },
+        }
+    }
+
+    pub struct Streamed {
+        pub frame: Frame,
+        pub stats: StreamStats,
+        pub messages: Vec<String>,
+    }
+
+    /// Streams `location` through `cameras` in turn (each until its choice is resident; a
+    /// camera from the framing sphere) and returns the last view's frame, `points`, elevation.
+    pub fn stream(
+        location: &str,
+        options: &StreamOptions,
+        cameras: &[&dyn Fn(Vec3, f32) -> Camera],
+        size: u32,
+    ) -> Streamed {
+        let ctx = common::context();
+        let mut s = StreamedScene::open(
+            &ctx,
+            location,
+            options,
+            |root| Ok(color::select(root, "elevation", Up::Z).unwrap()),
+            2,
+        )
+        .unwrap();
+        let config = MethodConfig::parse("points").unwrap();
+        let mut r = Renderer::new(
+            &ctx,
+            &s.scene,
+            s.info,
+            &config,
+            size,
+            size,
+            Extras {
+                readback: true,
+                frames_in_flight: 2,
+                ..Extras::default()
+            },
+        )
+        .unwrap();
+        let (centre, radius) = s.bounding_sphere();
+        let mut frame = None;
+        let mut messages = Vec::new();
+        for make in cameras {
+            let camera = make(centre, radius);
+            let view = View {
+                camera,
+                lights: Vec::new(),
+                use_color: true,
+                time: 0.0,
+            };
+            for round in 0.. {
+                assert!(round < 2000, "streaming never settled");
+                s.update(&camera, size, size).unwrap();
+                let stats = s.stats();
+                assert!(stats.selected_points <= options.point_budget);
+                assert!(stats.used_slots <= stats.slots);
+                // Frames are drawn while nodes arrive, as the viewer does.
+                r.render_batches(&view, Some(s.batches()), false).unwrap();
+                if s.stable() {
+                    break;
+                }
+                s.wait(Duration::from_millis(50));
+            }
+            frame = r.render_batches(&view, Some(s.batches()), true).unwrap();
+            messages.extend(s.take_messages());
+        }
+        drop(r);
+        common::assert_clean(&ctx);
+        Streamed {
+            frame: frame.unwrap(),
+            stats: s.stats(),
+            messages,
+        }
+    }
+
+    pub fn framing(c: Vec3, r: f32) -> Camera {
+        Camera::framing(c, r)
+    }
+
+    /// Pixels whose coverage differs, as a fraction.
+    pub fn coverage_difference(a: &Frame, b: &Frame) -> f64 {
+        (0..a.pixels())
+            .filter(|&i| a.covered(i) != b.covered(i))
+            .count() as f64
+            / a.pixels() as f64
+    }
+}
+
+#[test]
+fn streaming_everything_matches_the_loaded_file() {
+    let path = gpu::dragon();
+    let all = gpu::stream(
+        path.to_str().unwrap(),
+        &gpu::options(u64::MAX, 256 << 20, 0.0),
+        &[&gpu::framing],
+        256,
+    );
+    assert!(all.messages.is_empty(), "{:?}", all.messages);
+    assert_eq!(all.stats.drawn_points, 437_645);
+    assert!(
+        all.stats.selected_nodes > 40,
+        "{}",
+        all.stats.selected_nodes
+    );
+    let cloud = scene::load(&path).unwrap();
+    let coloring = surfel::color::select(&cloud, "elevation", surfel::scene::Up::Z).unwrap();
+    let loaded = common::render_colored(&cloud, "points", 256, coloring);
+    let differ = gpu::coverage_difference(&all.frame, &loaded);
+    assert!(differ < 0.002, "{differ}");
+    assert!(common::coverage(&loaded) > 0.2);
+}
+
+/// A budget that makes the view choose part of the octree.
+const PART: u64 = 150_000;
+
+#[test]
+fn http_and_local_file_stream_the_same_image() {
+    let path = gpu::dragon();
+    let options = gpu::options(PART, 64 << 20, 1.0);
+    let local = gpu::stream(path.to_str().unwrap(), &options, &[&gpu::framing], 192);
+    let server = http::serve(std::fs::read(&path).unwrap(), Box::new(|_, _| None));
+    let remote = gpu::stream(&server.url, &options, &[&gpu::framing], 192);
+    assert!(local.messages.is_empty() && remote.messages.is_empty());
+    assert_eq!(local.stats.selected_points, remote.stats.selected_points);
+    assert_eq!(local.stats.drawn_points, remote.stats.drawn_points);
+    assert!(
+        local.stats.drawn_points <= PART && local.stats.drawn_points > 30_000,
+        "{:?}",
+        local.stats
+    );
+    assert!(*server.requests.lock().unwrap() as usize >= local.stats.selected_nodes);
+    // The same points; where two share a pixel at the same depth, the draw order (which slot
+    // a node landed in) may pick either.
+    let differ = gpu::coverage_difference(&local.frame, &remote.frame);
+    assert_eq!(differ, 0.0);
+    let colors = (0..local.frame.pixels())
+        .filter(|&i| local.frame.color[i] != remote.frame.color[i])
+        .count();
+    assert!(
+        colors * 1000 < local.frame.pixels(),
+        "{colors} pixels differ"
+    );
+}
+
+#[test]
+fn server_errors_are_retried_and_bad_urls_are_clear_errors() {
+    let path = gpu::dragon();
+    let options = gpu::options(PART, 64 << 20, 1.0);
+    let clean = gpu::stream(path.to_str().unwrap(), &options, &[&gpu::framing], 128);
+    // Every range fails twice with a 500 or 503 before it is served.
+    let flaky = http::serve(
+        std::fs::read(&path).unwrap(),
+        Box::new(|at, attempt| match attempt {
+            0 => Some(500),
+            1 if at % 2 == 0 => Some(503),
+            _ => None,
+        }),
+    );
+    let retried = gpu::stream(&flaky.url, &options, &[&gpu::framing], 128);
+    assert!(retried.messages.is_empty(), "{:?}", retried.messages);
+    assert_eq!(retried.stats.drawn_points, clean.stats.drawn_points);
+    assert_eq!(gpu::coverage_difference(&retried.frame, &clean.frame), 0.0);
+    // A missing file, a server that never succeeds and a file that is not COPC.
+    let open = |url: &str| {
+        surfel::stream::loader::Loader::open(url, options.loader.clone())
+            .err()
+            .expect("an error")
+            .to_string()
+    };
+    let server = http::serve(std::fs::read(&path).unwrap(), Box::new(|_, _| None));
+    let missing = server.url.replace("cloud.copc.laz", "other.copc.laz");
+    let m = open(&missing);
+    assert!(m.contains(&missing) && m.contains("HTTP 404"), "{m}");
+    let down = http::serve(Vec::new(), Box::new(|_, _| Some(500)));
+    let m = open(&down.url);
+    assert!(m.contains("HTTP 500 (after 4 attempts)"), "{m}");
+    let ply = std::fs::read("../shared/data/stanford/bun_zipper.ply").unwrap();
+    let not_copc = http::serve(ply, Box::new(|_, _| None));
+    let m = open(&not_copc.url);
+    assert!(m.contains(&not_copc.url) && m.contains("LAS"), "{m}");
+}
+
+#[test]
+fn a_corrupt_node_is_skipped_with_one_message() {
+    let path = gpu::dragon();
+    let mut bytes = std::fs::read(&path).unwrap();
+    // Find a level-1 node and garble its chunk.
+    let source = FileSource::open(&path).unwrap();
+    let copc = CopcFile::open(&source).unwrap();
+    let (at, len) = copc.info.root;
+    let node = scene::copc::read_page(&copc.file, &source, at, len, copc.size)
+        .unwrap()
+        .into_iter()
+        .find_map(|e| match e {
+            Entry::Node(n) if n.key.level == 1 => Some(n),
+            _ => None,
+        })
+        .unwrap();
+    // The first layer's size (after the 30-byte first point and the point count) claims more
+    // than the chunk holds.
+    let sizes = node.offset as usize + 34;
+    bytes[sizes..sizes + 4].copy_from_slice(&0x7fff_ffffu32.to_le_bytes());
+    let corrupt = scratch("corrupt.copc.laz");
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let options = gpu::options(u64::MAX, 64 << 20, 1.0);
+    let clean = gpu::stream(path.to_str().unwrap(), &options, &[&gpu::framing], 128);
+    let damaged = gpu::stream(corrupt.to_str().unwrap(), &options, &[&gpu::framing], 128);
+    assert_eq!(damaged.messages.len(), 1, "{:?}", damaged.messages);
+    let m = &damaged.messages[0];
+    assert!(
+        m.contains(&format!("node {}", node.key)) && m.contains(&format!("byte {}", node.offset)),
+        "{m}"
+    );
+    assert_eq!(damaged.stats.failed, 1);
+    // The rest is drawn: the image keeps most of its pixels.
+    let kept = common::coverage(&damaged.frame) / common::coverage(&clean.frame);
+    assert!(kept > 0.7 && kept <= 1.0, "{kept}");
+}
+
+#[test]
+fn eviction_under_a_small_memory_budget_keeps_the_image_complete() {
+    let path = gpu::dragon();
+    let location = path.to_str().unwrap();
+    // Room for 14 batches (one per node here): two close views from opposite sides need more
+    // between them, so the second evicts the first's nodes.
+    let small = gpu::options(100_000, 14 * 30 * 10240, 0.5);
+    let large = gpu::options(100_000, 512 << 20, 0.5);
+    let side = |sign: f32| {
+        move |c: Vec3, r: f32| {
+            let mut camera = gpu::framing(c, r);
+            camera.eye = camera.target + (camera.eye - camera.target) * 0.3 * sign;
+            camera
+        }
+    };
+    let (front, back) = (side(1.0), side(-1.0));
+    let reference = gpu::stream(location, &large, &[&gpu::framing], 256);
+    let evicting = gpu::stream(location, &small, &[&front, &back, &gpu::framing], 256);
+    assert!(evicting.stats.evicted > 0, "{:?}", evicting.stats);
+    assert!(evicting.stats.used_slots <= evicting.stats.slots);
+    // Back at the first view, every node it chooses is resident again.
+    assert_eq!(
+        evicting.stats.drawn_points, reference.stats.drawn_points,
+        "{:?} vs {:?}",
+        evicting.stats, reference.stats
+    );
+    assert_eq!(
+        gpu::coverage_difference(&evicting.frame, &reference.frame),
+        0.0
+    );
 }
