@@ -94,13 +94,16 @@ impl StreamArgs {
         self.stream || crate::stream::source::is_url(&file.to_string_lossy())
     }
 
-    pub fn options(&self, k: usize) -> StreamOptions {
+    /// The streaming options for a method that needs normals and radii estimated with `k`
+    /// neighbours (0: none) and, with `normal_field`, the splats' linear normal fields.
+    pub fn options(&self, k: usize, normal_field: bool) -> StreamOptions {
         StreamOptions {
             point_budget: self.point_budget,
             gpu_bytes: self.gpu_budget,
             error_px: self.error_px,
             loader: LoaderOptions {
                 k,
+                normal_field,
                 ..LoaderOptions::default()
             },
         }
@@ -377,7 +380,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
     let mut streamed = StreamedScene::open(
         &ctx,
         &location,
-        &a.stream.options(k),
+        &a.stream.options(k, config.method.needs_normal_field),
         |root| settings.coloring(file, root),
         extras.frames_in_flight,
     )?;
@@ -437,6 +440,64 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         }
     }
     let refine_s = start.elapsed().as_secs_f64() - first_pixel_s;
+    if let Some(path) = &a.timings {
+        let view_batches = streamed.batches().to_vec();
+        for _ in 0..3 {
+            renderer.render_batches(&view, Some(&view_batches), false)?;
+        }
+        renderer.clear_timings();
+        for _ in 0..a.frames.max(1) {
+            renderer.render_batches(&view, Some(&view_batches), false)?;
+        }
+        let (passes, frame) = renderer.timings();
+        let stats = streamed.stats();
+        let loader = stats.loader;
+        let busy = loader.read_s + loader.decode_s + loader.prepare_s;
+        let per_core = |s: f64| {
+            if s > 0.0 {
+                loader.points as f64 / s
+            } else {
+                0.0
+            }
+        };
+        let report = serde_json::json!({
+            "device": ctx.caps.device_name,
+            "driver": ctx.caps.driver,
+            "method": config.label(),
+            "location": location,
+            "file_points": streamed.file_points(),
+            "width": width,
+            "height": height,
+            "point_budget": a.stream.point_budget,
+            "gpu_budget_bytes": a.stream.gpu_budget,
+            "pool_bytes": streamed.pool_bytes(),
+            "selected_points": stats.selected_points,
+            "drawn_points": stats.drawn_points,
+            "selected_nodes": stats.selected_nodes,
+            "bytes_read": stats.bytes_read,
+            "first_pixel_s": first_pixel_s,
+            "refine_s": refine_s,
+            "max_rss_bytes": max_rss_bytes(),
+            "decoded_nodes": loader.nodes,
+            "decoded_points": loader.points,
+            "read_s": loader.read_s,
+            "decode_s": loader.decode_s,
+            "prepare_s": loader.prepare_s,
+            "decode_points_per_core_s": per_core(loader.decode_s),
+            "load_points_per_core_s": per_core(busy),
+            "frames": a.frames.max(1),
+            "passes": passes,
+            "frame": frame,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("{}: cannot write timings", path.display()))?;
+        eprintln!(
+            "frame {:.3} ms; decode {:.2} M points/s per core, read + decode + prepare {:.2} M points/s per core",
+            frame.median_ms,
+            per_core(loader.decode_s) / 1e6,
+            per_core(busy) / 1e6
+        );
+    }
     let mut frame = renderer
         .render_batches(&view, Some(streamed.batches()), true)?
         .context("renderer returned no frame")?;
@@ -464,4 +525,18 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         a.out.display()
     );
     Ok(())
+}
+
+/// The process's peak resident memory in bytes (`getrusage`), 0 where unknown.
+fn max_rss_bytes() -> u64 {
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage writes the struct it is given; RUSAGE_SELF is always valid.
+    let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr()) } == 0;
+    if ok {
+        // SAFETY: initialised by the successful call.
+        let usage = unsafe { usage.assume_init() };
+        u64::try_from(usage.ru_maxrss).unwrap_or(0) * 1024
+    } else {
+        0
+    }
 }

@@ -169,9 +169,9 @@ impl Renderer {
             bail!(why);
         }
         let m = &config.method;
-        if scene.streamed && (m.needs_lod || m.needs_hpr || m.needs_faces || m.needs_normal_field) {
+        if scene.streamed && (m.needs_lod || m.needs_hpr || m.needs_faces) {
             bail!(
-                "method '{}' reads the whole cloud (its object texture, visibility, faces or normal fields); a streamed file holds only the nodes a view needs: load it whole (without --stream) for this method",
+                "method '{}' reads the whole cloud (its object texture, visibility or faces); a streamed file holds only the nodes a view needs: load it whole (without --stream) for this method",
                 m.name
             );
         }

@@ -505,15 +505,25 @@ impl CopcFile {
 
     /// Reads and decodes `node` from `read`.
     pub fn read_node(&self, read: &dyn ByteSource, node: &Node) -> Result<Decoded, LoadError> {
-        let data = read_at(
+        let data = self.read_chunk(read, node)?;
+        self.decode_guarded(node, &data)
+    }
+
+    /// The compressed bytes of `node`.
+    pub fn read_chunk(&self, read: &dyn ByteSource, node: &Node) -> Result<Vec<u8>, LoadError> {
+        read_at(
             &self.file,
             read,
             node.offset,
             node.bytes,
             self.size,
             "the chunk",
-        )?;
-        guard::deep_stack(|| self.decode(node, &data))
+        )
+    }
+
+    /// [`Self::decode`] on a thread with a deep stack (the LAZ decoder recurses).
+    pub fn decode_guarded(&self, node: &Node, data: &[u8]) -> Result<Decoded, LoadError> {
+        guard::deep_stack(|| self.decode(node, data))
     }
 
     /// Decodes one chunk (`data`, the node's bytes) into its points.

@@ -124,6 +124,17 @@ pub fn pack(s: [f32; 3]) -> [u32; 2] {
     [h(s[0]) | (h(s[1]) << 16), h(s[2])]
 }
 
+/// The packed linear normal field of every point of `cloud` (its normals and radii; zeros
+/// without them), fitted over each point's [`FIELD_K`] nearest neighbours.
+pub fn fit_cloud(cloud: &super::Cloud) -> Vec<[u32; 2]> {
+    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
+        return vec![[0; 2]; cloud.len()];
+    };
+    let neighbours = Neighbours::compute(&cloud.positions, FIELD_K, false);
+    let field = fit(&cloud.positions, normals, radii, &neighbours);
+    field.into_iter().map(pack).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

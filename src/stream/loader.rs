@@ -9,9 +9,11 @@
 //! every point stream the renderer reads. The result is ready to copy into the GPU pool.
 
 use std::collections::{HashSet, VecDeque};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
+use std::time::Instant;
 
 use glam::DVec3;
 
@@ -33,6 +35,8 @@ pub struct LoaderOptions {
     pub k: usize,
     /// The scalar field uploaded for colouring, by index in a node cloud's scalars.
     pub scalar: Option<usize>,
+    /// Fit and stream the splats' linear normal fields (Phong splatting, EWA), per node.
+    pub normal_field: bool,
     pub http: HttpOptions,
 }
 
@@ -42,6 +46,7 @@ impl Default for LoaderOptions {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             k: preprocess::DEFAULT_K,
             scalar: None,
+            normal_field: false,
             http: HttpOptions::default(),
         }
     }
@@ -94,8 +99,37 @@ struct Queue {
     closed: bool,
 }
 
+/// Work the loader's threads have done, summed over threads.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LoaderStats {
+    pub nodes: u64,
+    pub points: u64,
+    /// Seconds reading chunks (file or network).
+    pub read_s: f64,
+    /// Seconds decompressing LAZ.
+    pub decode_s: f64,
+    /// Seconds estimating normals and radii, ordering and encoding.
+    pub prepare_s: f64,
+}
+
+#[derive(Default)]
+struct Counters {
+    nodes: AtomicU64,
+    points: AtomicU64,
+    read_ns: AtomicU64,
+    decode_ns: AtomicU64,
+    prepare_ns: AtomicU64,
+}
+
+fn add_since(counter: &AtomicU64, start: Instant) -> Instant {
+    let now = Instant::now();
+    counter.fetch_add((now - start).as_nanos() as u64, Ordering::Relaxed);
+    now
+}
+
 /// What every worker shares.
 struct Shared {
+    counters: Counters,
     copc: CopcFile,
     source: Arc<dyn ByteSource>,
     origin: DVec3,
@@ -160,8 +194,12 @@ impl Loader {
             normals: Some(Vec::new()),
             ..root_cloud.clone()
         };
-        let streams = StreamLayout::streams_for(&probe, options.scalar);
+        let mut streams = StreamLayout::streams_for(&probe, options.scalar);
+        if options.normal_field {
+            streams.push(Stream::NormalField);
+        }
         let shared = Arc::new(Shared {
+            counters: Counters::default(),
             copc,
             source,
             origin,
@@ -222,6 +260,19 @@ impl Loader {
     /// Encodes a node decoded elsewhere (the root, read at open) as the workers do.
     pub fn encode(&self, key: Key, cloud: Cloud) -> Result<EncodedNode, LoadError> {
         encode(&self.shared, key, cloud)
+    }
+
+    /// What the workers have done so far.
+    pub fn stats(&self) -> LoaderStats {
+        let c = &self.shared.counters;
+        let s = |n: &AtomicU64| n.load(Ordering::Relaxed) as f64 * 1e-9;
+        LoaderStats {
+            nodes: c.nodes.load(Ordering::Relaxed),
+            points: c.points.load(Ordering::Relaxed),
+            read_s: s(&c.read_ns),
+            decode_s: s(&c.decode_ns),
+            prepare_s: s(&c.prepare_ns),
+        }
     }
 
     /// Jobs queued or running.
@@ -328,21 +379,30 @@ fn work(shared: &Shared, queue: &(Mutex<Queue>, Condvar), send: &Sender<Done>) {
             },
             Job::Node(node) => Done::Node {
                 key: node.key,
-                result: shared
-                    .copc
-                    .read_node(shared.source.as_ref(), &node)
-                    .and_then(|decoded| {
-                        let mut cloud =
-                            copc::to_cloud(&shared.copc, decoded, shared.origin, shared.eight_bit);
-                        cloud.retain_finite();
-                        encode(shared, node.key, cloud)
-                    }),
+                result: load_node(shared, &node),
             },
         };
         if send.send(done).is_err() {
             return;
         }
     }
+}
+
+/// Reads, decodes and encodes `node`, counting the time of each step.
+fn load_node(shared: &Shared, node: &Node) -> Result<EncodedNode, LoadError> {
+    let c = &shared.counters;
+    let start = Instant::now();
+    let data = shared.copc.read_chunk(shared.source.as_ref(), node)?;
+    let start = add_since(&c.read_ns, start);
+    let decoded = shared.copc.decode_guarded(node, &data)?;
+    let start = add_since(&c.decode_ns, start);
+    let mut cloud = copc::to_cloud(&shared.copc, decoded, shared.origin, shared.eight_bit);
+    cloud.retain_finite();
+    let encoded = encode(shared, node.key, cloud)?;
+    add_since(&c.prepare_ns, start);
+    c.nodes.fetch_add(1, Ordering::Relaxed);
+    c.points.fetch_add(node.points, Ordering::Relaxed);
+    Ok(encoded)
 }
 
 /// Completes and encodes the points of node `key`.
@@ -373,8 +433,11 @@ fn encode(shared: &Shared, key: Key, mut cloud: Cloud) -> Result<EncodedNode, Lo
         // No normals to light with: the renderer shows such a file unlit.
         cloud.normals = Some(vec![glam::Vec3::Z; n]);
     }
-    let layout = StreamLayout::new(&cloud, u64::MAX, shared.options.scalar)
+    let mut layout = StreamLayout::new(&cloud, u64::MAX, shared.options.scalar)
         .map_err(|e| LoadError::whole(&shared.copc.file, e))?;
+    if shared.options.normal_field {
+        layout = layout.with_normal_field(crate::scene::normal_field::fit_cloud(&cloud));
+    }
     if layout.streams != shared.streams {
         return Err(LoadError::whole(
             &shared.copc.file,

@@ -243,7 +243,7 @@ pub fn pool(ctx: &Arc<Context>, streams: &[Stream], slots: u32) -> Result<GpuStr
         point_count: segment_points,
         batch_count: slots,
         segment_points,
-        normal_field: false,
+        normal_field: streams.contains(&Stream::NormalField),
     })
 }
 

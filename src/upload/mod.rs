@@ -15,7 +15,6 @@ use crate::color::Coloring;
 use crate::gpu::{Buffer, Context};
 use crate::lod::{self, Hierarchy, ObjectTexture};
 use crate::methods::lod::gpu::GpuLod;
-use crate::scene::preprocess::Neighbours;
 use crate::scene::{normal_field, Cloud, Up};
 use crate::streams::upload::{default_segment_points, DEFAULT_CHUNK_BYTES};
 use crate::streams::{upload as upload_streams, GpuStreams, StreamLayout};
@@ -135,7 +134,7 @@ impl GpuScene {
             self.lod = Some(Arc::new(upload_lod(ctx, cloud)?));
         }
         if options.normal_field && !self.streams.normal_field {
-            let field = fit_normal_field(cloud);
+            let field = normal_field::fit_cloud(cloud);
             self.streams
                 .add_normal_field(ctx, cloud, field, options.chunk_bytes)?;
         }
@@ -175,7 +174,7 @@ pub fn upload(
     let mut layout =
         StreamLayout::new(cloud, segment_points, coloring.scalar).map_err(anyhow::Error::msg)?;
     if options.normal_field {
-        layout = layout.with_normal_field(fit_normal_field(cloud));
+        layout = layout.with_normal_field(normal_field::fit_cloud(cloud));
     }
     let streams = upload_streams::upload(ctx, cloud, &layout, options.chunk_bytes)?;
     let inverse = layout.inverse();
@@ -264,15 +263,4 @@ pub fn upload_lod(ctx: &Arc<Context>, cloud: &Cloud) -> Result<GpuLod> {
         ctx,
         &ObjectTexture::new(&hierarchy, cloud.colors.as_deref()),
     )
-}
-
-/// The packed linear normal field of every point of `cloud` (`scene::normal_field`), fitted to
-/// its `normal_field::FIELD_K` nearest neighbours; flat (zero) without normals or radii.
-pub fn fit_normal_field(cloud: &Cloud) -> Vec<[u32; 2]> {
-    let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
-        return vec![[0; 2]; cloud.len()];
-    };
-    let neighbours = Neighbours::compute(&cloud.positions, normal_field::FIELD_K, false);
-    let field = normal_field::fit(&cloud.positions, normals, radii, &neighbours);
-    field.into_iter().map(normal_field::pack).collect()
 }

@@ -25,7 +25,7 @@ use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
 use crate::scene::copc::Key;
 use crate::scene::{Camera, Cloud, Up};
-use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions};
+use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats};
 use crate::stream::select::{self, Budget, Hierarchy, SelectView, Selection};
 use crate::streams::upload::pool;
 use crate::streams::{Stream, StreamLayout};
@@ -76,7 +76,7 @@ struct Resident {
 }
 
 /// What the streamer is doing, for the viewer's HUD and reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StreamStats {
     /// Points in the view's chosen nodes.
     pub selected_points: u64,
@@ -95,6 +95,8 @@ pub struct StreamStats {
     pub failed: usize,
     /// Nodes evicted so far.
     pub evicted: u64,
+    /// The loader's work so far.
+    pub loader: LoaderStats,
 }
 
 /// A streamed cloud: the loader, what is known of the octree and the GPU pool.
@@ -248,6 +250,20 @@ impl StreamedScene {
         self.loader.origin()
     }
 
+    /// Points in the file.
+    pub fn file_points(&self) -> u64 {
+        self.loader.copc().header.number_of_points()
+    }
+
+    /// Bytes of the pool's stream buffers (what the GPU budget bounds).
+    pub fn pool_bytes(&self) -> u64 {
+        let capacity = u64::from(self.scene.streams.point_count);
+        self.targets
+            .iter()
+            .map(|(s, _)| StreamLayout::stream_bytes(*s, capacity))
+            .sum()
+    }
+
     /// The nodes chosen for the last view.
     pub fn selection(&self) -> &Selection {
         &self.selection
@@ -297,6 +313,7 @@ impl StreamedScene {
             used_slots: self.resident.values().map(|r| r.slots.len() as u32).sum(),
             failed: self.failed.len() + self.failed_pages.len(),
             evicted: self.evicted,
+            loader: self.loader.stats(),
         }
     }
 

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// Lowest first: the GPU and the graph, the CPU data, what runs on the GPU, the front ends.
 const LAYERS: &[&[&str]] = &[
     &["gpu", "graph", "frame", "rng"],
-    &["scene", "streams", "lines", "lod", "hpr", "color"],
+    &["scene", "streams", "stream", "lines", "lod", "hpr", "color"],
     &["upload", "methods", "estimate", "post", "overlay", "render"],
     &["cli", "app", "eval"],
 ];

@@ -449,6 +449,7 @@ mod gpu {
                 threads: 2,
                 k: 0,
                 scalar: None,
+                normal_field: false,
                 http: HttpOptions {
                     attempts: 4,
                     backoff: Duration::from_millis(5),
@@ -706,4 +707,99 @@ fn eviction_under_a_small_memory_budget_keeps_the_image_complete() {
         gpu::coverage_difference(&evicting.frame, &reference.frame),
         0.0
     );
+}
+
+/// Every method either draws a streamed LiDAR file (colour by intensity, eye-dome lighting on)
+/// or refuses it for reading the whole cloud.
+#[test]
+fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
+    use surfel::methods::{MethodConfig, METHODS};
+    use surfel::post::{Edl, PostOptions};
+    use surfel::render::{Extras, Renderer, View};
+    use surfel::upload::streamed::StreamedScene;
+
+    let lidar = scene::load(Path::new("../shared/data/lidar/autzen_trim.laz")).unwrap();
+    let path = scratch("autzen.copc.laz");
+    convert::write_with(&lidar, &path, 8_000).unwrap();
+    let ctx = common::context();
+    // A fine screen-space error, so the small image still needs several levels.
+    let mut options = gpu::options(60_000, 64 << 20, 0.1);
+    options.loader.k = 8;
+    options.loader.normal_field = true;
+    let mut s = StreamedScene::open(
+        &ctx,
+        path.to_str().unwrap(),
+        &options,
+        |root| Ok(surfel::color::select(root, "intensity", surfel::scene::Up::Z).unwrap()),
+        2,
+    )
+    .unwrap();
+    assert!(s.info.has_colors && s.info.has_normals);
+    let (centre, radius) = s.bounding_sphere();
+    let camera = surfel::scene::Up::Z
+        .default_pose()
+        .camera(centre, radius, surfel::scene::Up::Z);
+    for _ in 0..2000 {
+        s.update(&camera, 96, 96).unwrap();
+        if s.stable() {
+            break;
+        }
+        s.wait(std::time::Duration::from_millis(50));
+    }
+    assert!(
+        s.stable() && s.stats().drawn_points > 20_000,
+        "{:?}",
+        s.stats()
+    );
+    let mut drawn = Vec::new();
+    for m in METHODS {
+        let config = MethodConfig::parse(m.name).unwrap();
+        let extras = Extras {
+            readback: true,
+            frames_in_flight: 2,
+            post: PostOptions {
+                edl: Some(Edl::default()),
+                ..PostOptions::NONE
+            },
+            ..Extras::default()
+        };
+        let whole = m.needs_lod || m.needs_hpr || m.needs_faces;
+        match Renderer::new(&ctx, &s.scene, s.info, &config, 96, 96, extras) {
+            Err(e) => {
+                assert!(whole, "{}: {e}", m.name);
+                assert!(e.to_string().contains("reads the whole cloud"), "{e}");
+            }
+            Ok(mut r) => {
+                assert!(!whole, "{} should refuse a streamed scene", m.name);
+                let view = View {
+                    camera,
+                    lights: Vec::new(),
+                    use_color: true,
+                    time: 0.0,
+                };
+                let frame = r
+                    .render_batches(&view, Some(s.batches()), true)
+                    .unwrap()
+                    .unwrap();
+                let covered = common::coverage(&frame);
+                assert!(covered > 0.1, "{}: {covered}", m.name);
+                assert!(frame.depth.iter().all(|d| !d.is_nan()), "{}", m.name);
+                drawn.push(m.name);
+            }
+        }
+    }
+    common::assert_clean(&ctx);
+    for family in [
+        "points",
+        "compute",
+        "perspective-phong",
+        "ewa",
+        "pyramid",
+        "kernel",
+    ] {
+        assert!(
+            drawn.iter().any(|n| n.starts_with(family)),
+            "{family}: {drawn:?}"
+        );
+    }
 }
