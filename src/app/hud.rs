@@ -16,6 +16,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("wheel", "zoom"),
     ("M / N", "next / previous method"),
     ("[ / ]", "pyramid level shown"),
+    (", / .", "point budget / 2, x 2 (streaming)"),
     ("C", "toggle point colors"),
     ("E", "toggle eye-dome lighting"),
     ("V", "color by the next field"),
@@ -137,6 +138,9 @@ pub struct Stats<'a> {
     pub legend: &'a [LegendEntry],
     /// The last action's outcome (camera saved, screenshot written, ...).
     pub status: &'a str,
+    /// A streamed file's state, one HUD line per text line: points drawn and chosen, budget,
+    /// nodes, loading, bytes read.
+    pub stream: Option<&'a str>,
 }
 
 /// The HUD's panels: statistics (top left) and, when asked, the key help (top right).
@@ -206,6 +210,9 @@ impl Hud {
         ));
         if let Projected::LevelOfDetail(Some(counts)) = &s.projected {
             stats.extend(histogram(counts, counts.iter().sum()));
+        }
+        for line in s.stream.iter().flat_map(|t| t.lines()) {
+            stats.push(HudLine::new(line, HudLine::TEXT));
         }
         stats.push(HudLine::new(
             match s.memory {
@@ -288,6 +295,7 @@ mod tests {
             color_by: "rgb",
             legend: &[],
             status: "",
+            stream: None,
         }
     }
 

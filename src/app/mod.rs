@@ -30,11 +30,12 @@ use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::overlay::Panel;
 use crate::post::PostOptions;
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Extras, Renderer, View, DEFAULT_FRAMES_IN_FLIGHT};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Camera, Cloud, Light, Up};
 use crate::streams::upload::DEFAULT_CHUNK_BYTES;
+use crate::upload::streamed::{StreamOptions, StreamedScene};
 use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 use estimate::{EstimateOptions, Estimation};
 use hud::{FrameRate, Hud, Stats};
@@ -69,6 +70,8 @@ pub struct ViewerOptions {
     /// Estimate the normals and radii the cloud lacks in the background, drawing the raw
     /// points meanwhile (a method that reads them waits for them).
     pub estimate: Option<EstimateOptions>,
+    /// Stream this COPC file or URL by view (the viewer's cloud is then its root node).
+    pub stream: Option<(String, StreamOptions)>,
 }
 
 /// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
@@ -133,6 +136,8 @@ struct Viewer {
     cloud: Cloud,
     ctx: Option<Arc<Context>>,
     scene: Option<(GpuScene, SceneInfo)>,
+    /// A streamed file's scene (instead of `scene`).
+    streamed: Option<StreamedScene>,
     gpu: Option<Gpu>,
     orbit: Orbit,
     method: usize,
@@ -195,6 +200,7 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
         cloud,
         ctx: None,
         scene: None,
+        streamed: None,
         gpu: None,
         method,
         use_color: true,
@@ -228,6 +234,9 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     }
     viewer.error.map_or(Ok(()), Err)
 }
+
+/// Rounds of 100 ms a scripted frame waits for a streamed view's nodes.
+const STREAM_WAIT_ROUNDS: u32 = 600;
 
 /// Frames a script's `size` step waits for the window to take its size.
 const RESIZE_FRAMES: u32 = 500;
@@ -335,8 +344,19 @@ impl Viewer {
             // The object texture and the normal fields only when the viewer starts on a method
             // reading them.
             let method = &METHODS[self.method];
-            let options = method.upload_options(UploadOptions::colored(self.opts.coloring));
-            self.scene = Some(upload(&ctx, &self.cloud, &options)?);
+            if let Some((location, options)) = &self.opts.stream {
+                let coloring = self.opts.coloring;
+                self.streamed = Some(StreamedScene::open(
+                    &ctx,
+                    location,
+                    options,
+                    |_| Ok(coloring),
+                    DEFAULT_FRAMES_IN_FLIGHT,
+                )?);
+            } else {
+                let options = method.upload_options(UploadOptions::colored(self.opts.coloring));
+                self.scene = Some(upload(&ctx, &self.cloud, &options)?);
+            }
             self.ctx = Some(ctx);
         }
         let ctx = self.ctx.clone().context("context")?;
@@ -364,7 +384,13 @@ impl Viewer {
     }
 
     fn build_renderer(&self, ctx: &Arc<Context>, swapchain: &Swapchain) -> Result<Renderer> {
-        let (scene, info) = self.scene.as_ref().context("scene not uploaded")?;
+        let (scene, info) = match &self.streamed {
+            Some(s) => (&s.scene, &s.info),
+            None => {
+                let (scene, info) = self.scene.as_ref().context("scene not uploaded")?;
+                (scene, info)
+            }
+        };
         let desc = ImageDesc {
             format: swapchain.format,
             width: swapchain.extent.width,
@@ -420,7 +446,18 @@ impl Viewer {
             self.method = (self.method as isize + step).rem_euclid(METHODS.len() as isize) as usize;
             let m = &METHODS[self.method];
             let supported = caps.as_ref().is_none_or(|c| m.unsupported(c).is_none());
-            if supported && (!m.needs_faces || has_faces) && (!m.needs_surfels || surfels) {
+            // A streamed file has only the nodes in view, and the normal fields when asked.
+            let streamable = self.streamed.as_ref().is_none_or(|s| {
+                !(m.needs_lod || m.needs_hpr || m.needs_faces)
+                    && (!m.needs_normal_field || s.scene.streams.normal_field)
+                    && (!m.needs_surfels || s.info.has_normals)
+            });
+            let surfels = surfels || self.streamed.is_some();
+            if supported
+                && streamable
+                && (!m.needs_faces || has_faces)
+                && (!m.needs_surfels || surfels)
+            {
                 break;
             }
         }
@@ -499,6 +536,9 @@ impl Viewer {
     /// Colors by the next field of `color::fields`: swaps the uploaded scalar stream (an event,
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
+        if self.streamed.is_some() {
+            bail!("a streamed file's colour field is chosen when it opens (--color-by)");
+        }
         let fields = color::fields(&self.cloud);
         let name = color::next_field(&fields, &self.opts.color_by)
             .context("no field to color by")?
@@ -516,6 +556,19 @@ impl Viewer {
         println!("color by {name}");
         self.opts.color_by = name;
         self.rebuild()
+    }
+
+    /// Scales a streamed file's point budget by `factor` (at least one node's worth).
+    fn scale_budget(&mut self, factor: f64) -> Result<()> {
+        let streamed = self
+            .streamed
+            .as_mut()
+            .context("the point budget is for streamed files (--stream)")?;
+        let budget = ((streamed.point_budget() as f64 * factor) as u64).max(10_000);
+        streamed.set_point_budget(budget);
+        println!("point budget {budget}");
+        self.hud_dirty = true;
+        Ok(())
     }
 
     /// Switches eye-dome lighting off, or on with the parameters given at start (else the
@@ -548,6 +601,8 @@ impl Viewer {
             ViewerKey::Char('c') => self.use_color = !self.use_color,
             ViewerKey::Char('e') => self.toggle_edl()?,
             ViewerKey::Char('v') => self.cycle_color()?,
+            ViewerKey::Char(',') => self.scale_budget(0.5)?,
+            ViewerKey::Char('.') => self.scale_budget(2.0)?,
             ViewerKey::Char(digit @ '0'..='9') => {
                 let count = digit.to_digit(10).unwrap_or(1);
                 let radius = self.scene.as_ref().map_or(1.0, |(_, info)| info.radius);
@@ -642,12 +697,32 @@ impl Viewer {
             }
             _ => hud::Projected::All,
         };
+        let stream = self.streamed.as_ref().map(|s| {
+            let t = s.stats();
+            format!(
+                "streamed {} of {} points, budget {} (, .)\nnodes {}, loading {}, read {:.1} MB, pool {} of {}{}",
+                hud::thousands(t.drawn_points),
+                hud::thousands(t.selected_points),
+                hud::thousands(s.point_budget()),
+                t.selected_nodes,
+                t.loading,
+                t.bytes_read as f64 / 1e6,
+                t.used_slots,
+                t.slots,
+                if t.failed > 0 { format!(", {} skipped", t.failed) } else { String::new() }
+            )
+        });
+        let points = match &self.streamed {
+            Some(s) => s.stats().drawn_points,
+            None => u64::from(gpu.renderer.info.points),
+        };
         let hud = Hud::new(
             &Stats {
                 method: &label,
                 file: &self.opts.file,
                 passes: &passes,
-                points: u64::from(gpu.renderer.info.points),
+                points,
+                stream: stream.as_deref(),
                 projected,
                 width: gpu.renderer.width,
                 height: gpu.renderer.height,
@@ -757,6 +832,39 @@ impl Viewer {
         // Waits only for the frame that used this slot last; the frame submitted just before
         // keeps running while this one is recorded.
         let available = gpu.renderer.begin_frame()?;
+        if let Some(streamed) = self.streamed.as_mut() {
+            // Nodes arrive and leave between frames; never waits for the file or the network.
+            streamed.update(
+                &self.orbit.camera(),
+                gpu.swapchain.extent.width,
+                gpu.swapchain.extent.height,
+            )?;
+            // A scripted tour draws each frame of a view once its nodes are all resident, so
+            // its screenshots do not depend on how fast the file is read.
+            let camera = self.orbit.camera();
+            let mut rounds = 0;
+            while self.script.is_some() && !streamed.stable() && !streamed.waits_for_slots() {
+                rounds += 1;
+                if rounds > STREAM_WAIT_ROUNDS {
+                    bail!(
+                        "streaming made no progress for {} s",
+                        STREAM_WAIT_ROUNDS / 10
+                    );
+                }
+                streamed.wait(std::time::Duration::from_millis(100));
+                streamed.refine(
+                    &camera,
+                    gpu.swapchain.extent.width,
+                    gpu.swapchain.extent.height,
+                )?;
+            }
+            gpu.renderer.set_batches(streamed.batches())?;
+            for m in streamed.take_messages() {
+                eprintln!("warning: {m}");
+                self.status = m;
+                self.hud_dirty = true;
+            }
+        }
         let Some(index) = gpu.swapchain.acquire(available)? else {
             return self.rebuild();
         };

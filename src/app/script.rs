@@ -30,12 +30,12 @@ pub enum ViewerKey {
 }
 
 impl ViewerKey {
-    /// Parses a script key name: one letter or digit (any case), `[` or `]`, `Tab`, `F11`,
+    /// Parses a script key name: one letter or digit (any case), `[`, `]`, `,` or `.`, `Tab`, `F11`,
     /// `Esc` or `Escape` (names in any case).
     pub fn parse(name: &str) -> Option<Self> {
         let mut chars = name.chars();
         match (chars.next(), chars.next()) {
-            (Some(c), None) if c.is_ascii_alphanumeric() || c == '[' || c == ']' => {
+            (Some(c), None) if c.is_ascii_alphanumeric() || "[],.".contains(c) => {
                 return Some(Self::Char(c.to_ascii_lowercase()))
             }
             _ => {}

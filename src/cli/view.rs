@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
+use super::render::StreamArgs;
 use super::{check_surfels, estimates, view_settings, CameraArgs, InputArgs};
 use crate::color;
 use crate::frame::Size;
@@ -38,6 +39,8 @@ pub struct ViewArgs {
     pub input: InputArgs,
     #[command(flatten)]
     pub camera: CameraArgs,
+    #[command(flatten)]
+    pub stream: StreamArgs,
 }
 
 pub(super) fn view(a: ViewArgs) -> Result<()> {
@@ -59,6 +62,9 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         if !dir.is_dir() {
             bail!("{}: the screenshot directory does not exist", dir.display());
         }
+    }
+    if a.stream.streams(&a.file) {
+        return view_streamed(a, config, size, settings, script);
     }
     let (cloud, _) = compose::load(
         &a.file,
@@ -102,6 +108,61 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
             camera_file: a.camera_file,
             screenshot_dir: a.screenshot_dir,
             estimate,
+            stream: None,
+        },
+    )
+}
+
+/// The viewer on a streamed COPC file: its root node opens first (for the colour field and
+/// the camera), the viewer streams the rest by view.
+fn view_streamed(
+    a: ViewArgs,
+    config: MethodConfig,
+    size: Option<(u32, u32)>,
+    settings: crate::render::settings::ViewSettings,
+    script: Option<crate::app::script::Script>,
+) -> Result<()> {
+    let location = a.file.to_string_lossy().into_owned();
+    let k = if config.method.needs_surfels {
+        a.input.k
+    } else {
+        0
+    };
+    let options = a.stream.options(k, config.method.needs_normal_field);
+    let opened = crate::stream::loader::Loader::open(&location, options.loader.clone())?;
+    let (lo, hi) = opened.loader.local_bounds();
+    let root = opened.root;
+    drop(opened.loader);
+    let coloring = settings.coloring(&a.file, &root)?;
+    let color_by = settings
+        .color_by
+        .clone()
+        .unwrap_or_else(|| color::default_field(&root).to_owned());
+    let up = settings.up(root.up);
+    let (centre, radius) = (
+        (lo + hi) * 0.5,
+        ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE),
+    );
+    crate::app::run(
+        root,
+        crate::app::ViewerOptions {
+            title: format!("surfel - {location} (streamed)"),
+            file: location.rsplit('/').next().unwrap_or(&location).to_owned(),
+            method: config,
+            camera: settings.camera(centre, radius, up),
+            up,
+            lights: settings.lights,
+            size,
+            post: settings.post,
+            color_by,
+            coloring,
+            frames: a.frames,
+            validation: a.validation || crate::gpu::context::validation_requested(),
+            script,
+            camera_file: a.camera_file,
+            screenshot_dir: a.screenshot_dir,
+            estimate: None,
+            stream: Some((location, options)),
         },
     )
 }

@@ -252,6 +252,16 @@ impl Loader {
         self.shared.has_normals
     }
 
+    /// The header's bounds in the local frame (minus [`Self::origin`]).
+    pub fn local_bounds(&self) -> (glam::Vec3, glam::Vec3) {
+        let b = self.shared.copc.header.bounds();
+        let o = self.shared.origin;
+        (
+            (DVec3::new(b.min.x, b.min.y, b.min.z) - o).as_vec3(),
+            (DVec3::new(b.max.x, b.max.y, b.max.z) - o).as_vec3(),
+        )
+    }
+
     /// The streams every node is encoded into.
     pub fn streams(&self) -> &[Stream] {
         &self.shared.streams

@@ -170,10 +170,7 @@ impl StreamedScene {
             .collect();
         let table = streams.host_batches.clone();
         let copc = loader.copc();
-        let header = copc.header.bounds();
-        let lo = glam::DVec3::new(header.min.x, header.min.y, header.min.z) - loader.origin();
-        let hi = glam::DVec3::new(header.max.x, header.max.y, header.max.z) - loader.origin();
-        let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+        let (lo, hi) = loader.local_bounds();
         let mut coloring = coloring;
         if coloring.mode == COLOR_ELEVATION {
             // The header's bounds, not the root's sample, span the elevations.
@@ -250,6 +247,16 @@ impl StreamedScene {
         self.loader.origin()
     }
 
+    /// The point budget.
+    pub fn point_budget(&self) -> u64 {
+        self.options.point_budget
+    }
+
+    /// Changes the point budget from the next update on.
+    pub fn set_point_budget(&mut self, points: u64) {
+        self.options.point_budget = points;
+    }
+
     /// Points in the file.
     pub fn file_points(&self) -> u64 {
         self.loader.copc().header.number_of_points()
@@ -291,6 +298,12 @@ impl StreamedScene {
                 .pages
                 .iter()
                 .all(|k| self.failed_pages.contains_key(k))
+    }
+
+    /// Whether what is left waits only for slots that frames still in flight may read (they
+    /// are free a few frames on): a caller waiting within one frame should draw it instead.
+    pub fn waits_for_slots(&self) -> bool {
+        self.loader.pending() == 0 && !self.ready.is_empty() && !self.retiring.is_empty()
     }
 
     pub fn stats(&self) -> StreamStats {
@@ -338,6 +351,12 @@ impl StreamedScene {
             let (_, slots) = self.retiring.pop_front().expect("checked");
             self.free.extend(slots);
         }
+        self.refine(camera, width, height)
+    }
+
+    /// [`Self::update`] within the current frame (a frame may refine several times while it
+    /// waits for nodes; slots freed now are still reused only frames later).
+    pub fn refine(&mut self, camera: &Camera, width: u32, height: u32) -> Result<()> {
         let done = self.loader.poll();
         self.absorb(done);
         let aspect = width as f32 / height.max(1) as f32;

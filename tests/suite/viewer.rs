@@ -494,3 +494,85 @@ fn a_raw_cloud_is_drawn_at_once_and_lit_when_its_normals_are_estimated() {
     let shades: std::collections::BTreeSet<u8> = lit.pixels().map(|p| p.0[1]).collect();
     assert!(shades.len() > 20, "{} shades of grey", shades.len());
 }
+
+#[test]
+fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
+    // A COPC of the LiDAR tile streamed by view: the HUD shows the streaming line; `,` halves
+    // the point budget (fewer points drawn), `.` restores it; `M` skips the methods that read
+    // the whole cloud.
+    let dir = tmp_dir("stream");
+    let cloud = surfel::scene::load(&data("lidar/autzen_trim.las")).expect("load");
+    let copc = dir.join("autzen.copc.laz");
+    surfel::stream::convert::write_with(&cloud, &copc, 5_000).expect("convert");
+    std::fs::write(
+        dir.join("tour.txt"),
+        "key Tab\n\
+         screenshot full.png\n\
+         key ,\nkey ,\nkey ,\n\
+         screenshot fewer.png\n\
+         key .\nkey .\nkey .\n\
+         screenshot again.png\n\
+         key Tab\n\
+         screenshot hud.png\n\
+         key M\nkey M\nkey M\nkey M\nkey M\nkey M\n\
+         screenshot method.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &copc,
+        &[
+            "--size",
+            "320x240",
+            "--stream",
+            "--point-budget",
+            "80000",
+            "--gpu-budget",
+            "64M",
+            "--script",
+            "tour.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    assert!(
+        stdout.lines().any(|l| l == "point budget 10000"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.lines().any(|l| l == "point budget 80000"),
+        "{stdout}"
+    );
+    let methods: Vec<&str> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("method "))
+        .collect();
+    assert_eq!(methods.len(), 6, "{stdout}");
+    for m in &methods {
+        assert!(
+            !m.starts_with("lod")
+                && !m.starts_with("hpr")
+                && *m != "mesh"
+                && !m.ends_with("-phong"),
+            "{m} reads what a streamed file does not have: {stdout}"
+        );
+    }
+    let lit = |name: &str| {
+        png(&dir.join(name))
+            .pixels()
+            .filter(|p| p.0 != [0, 0, 0])
+            .count()
+    };
+    let (full, fewer) = (lit("full.png"), lit("fewer.png"));
+    assert!(
+        fewer * 4 < full * 3,
+        "budget 10,000: {fewer} pixels vs {full}"
+    );
+    assert_eq!(
+        difference(&png(&dir.join("full.png")), &png(&dir.join("again.png"))).0,
+        0
+    );
+    let (changed, _) = difference(&png(&dir.join("again.png")), &png(&dir.join("hud.png")));
+    assert!(changed > 0);
+}
