@@ -119,6 +119,27 @@ pub struct GpuScene {
     /// A streamed cloud's pool (`streamed::StreamedScene`): which batches hold points changes
     /// per frame, so renderers read a per-frame batch table (`Renderer::set_batches`).
     pub streamed: bool,
+    /// Stream indices a draw of every point covers: `point_count`, or for a streamed pool the
+    /// end of its highest occupied slot (set per frame).
+    pub draw_points: DrawCount,
+}
+
+/// A point count read when a frame is recorded (a streamed pool's changes per frame).
+#[derive(Clone, Debug, Default)]
+pub struct DrawCount(Arc<std::sync::atomic::AtomicU32>);
+
+impl DrawCount {
+    pub fn new(n: u32) -> Self {
+        Self(Arc::new(std::sync::atomic::AtomicU32::new(n)))
+    }
+
+    pub fn get(&self) -> u32 {
+        self.0.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    pub fn set(&self, n: u32) {
+        self.0.store(n, std::sync::atomic::Ordering::Relaxed);
+    }
 }
 
 impl GpuScene {
@@ -240,6 +261,7 @@ pub fn upload(
             lod,
             hpr: options.hpr.then(|| HprScene::new(cloud)),
             streamed: false,
+            draw_points: DrawCount::new(point_count),
         },
         SceneInfo {
             centre,

@@ -11,7 +11,8 @@
 //! finished. A node or page that cannot be read or decoded is reported once and skipped;
 //! rendering goes on with the rest.
 
-use std::collections::{HashMap, VecDeque};
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap, VecDeque};
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -36,8 +37,9 @@ pub const DEFAULT_POINT_BUDGET: u64 = 2_000_000;
 /// Default GPU memory budget of the pool, in bytes.
 pub const DEFAULT_GPU_BYTES: u64 = 1 << 30;
 
-/// Default screen-space error: nodes are refined while their spacing exceeds this many pixels.
-pub const DEFAULT_ERROR_PX: f32 = 1.0;
+/// Default screen-space error: nodes are refined while their spacing exceeds this many pixels
+/// (half a pixel: a random subsample at one point per pixel leaves visible holes).
+pub const DEFAULT_ERROR_PX: f32 = 0.5;
 
 /// Staging bytes per copy (a node larger than this is reported and skipped).
 const STAGING_BYTES: u64 = 64 << 20;
@@ -111,7 +113,8 @@ pub struct StreamedScene {
     uploader: Uploader,
     /// The pool's stream buffers, in the loader's stream order.
     targets: Vec<(Stream, vk::Buffer)>,
-    free: Vec<u32>,
+    /// Free slots, lowest first (so draws of every index stay short).
+    free: BinaryHeap<Reverse<u32>>,
     /// Slots freed at a frame, reusable once the frames in flight then have finished.
     retiring: VecDeque<(u64, Vec<u32>)>,
     frames_in_flight: u64,
@@ -210,6 +213,7 @@ impl StreamedScene {
             lod: None,
             hpr: None,
             streamed: true,
+            draw_points: super::DrawCount::new(0),
         };
         let mut out = Self {
             scene,
@@ -220,7 +224,7 @@ impl StreamedScene {
             options: options.clone(),
             uploader: Uploader::new(ctx, STAGING_BYTES)?,
             targets,
-            free: (0..slots as u32).rev().collect(),
+            free: (0..slots as u32).map(Reverse).collect(),
             retiring: VecDeque::new(),
             frames_in_flight: frames.max(1) as u64,
             resident: HashMap::new(),
@@ -349,7 +353,7 @@ impl StreamedScene {
             .is_some_and(|(at, _)| at + self.frames_in_flight <= self.frame)
         {
             let (_, slots) = self.retiring.pop_front().expect("checked");
-            self.free.extend(slots);
+            self.free.extend(slots.into_iter().map(Reverse));
         }
         self.refine(camera, width, height)
     }
@@ -456,7 +460,7 @@ impl StreamedScene {
         let node = self.ready.remove(&key).expect("ready");
         *budget -= bytes;
         let slots: Vec<u32> = (0..need)
-            .map(|_| self.free.pop().expect("counted"))
+            .map(|_| self.free.pop().expect("counted").0)
             .collect();
         let n = u64::from(node.points);
         let mut copies = Vec::with_capacity(need * self.targets.len());
@@ -568,14 +572,18 @@ impl StreamedScene {
                 ..GpuBatch::default()
             };
         }
+        let mut end = 0;
         for key in &self.selection.nodes {
             if let Some(r) = self.resident.get_mut(key) {
                 r.last_drawn = self.frame;
                 for (&slot, b) in r.slots.iter().zip(&r.batches) {
                     self.table[slot as usize] = *b;
+                    end = end.max(slot + 1);
                 }
             }
         }
+        // Draws of every index stop after the last slot drawn (slots are taken lowest first).
+        self.scene.draw_points.set(end * BATCH_POINTS);
     }
 
     /// The centre and radius of the cloud's bounds (local frame), for framing a camera.

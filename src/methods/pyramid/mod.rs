@@ -880,7 +880,7 @@ fn rasterize(
     } else {
         Load::Load
     };
-    let points = b.scene.point_count;
+    let points = b.scene.draw_points.clone();
     let mut pass = b.graph.pass(name).binds(&binds);
     if let Primitives::LodList(_, _, counters) = primitives {
         pass = pass.buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
@@ -906,7 +906,7 @@ fn rasterize(
             ctx.bind_all(&pipeline, &binds);
             ctx.push(&pipeline, bytemuck::bytes_of(&params));
             match primitives {
-                Primitives::Points(_) => ctx.draw(points, 1),
+                Primitives::Points(_) => ctx.draw(points.get(), 1),
                 Primitives::Triangles(indices, count)
                 | Primitives::Ribbons(indices, count)
                 | Primitives::Tubes(indices, count) => ctx.draw_indexed(indices, count),

@@ -291,7 +291,7 @@ impl Splats {
             true,
         )?;
         let (binds, t) = (b.draw_binds(), b.targets);
-        let (count, params) = (b.scene.point_count, self.params);
+        let (count, params) = (b.scene.draw_points.clone(), self.params);
         b.graph
             .pass("splat.flat")
             .binds(&binds)
@@ -302,7 +302,7 @@ impl Splats {
             .record(move |ctx| {
                 ctx.bind_all(&pipeline, &binds);
                 ctx.push(&pipeline, bytemuck::bytes_of(&params));
-                ctx.draw(count, 1);
+                ctx.draw(count.get(), 1);
             });
         Ok(())
     }
@@ -338,12 +338,13 @@ impl Splats {
         let accum_color = accum(b, "splat.accum_color");
         let accum_normal = accum(b, "splat.accum_normal");
         let (binds, t) = (b.draw_binds(), b.targets);
-        let (count, params) = (b.scene.point_count, self.params);
+        let (count, params) = (b.scene.draw_points.clone(), self.params);
         let draw = move |ctx: &crate::graph::PassContext<'_>, pipeline: &Pipeline| {
             ctx.bind_all(pipeline, &binds);
             ctx.push(pipeline, bytemuck::bytes_of(&params));
-            ctx.draw(count, 1);
+            ctx.draw(count.get(), 1);
         };
+        let accumulate_draw = draw.clone();
         b.graph
             .pass("splat.visibility")
             .binds(&binds)
@@ -356,7 +357,7 @@ impl Splats {
             .color(accum_color, Load::Clear([0.0; 4]))
             .color(accum_normal, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Load)
-            .record(move |ctx| draw(ctx, &accumulate));
+            .record(move |ctx| accumulate_draw(ctx, &accumulate));
         let read = Access::StorageRead(Stages::Compute);
         let write = Access::StorageWrite(Stages::Compute);
         let normalize_binds = [

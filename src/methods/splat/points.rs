@@ -61,7 +61,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         },
     );
-    let (t, count) = (b.targets, b.scene.point_count);
+    let (t, count) = (b.targets, b.scene.draw_points.clone());
     b.graph
         .pass("points.project")
         .binds(&binds)
@@ -71,7 +71,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         .depth(zbuffer, Load::Clear([0.0; 4]))
         .record(move |ctx| {
             ctx.bind_all(&pipeline, &binds);
-            ctx.draw(count, 1);
+            ctx.draw(count.get(), 1);
         });
     Ok(())
 }
