@@ -128,7 +128,7 @@ pub fn format_up(extension: &str) -> Up {
 
 /// Refuses a device, FIFO or socket before a loader opens it: reading a FIFO waits for a
 /// writer, and `/dev/zero` or `/dev/urandom` never end.
-fn check_regular(path: &Path) -> Result<(), LoadError> {
+pub fn check_regular(path: &Path) -> Result<(), LoadError> {
     let file = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(|source| LoadError::Io {
         file: file.clone(),

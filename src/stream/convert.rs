@@ -1,11 +1,13 @@
 //! `surfel convert`: any input the loaders read, written as a COPC file by the `copc-writer`
 //! crate (octree build, LAZ chunk compression, hierarchy pages).
 //!
-//! The input is loaded by the ordinary loader (with its checks), then fed to the writer as LAS
-//! 1.4 records, in a pseudo-random order (see [`shuffled`]: the writer's coarse levels are the
-//! first points it meets per octant): the writer spills them to a temporary file in the output's folder and
-//! builds the octree from that spill, so its own memory stays bounded whatever the cloud's
-//! size; the loaded cloud is what bounds conversion memory (about 30 bytes per point).
+//! Points reach the writer as LAS 1.4 records in a pseudo-random order (the writer's coarse
+//! levels are the first points it meets per octant, see [`shuffled`]); the writer spills them to
+//! a temporary file beside the output and builds the octree from that spill, its own memory
+//! bounded whatever the cloud's size. A binary PLY (what `surfel sample` writes) is streamed in
+//! blocks through an external shuffle ([`Shuffler`]: random buckets on disk, each shuffled in
+//! memory), so conversion memory stays bounded too; other formats are loaded whole by their
+//! loader (with its checks), about 30 bytes per point.
 //!
 //! Kept: positions (f64: the cloud's origin plus its f32 offsets), colour (8-bit values stored
 //! as 16-bit, times 257), intensity, classification, returns, point source id, GPS time, and
@@ -13,13 +15,18 @@
 //! (`radius`) and every other scalar field. Coordinates are quantized at the finest decimal scale
 //! that keeps the cloud's largest extent within 2^30 steps, so they keep their f32 precision.
 
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+use glam::DVec3;
 
 use anyhow::{bail, Context as _, Result};
 use copc_core::{CancelCheck, LasPointRecord, StreamingLayout};
 use copc_writer::{CopcWriteMetadata, CopcWriterParams};
 
+use crate::rng::SplitMix64;
 use crate::scene::progress::Progress;
 use crate::scene::{Cloud, ReadOptions};
 
@@ -75,19 +82,142 @@ pub struct ConvertStats {
     pub bytes: u64,
 }
 
-/// One f32 extra-bytes field: its name and where its values come from.
-enum Extra<'a> {
-    Normal(usize),
-    Radius,
-    Scalar(&'a str, &'a [f32]),
+/// What a cloud's records carry beyond positions, colours and the standard fields: the f32
+/// extra-bytes fields, in order (decided from the whole cloud, or a streamed input's first
+/// chunk).
+#[derive(Clone, Debug, PartialEq)]
+struct Fields {
+    colors: bool,
+    normals: bool,
+    radii: bool,
+    /// Scalar fields that are not standard LAS fields.
+    scalars: Vec<String>,
 }
 
-impl Extra<'_> {
-    fn name(&self) -> &str {
-        match self {
-            Extra::Normal(axis) => NORMAL_NAMES[*axis],
-            Extra::Radius => RADIUS_NAME,
-            Extra::Scalar(name, _) => name,
+/// One cloud's columns in the order of [`Fields`].
+struct View<'a> {
+    cloud: &'a Cloud,
+    standard: [Option<&'a [f32]>; 6],
+    scalars: Vec<&'a [f32]>,
+    extra_bytes: usize,
+}
+
+impl Fields {
+    fn of(cloud: &Cloud) -> Self {
+        Self {
+            colors: cloud.colors.is_some(),
+            normals: cloud.normals.is_some(),
+            radii: cloud.radii.is_some(),
+            scalars: cloud
+                .scalars
+                .iter()
+                .filter(|s| !STANDARD.contains(&s.name.as_str()))
+                .map(|s| s.name.clone())
+                .collect(),
+        }
+    }
+
+    fn names(&self) -> Vec<&str> {
+        let mut names = Vec::new();
+        if self.normals {
+            names.extend(NORMAL_NAMES);
+        }
+        if self.radii {
+            names.push(RADIUS_NAME);
+        }
+        names.extend(self.scalars.iter().map(String::as_str));
+        names
+    }
+
+    /// The writer's record layout: point format 7 with colours, else 6, and one f32 extra
+    /// field per name.
+    fn layout(&self) -> Result<StreamingLayout> {
+        let names = self.names();
+        let extra_bytes = u16::try_from(4 * names.len())
+            .ok()
+            .filter(|&b| b < u16::MAX - 64)
+            .with_context(|| format!("{} extra fields: too many for a LAS record", names.len()))?;
+        Ok(StreamingLayout {
+            point_format: if self.colors { 7 } else { 6 },
+            has_gps: true,
+            has_color: self.colors,
+            has_nir: false,
+            has_waveform: false,
+            extra_bytes,
+            extra_bytes_descriptors: if names.is_empty() {
+                Vec::new()
+            } else {
+                vec![las::Vlr {
+                    user_id: "LASF_Spec".into(),
+                    record_id: 4,
+                    description: "surfel extra fields".into(),
+                    data: names.iter().flat_map(|n| descriptor(n)).collect(),
+                }]
+            },
+        })
+    }
+
+    /// `cloud`'s columns; fails when it lacks one of the fields (a streamed chunk unlike the
+    /// first).
+    fn view<'a>(&self, cloud: &'a Cloud) -> Result<View<'a>> {
+        let scalar = |name: &str| {
+            cloud
+                .scalars
+                .iter()
+                .find(|s| s.name == name)
+                .map(|s| s.values.as_slice())
+        };
+        if Self::of(cloud) != *self {
+            bail!("a block of points with other fields than the first block's");
+        }
+        Ok(View {
+            cloud,
+            standard: STANDARD.map(scalar),
+            scalars: self
+                .scalars
+                .iter()
+                .map(|n| scalar(n).expect("checked"))
+                .collect(),
+            extra_bytes: 4 * self.names().len(),
+        })
+    }
+}
+
+impl View<'_> {
+    /// The LAS record of point `i`.
+    fn record(&self, i: usize) -> LasPointRecord {
+        let cloud = self.cloud;
+        let p = cloud.origin + cloud.positions[i].as_dvec3();
+        let value = |k: usize| self.standard[k].map_or(0.0, |v| v[i]);
+        let byte = |k: usize| value(k).clamp(0.0, 255.0) as u8;
+        let [r, g, b, _] = cloud.colors.as_ref().map_or([0; 4], |c| c[i]);
+        let mut extra = Vec::with_capacity(self.extra_bytes);
+        if let Some(n) = &cloud.normals {
+            for v in n[i].to_array() {
+                extra.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        if let Some(radii) = &cloud.radii {
+            extra.extend_from_slice(&radii[i].to_le_bytes());
+        }
+        for values in &self.scalars {
+            extra.extend_from_slice(&values[i].to_le_bytes());
+        }
+        LasPointRecord {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            intensity: value(0).clamp(0.0, 65535.0) as u16,
+            classification: byte(1),
+            return_number: byte(2).min(15),
+            number_of_returns: byte(3).min(15),
+            point_source_id: value(4).clamp(0.0, 65535.0) as u16,
+            gps_time: f64::from(value(5)),
+            red: u16::from(r) * 257,
+            green: u16::from(g) * 257,
+            blue: u16::from(b) * 257,
+            extra_bytes: extra,
+            ..LasPointRecord::default()
         }
     }
 }
@@ -138,6 +268,8 @@ impl CancelCheck for Continue {
 }
 
 /// Converts `input` (any format [`crate::scene::load_with`] reads) into the COPC file `out`.
+/// A binary PLY is streamed in blocks (memory bounded whatever its size); other formats are
+/// loaded whole.
 pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<ConvertStats> {
     if !out
         .file_name()
@@ -155,23 +287,32 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
             options.node_points
         );
     }
+    crate::scene::check_regular(input)?;
     let start = Instant::now();
+    if crate::scene::format_extension(input) == "ply" && !crate::lines::is_line_model(input) {
+        if let Some(stats) = convert_streamed(input, out, options.node_points, start)? {
+            return Ok(stats);
+        }
+    }
     let cloud = crate::scene::load_with(input, &options.read)?;
     if cloud.is_empty() {
         bail!("{}: no points to convert", input.display());
     }
     let load_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    write(&cloud, out)?;
-    let bytes = std::fs::metadata(out)
-        .with_context(|| format!("{}: cannot read the written file", out.display()))?
-        .len();
+    write_with(&cloud, out, options.node_points)?;
     Ok(ConvertStats {
         points: cloud.len() as u64,
         load_seconds,
         write_seconds: start.elapsed().as_secs_f64(),
-        bytes,
+        bytes: output_bytes(out)?,
     })
+}
+
+fn output_bytes(out: &Path) -> Result<u64> {
+    Ok(std::fs::metadata(out)
+        .with_context(|| format!("{}: cannot read the written file", out.display()))?
+        .len())
 }
 
 /// The folder the writer spills into: the output's (so the spill is on the output's disk).
@@ -189,59 +330,11 @@ pub fn write(cloud: &Cloud, out: &Path) -> Result<()> {
 
 /// [`write`] with `node_points` points per node.
 pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
-    let scalar = |name: &str| {
-        cloud
-            .scalars
-            .iter()
-            .find(|s| s.name == name)
-            .map(|s| s.values.as_slice())
-    };
-    let mut extras = Vec::new();
-    if cloud.normals.is_some() {
-        extras.extend((0..3).map(Extra::Normal));
-    }
-    if cloud.radii.is_some() {
-        extras.push(Extra::Radius);
-    }
-    extras.extend(
-        cloud
-            .scalars
-            .iter()
-            .filter(|s| !STANDARD.contains(&s.name.as_str()))
-            .map(|s| Extra::Scalar(&s.name, &s.values)),
-    );
-    let descriptors: Vec<u8> = extras.iter().flat_map(|e| descriptor(e.name())).collect();
-    let extra_bytes = u16::try_from(4 * extras.len())
-        .ok()
-        .filter(|&b| b < u16::MAX - 64)
-        .with_context(|| format!("{} extra fields: too many for a LAS record", extras.len()))?;
-    let has_color = cloud.colors.is_some();
-    let layout = StreamingLayout {
-        point_format: if has_color { 7 } else { 6 },
-        has_gps: true,
-        has_color,
-        has_nir: false,
-        has_waveform: false,
-        extra_bytes,
-        extra_bytes_descriptors: if extras.is_empty() {
-            Vec::new()
-        } else {
-            vec![las::Vlr {
-                user_id: "LASF_Spec".into(),
-                record_id: 4,
-                description: "surfel extra fields".into(),
-                data: descriptors,
-            }]
-        },
-    };
+    let fields = Fields::of(cloud);
+    let view = fields.view(cloud)?;
     let extent = cloud
         .bounds()
         .map_or(0.0, |(lo, hi)| f64::from((hi - lo).max_element()));
-    let scale = decimal_scale(extent);
-    let mut metadata = CopcWriteMetadata::default();
-    metadata.scale = Some((scale, scale, scale));
-    metadata.generating_software = Some(format!("surfel {}", env!("CARGO_PKG_VERSION")));
-    let standard: Vec<Option<&[f32]>> = STANDARD.iter().map(|n| scalar(n)).collect();
     let progress = Progress::new(
         "converting",
         cloud.len(),
@@ -249,41 +342,29 @@ pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
     );
     let order = shuffled(cloud.len());
     let records = order.iter().enumerate().map(|(done, &i)| {
-        let i = i as usize;
         if done % 65536 == 0 {
             progress.advance(65536.min(cloud.len() - done));
         }
-        let p = cloud.origin + cloud.positions[i].as_dvec3();
-        let value = |k: usize| standard[k].map_or(0.0, |v| v[i]);
-        let byte = |k: usize| value(k).clamp(0.0, 255.0) as u8;
-        let [r, g, b, _] = cloud.colors.as_ref().map_or([0; 4], |c| c[i]);
-        let mut extra = Vec::with_capacity(usize::from(extra_bytes));
-        for e in &extras {
-            let v = match e {
-                Extra::Normal(axis) => cloud.normals.as_ref().map_or(0.0, |n| n[i][*axis]),
-                Extra::Radius => cloud.radii.as_ref().map_or(0.0, |r| r[i]),
-                Extra::Scalar(_, values) => values[i],
-            };
-            extra.extend_from_slice(&v.to_le_bytes());
-        }
-        Ok(LasPointRecord {
-            x: p.x,
-            y: p.y,
-            z: p.z,
-            intensity: value(0).clamp(0.0, 65535.0) as u16,
-            classification: byte(1),
-            return_number: byte(2).min(15),
-            number_of_returns: byte(3).min(15),
-            point_source_id: value(4).clamp(0.0, 65535.0) as u16,
-            gps_time: f64::from(value(5)),
-            red: u16::from(r) * 257,
-            green: u16::from(g) * 257,
-            blue: u16::from(b) * 257,
-            extra_bytes: extra,
-            ..LasPointRecord::default()
-        })
+        Ok(view.record(i as usize))
     });
-    let result = copc_writer::write_streaming_with_cancel(
+    let result = write_records(out, fields.layout()?, records, extent, node_points);
+    progress.finish();
+    result
+}
+
+/// Hands `records` to the writer with a decimal scale for `extent`.
+fn write_records(
+    out: &Path,
+    layout: StreamingLayout,
+    records: impl Iterator<Item = copc_core::Result<LasPointRecord>>,
+    extent: f64,
+    node_points: u32,
+) -> Result<()> {
+    let scale = decimal_scale(extent);
+    let mut metadata = CopcWriteMetadata::default();
+    metadata.scale = Some((scale, scale, scale));
+    metadata.generating_software = Some(format!("surfel {}", env!("CARGO_PKG_VERSION")));
+    copc_writer::write_streaming_with_cancel(
         out,
         layout,
         records,
@@ -291,7 +372,218 @@ pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
         &metadata,
         &spill_dir(out),
         &Continue,
+    )
+    .map_err(|e| anyhow::anyhow!("{}: cannot write COPC: {e}", out.display()))
+}
+
+/// Points per shuffle bucket at most (what one bucket holds in memory when it is shuffled).
+const BUCKET_POINTS: usize = 1 << 20;
+
+/// An external shuffle: records go to one of `n` temporary files chosen at random, then each
+/// file is read back, shuffled in memory and handed on, so the first records handed on are a
+/// uniform sample of the whole input (see [`shuffled`]) with one bucket in memory at a time.
+struct Shuffler {
+    paths: Vec<PathBuf>,
+    files: Vec<BufWriter<File>>,
+    counts: Vec<usize>,
+    layout: StreamingLayout,
+    buf: Vec<u8>,
+    rng: SplitMix64,
+}
+
+impl Shuffler {
+    fn new(dir: &Path, points: usize, layout: StreamingLayout) -> Result<Self> {
+        let n = points.div_ceil(BUCKET_POINTS).clamp(1, 4096);
+        let mut paths = Vec::with_capacity(n);
+        let mut files = Vec::with_capacity(n);
+        for k in 0..n {
+            let path = dir.join(format!(".surfel-convert-{}-{k}.part", std::process::id()));
+            let file = File::create(&path)
+                .with_context(|| format!("{}: cannot create a shuffle file", path.display()))?;
+            paths.push(path);
+            files.push(BufWriter::with_capacity(1 << 16, file));
+        }
+        Ok(Self {
+            paths,
+            files,
+            counts: vec![0; n],
+            buf: vec![0; layout.record_width()],
+            layout,
+            rng: SplitMix64::new(0x5eed_c0bc),
+        })
+    }
+
+    fn push(&mut self, record: &LasPointRecord) -> Result<()> {
+        let k = (self.rng.next_u64() % self.files.len() as u64) as usize;
+        copc_core::serialize_le(record, &self.layout, &mut self.buf)?;
+        self.files[k]
+            .write_all(&self.buf)
+            .with_context(|| format!("{}: cannot write", self.paths[k].display()))?;
+        self.counts[k] += 1;
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<Shuffled> {
+        for (file, path) in self.files.iter_mut().zip(&self.paths) {
+            file.flush()
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+        }
+        Ok(Shuffled {
+            paths: std::mem::take(&mut self.paths),
+            counts: std::mem::take(&mut self.counts),
+            layout: self.layout.clone(),
+            next: 0,
+            current: Vec::new(),
+            rng: SplitMix64::new(0x5eed_b0c1),
+        })
+    }
+}
+
+impl Drop for Shuffler {
+    fn drop(&mut self) {
+        for path in &self.paths {
+            // Best effort: a file that cannot be removed stays behind as `.surfel-convert-*`.
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The records of a [`Shuffler`], bucket after bucket, each shuffled.
+struct Shuffled {
+    paths: Vec<PathBuf>,
+    counts: Vec<usize>,
+    layout: StreamingLayout,
+    next: usize,
+    current: Vec<LasPointRecord>,
+    rng: SplitMix64,
+}
+
+impl Shuffled {
+    fn load(&mut self, k: usize) -> copc_core::Result<()> {
+        let bytes = std::fs::read(&self.paths[k])
+            .map_err(|e| copc_core::Error::io("read a shuffle bucket", e))?;
+        let width = self.layout.record_width();
+        if bytes.len() != self.counts[k] * width {
+            return Err(copc_core::Error::InvalidData(format!(
+                "{}: {} bytes, {} records of {width} expected",
+                self.paths[k].display(),
+                bytes.len(),
+                self.counts[k]
+            )));
+        }
+        let _ = std::fs::remove_file(&self.paths[k]);
+        self.current = bytes
+            .chunks_exact(width)
+            .map(|r| copc_core::deserialize_le(r, &self.layout))
+            .collect::<std::io::Result<_>>()
+            .map_err(|e| copc_core::Error::io("decode a shuffle bucket", e))?;
+        for i in (1..self.current.len()).rev() {
+            let j = (self.rng.next_u64() % (i as u64 + 1)) as usize;
+            self.current.swap(i, j);
+        }
+        Ok(())
+    }
+}
+
+impl Iterator for Shuffled {
+    type Item = copc_core::Result<LasPointRecord>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while self.current.is_empty() {
+            if self.next == self.paths.len() {
+                return None;
+            }
+            self.next += 1;
+            if let Err(e) = self.load(self.next - 1) {
+                return Some(Err(e));
+            }
+        }
+        self.current.pop().map(Ok)
+    }
+}
+
+impl Drop for Shuffled {
+    fn drop(&mut self) {
+        for path in &self.paths[self.next..] {
+            // Best effort, as for `Shuffler`.
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// Streams a binary PLY into the writer through a [`Shuffler`]; `None` when the file cannot
+/// be streamed.
+fn convert_streamed(
+    input: &Path,
+    out: &Path,
+    node_points: u32,
+    start: Instant,
+) -> Result<Option<ConvertStats>> {
+    let mut fields: Option<Fields> = None;
+    let mut shuffler: Option<Shuffler> = None;
+    let mut failed: Option<anyhow::Error> = None;
+    let mut points = 0usize;
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let dir = spill_dir(out);
+    let streamed = crate::scene::ply::for_each_chunk(input, 32 << 20, |total, mut chunk| {
+        if failed.is_some() {
+            return;
+        }
+        chunk.retain_finite();
+        let result = (|| -> Result<()> {
+            let fields = fields.get_or_insert_with(|| Fields::of(&chunk));
+            if shuffler.is_none() {
+                shuffler = Some(Shuffler::new(&dir, total, fields.layout()?)?);
+            }
+            let shuffler = shuffler.as_mut().expect("created above");
+            let view = fields.view(&chunk)?;
+            for i in 0..chunk.len() {
+                let r = view.record(i);
+                let p = DVec3::new(r.x, r.y, r.z);
+                (lo, hi) = (lo.min(p), hi.max(p));
+                shuffler.push(&r)?;
+            }
+            points += chunk.len();
+            Ok(())
+        })();
+        if let Err(e) = result {
+            failed = Some(e);
+        }
+    })?;
+    if streamed.is_none() {
+        return Ok(None);
+    }
+    if let Some(e) = failed {
+        return Err(e.context(format!("{}: cannot convert", input.display())));
+    }
+    let (Some(fields), Some(shuffler)) = (fields, shuffler) else {
+        bail!("{}: no points to convert", input.display());
+    };
+    if points == 0 {
+        bail!("{}: no points to convert", input.display());
+    }
+    let load_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
+    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
+        if done % 65536 == 0 {
+            progress.advance(65536.min(points - done));
+        }
+        r
+    });
+    let result = write_records(
+        out,
+        fields.layout()?,
+        records,
+        (hi - lo).max_element(),
+        node_points,
     );
     progress.finish();
-    result.map_err(|e| anyhow::anyhow!("{}: cannot write COPC: {e}", out.display()))
+    result?;
+    Ok(Some(ConvertStats {
+        points: points as u64,
+        load_seconds,
+        write_seconds: start.elapsed().as_secs_f64(),
+        bytes: output_bytes(out)?,
+    }))
 }

@@ -803,3 +803,71 @@ fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
         );
     }
 }
+
+#[test]
+fn a_binary_ply_is_converted_in_blocks_through_the_external_shuffle() {
+    let mut cloud = survey(30_000);
+    // PLY keeps positions, normals, colours and radii (not the LAS fields).
+    cloud.scalars.clear();
+    let dir = scratch("ply-stream");
+    std::fs::create_dir_all(&dir).unwrap();
+    let ply = dir.join("survey.ply");
+    scene::ply::save(&ply, &cloud).unwrap();
+    let out = dir.join("survey.copc.laz");
+    let stats = convert::convert(
+        &ply,
+        &out,
+        &convert::ConvertOptions {
+            node_points: 2_000,
+            ..convert::ConvertOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(stats.points, 30_000);
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    let back = scene::load(&out).unwrap();
+    let (a, b) = (by_position(&cloud), by_position(&back));
+    assert_eq!(a.len(), b.len());
+    for ((ka, za, ia), (kb, zb, ib)) in a.iter().zip(&b) {
+        assert_eq!(ka, kb);
+        assert!((za - zb).abs() < 2e-5);
+        assert_eq!(
+            cloud.colors.as_ref().unwrap()[*ia],
+            back.colors.as_ref().unwrap()[*ib]
+        );
+        assert_eq!(
+            cloud.radii.as_ref().unwrap()[*ia],
+            back.radii.as_ref().unwrap()[*ib]
+        );
+    }
+    // The root node is a uniform sample: its points span the cloud, not the first rows.
+    let source = FileSource::open(&out).unwrap();
+    let copc = CopcFile::open(&source).unwrap();
+    let (at, len) = copc.info.root;
+    let root = scene::copc::read_page(&copc.file, &source, at, len, copc.size)
+        .unwrap()
+        .into_iter()
+        .find_map(|e| match e {
+            Entry::Node(n) if n.key == Key::ROOT => Some(n),
+            _ => None,
+        })
+        .unwrap();
+    let ys: Vec<f64> = copc
+        .read_node(&source, &root)
+        .unwrap()
+        .world
+        .iter()
+        .map(|p| p.y)
+        .collect();
+    let (lo, hi) = ys
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), &y| (l.min(y), h.max(y)));
+    let (clo, chi) = cloud.bounds().unwrap();
+    let span = f64::from(chi.y - clo.y);
+    assert!(hi - lo > 0.95 * span, "root spans {} of {span}", hi - lo);
+}
