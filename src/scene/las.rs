@@ -763,6 +763,51 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     Ok(columns.finish(&layout, header.number_of_points()))
 }
 
+/// A LAS or LAZ file opened for reading in blocks with the `las` crate (`surfel convert`),
+/// after the checks [`load`] makes of its header and laszip VLR; `None` for a point-wise
+/// compressed LAZ (LASzip 1.2), which only [`load`] reads. Decode under
+/// [`super::guard::deep_stack`] and [`super::guard::third_party`], as [`load`] does.
+pub(crate) fn open_blocks(path: &Path) -> Result<Option<las::Reader>, LoadError> {
+    let file = path.display().to_string();
+    let open = File::open(path).map_err(|source| io_error(&file, source))?;
+    let size = open
+        .metadata()
+        .map_err(|source| io_error(&file, source))?
+        .len();
+    let size = usize::try_from(size).unwrap_or(usize::MAX);
+    let mut read = BufReader::new(open);
+    let header = read_header(&file, &mut read, size)?;
+    if header.point_format().is_compressed {
+        let laszip = header
+            .vlrs()
+            .iter()
+            .find(|v| v.user_id.trim_end_matches('\0') == "laszip encoded" && v.record_id == 22204);
+        if laszip.is_some_and(|v| {
+            v.data.len() >= 2 && u16::from_le_bytes([v.data[0], v.data[1]]) == POINT_WISE
+        }) {
+            return Ok(None);
+        }
+        let vlr = header
+            .laz_vlr()
+            .map_err(|e| LoadError::whole(&file, format!("invalid or missing laszip VLR: {e}")))?;
+        let items: u64 = vlr.items().iter().map(|i| u64::from(i.size())).sum();
+        let record = u64::from(header.point_format().len());
+        if vlr.items().is_empty() || items != record {
+            return Err(LoadError::whole(
+                &file,
+                format!(
+                    "the laszip VLR's items make {items}-byte points, but the header's point records have {record} bytes"
+                ),
+            ));
+        }
+    }
+    read.rewind().map_err(|source| io_error(&file, source))?;
+    let reader = guard::third_party(|| las::Reader::new(read))
+        .map_err(|e| LoadError::whole(&file, format!("invalid LAS header: {e}")))?
+        .map_err(|e| header_error(&file, e, size))?;
+    Ok(Some(reader))
+}
+
 /// Loads a LAS or LAZ file. LAS point records are streamed from the file and decoded in
 /// parallel while the next block is read.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {

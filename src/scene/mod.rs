@@ -8,7 +8,7 @@ pub mod compose;
 pub mod copc;
 pub mod e57;
 pub mod error;
-mod guard;
+pub(crate) mod guard;
 pub mod input;
 pub mod knn;
 pub mod las;

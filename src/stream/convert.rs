@@ -4,8 +4,8 @@
 //! Points reach the writer as LAS 1.4 records in a pseudo-random order (the writer's coarse
 //! levels are the first points it meets per octant, see [`shuffled`]); the writer spills them to
 //! a temporary file beside the output and builds the octree from that spill, its own memory
-//! bounded whatever the cloud's size. A binary PLY (what `surfel sample` writes) is streamed in
-//! blocks through an external shuffle ([`Shuffler`]: random buckets on disk, each shuffled in
+//! bounded whatever the cloud's size. A binary PLY (what `surfel sample` writes), LAS and LAZ are
+//! streamed in blocks through an external shuffle ([`Shuffler`]: random buckets on disk, each shuffled in
 //! memory), so conversion memory stays bounded too; other formats are loaded whole by their
 //! loader (with its checks), about 30 bytes per point.
 //!
@@ -289,8 +289,14 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
     }
     crate::scene::check_regular(input)?;
     let start = Instant::now();
-    if crate::scene::format_extension(input) == "ply" && !crate::lines::is_line_model(input) {
+    let extension = crate::scene::format_extension(input);
+    if extension == "ply" && !crate::lines::is_line_model(input) {
         if let Some(stats) = convert_streamed(input, out, options.node_points, start)? {
+            return Ok(stats);
+        }
+    }
+    if matches!(extension.as_str(), "las" | "laz" | "copc.laz") {
+        if let Some(stats) = convert_las(input, out, options.node_points, start)? {
             return Ok(stats);
         }
     }
@@ -361,8 +367,19 @@ fn write_records(
     node_points: u32,
 ) -> Result<()> {
     let scale = decimal_scale(extent);
+    write_scaled(out, layout, records, (scale, scale, scale), node_points)
+}
+
+/// Hands `records` to the writer, coordinates quantized at `scale`.
+fn write_scaled(
+    out: &Path,
+    layout: StreamingLayout,
+    records: impl Iterator<Item = copc_core::Result<LasPointRecord>>,
+    (sx, sy, sz): (f64, f64, f64),
+    node_points: u32,
+) -> Result<()> {
     let mut metadata = CopcWriteMetadata::default();
-    metadata.scale = Some((scale, scale, scale));
+    metadata.scale = Some((sx, sy, sz));
     metadata.generating_software = Some(format!("surfel {}", env!("CARGO_PKG_VERSION")));
     copc_writer::write_streaming_with_cancel(
         out,
@@ -582,6 +599,80 @@ fn convert_streamed(
     result?;
     Ok(Some(ConvertStats {
         points: points as u64,
+        load_seconds,
+        write_seconds: start.elapsed().as_secs_f64(),
+        bytes: output_bytes(out)?,
+    }))
+}
+
+/// Streams a LAS or LAZ file's records (every LAS field as it is, extra bytes included; NIR and
+/// waveform data, which the writer cannot keep, dropped) into the writer through a
+/// [`Shuffler`], at the input's scale; `None` for a file only the loader reads.
+fn convert_las(
+    input: &Path,
+    out: &Path,
+    node_points: u32,
+    start: Instant,
+) -> Result<Option<ConvertStats>> {
+    let file = input.display().to_string();
+    let dir = spill_dir(out);
+    // The `las` crate's reader stays on the deep-stack thread (the LAZ decoder recurses).
+    let opened = crate::scene::guard::deep_stack(|| -> Result<Option<_>> {
+        let Some(mut reader) = crate::scene::las::open_blocks(input)? else {
+            return Ok(None);
+        };
+        let header = reader.header().clone();
+        let mut layout = StreamingLayout::from_las_header(&header);
+        layout.has_nir = false;
+        layout.has_waveform = false;
+        let declared = usize::try_from(header.number_of_points()).unwrap_or(usize::MAX);
+        let mut shuffler = Shuffler::new(&dir, declared, layout.clone())?;
+        let mut data = las::PointDataBuilder::new().for_header(&header).build();
+        let mut points = 0usize;
+        loop {
+            let n = crate::scene::guard::third_party(|| reader.fill_points(65_536, &mut data))
+                .map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?
+                .map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?;
+            if n == 0 {
+                return Ok(Some((header, layout, shuffler, points)));
+            }
+            for point in data.points() {
+                let point =
+                    point.map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?;
+                let mut record = LasPointRecord::from_las_point(&point);
+                record.nir = 0;
+                shuffler.push(&record)?;
+                points += 1;
+            }
+        }
+    })?;
+    let Some((header, layout, shuffler, read)) = opened else {
+        return Ok(None);
+    };
+    if read == 0 {
+        bail!("{file}: no points to convert");
+    }
+    let load_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let progress = Progress::new("converting", read, read >= PROGRESS_MIN_POINTS);
+    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
+        if done % 65536 == 0 {
+            progress.advance(65536.min(read - done));
+        }
+        r
+    });
+    let t = header.transforms();
+    let result = write_scaled(
+        out,
+        layout,
+        records,
+        (t.x.scale, t.y.scale, t.z.scale),
+        node_points,
+    );
+    progress.finish();
+    result?;
+    Ok(Some(ConvertStats {
+        points: read as u64,
         load_seconds,
         write_seconds: start.elapsed().as_secs_f64(),
         bytes: output_bytes(out)?,

@@ -871,3 +871,56 @@ fn a_binary_ply_is_converted_in_blocks_through_the_external_shuffle() {
     let span = f64::from(chi.y - clo.y);
     assert!(hi - lo > 0.95 * span, "root spans {} of {span}", hi - lo);
 }
+
+#[test]
+fn las_and_laz_are_converted_in_blocks_with_every_field() {
+    let dir = scratch("las-stream");
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["autzen_trim.las", "autzen_trim.laz"] {
+        let input = Path::new("../shared/data/lidar").join(name);
+        let out = dir.join(format!("{name}.copc.laz"));
+        convert::convert(&input, &out, &convert::ConvertOptions::default()).unwrap();
+        let (a, b) = (scene::load(&input).unwrap(), scene::load(&out).unwrap());
+        assert_eq!(a.len(), b.len());
+        let key = |c: &Cloud, i: usize| {
+            let w = c.origin + c.positions[i].as_dvec3();
+            [w.x, w.y, w.z].map(|v| (v * 100.0).round() as i64)
+        };
+        let sorted = |c: &Cloud| {
+            let mut idx: Vec<usize> = (0..c.len()).collect();
+            idx.sort_by_key(|&i| (key(c, i), scalar(c, "gps_time")[i].to_bits()));
+            idx
+        };
+        for (&i, &j) in sorted(&a).iter().zip(&sorted(&b)) {
+            assert_eq!(key(&a, i), key(&b, j), "{name}");
+            assert_eq!(a.colors.as_ref().unwrap()[i], b.colors.as_ref().unwrap()[j]);
+            for field in [
+                "intensity",
+                "classification",
+                "return_number",
+                "point_source_id",
+            ] {
+                assert_eq!(scalar(&a, field)[i], scalar(&b, field)[j], "{name} {field}");
+            }
+        }
+    }
+    // A truncated LAZ is an error naming the file, and leaves no temporary files behind.
+    let mut bytes = std::fs::read("../shared/data/lidar/autzen_trim.laz").unwrap();
+    bytes.truncate(bytes.len() / 2);
+    let cut = dir.join("cut.laz");
+    std::fs::write(&cut, &bytes).unwrap();
+    let m = convert::convert(
+        &cut,
+        &dir.join("cut.copc.laz"),
+        &convert::ConvertOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(m.contains("cut.laz"), "{m}");
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
