@@ -97,6 +97,8 @@ struct Fields {
 /// One cloud's columns in the order of [`Fields`].
 struct View<'a> {
     cloud: &'a Cloud,
+    /// Multiplies intensities (65,535 for a cloud whose intensities are fractions of 1).
+    intensity_scale: f32,
     standard: [Option<&'a [f32]>; 6],
     scalars: Vec<&'a [f32]>,
     extra_bytes: usize,
@@ -159,7 +161,7 @@ impl Fields {
 
     /// `cloud`'s columns; fails when it lacks one of the fields (a streamed chunk unlike the
     /// first).
-    fn view<'a>(&self, cloud: &'a Cloud) -> Result<View<'a>> {
+    fn view<'a>(&self, cloud: &'a Cloud, intensity_scale: f32) -> Result<View<'a>> {
         let scalar = |name: &str| {
             cloud
                 .scalars
@@ -172,6 +174,7 @@ impl Fields {
         }
         Ok(View {
             cloud,
+            intensity_scale,
             standard: STANDARD.map(scalar),
             scalars: self
                 .scalars
@@ -207,7 +210,7 @@ impl View<'_> {
             x: p.x,
             y: p.y,
             z: p.z,
-            intensity: value(0).clamp(0.0, 65535.0) as u16,
+            intensity: (value(0) * self.intensity_scale).clamp(0.0, 65535.0) as u16,
             classification: byte(1),
             return_number: byte(2).min(15),
             number_of_returns: byte(3).min(15),
@@ -219,6 +222,26 @@ impl View<'_> {
             extra_bytes: extra,
             ..LasPointRecord::default()
         }
+    }
+}
+
+/// The factor taking `cloud`'s intensities to LAS's 16 bits: 65,535 when they are fractions
+/// within 0..1 (E57 and normalised text files), else 1 (already counts).
+fn intensity_scale(cloud: &Cloud) -> f32 {
+    let Some(values) = cloud
+        .scalars
+        .iter()
+        .find(|s| s.name == "intensity")
+        .map(|s| &s.values)
+    else {
+        return 1.0;
+    };
+    let fractions = values.iter().all(|v| (0.0..=1.0).contains(v))
+        && values.iter().any(|v| v.fract() != 0.0);
+    if fractions {
+        65535.0
+    } else {
+        1.0
     }
 }
 
@@ -337,7 +360,7 @@ pub fn write(cloud: &Cloud, out: &Path) -> Result<()> {
 /// [`write`] with `node_points` points per node.
 pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
     let fields = Fields::of(cloud);
-    let view = fields.view(cloud)?;
+    let view = fields.view(cloud, intensity_scale(cloud))?;
     let extent = cloud
         .bounds()
         .map_or(0.0, |(lo, hi)| f64::from((hi - lo).max_element()));
@@ -537,6 +560,7 @@ fn convert_streamed(
     start: Instant,
 ) -> Result<Option<ConvertStats>> {
     let mut fields: Option<Fields> = None;
+    let mut scale: Option<f32> = None;
     let mut shuffler: Option<Shuffler> = None;
     let mut failed: Option<anyhow::Error> = None;
     let mut points = 0usize;
@@ -553,7 +577,8 @@ fn convert_streamed(
                 shuffler = Some(Shuffler::new(&dir, total, fields.layout()?)?);
             }
             let shuffler = shuffler.as_mut().expect("created above");
-            let view = fields.view(&chunk)?;
+            let scale = *scale.get_or_insert_with(|| intensity_scale(&chunk));
+            let view = fields.view(&chunk, scale)?;
             for i in 0..chunk.len() {
                 let r = view.record(i);
                 let p = DVec3::new(r.x, r.y, r.z);
