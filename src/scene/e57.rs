@@ -246,21 +246,26 @@ fn decode(pc: &PointCloud, scan: &Scan, values: &[RecordValue]) -> e57::Result<D
     })
 }
 
-/// Reads every scan of `reader`, a file of `size` bytes.
+/// One valid point of a scan: its position in the file's frame, and its colour and intensity
+/// when the scan records them.
+pub(crate) struct E57Point {
+    pub world: DVec3,
+    pub color: Option<[u8; 4]>,
+    pub intensity: Option<f32>,
+}
+
+/// Passes every valid point of every scan of `reader`, a file of `size` bytes, to `sink`; an
+/// error from the sink stops the reading. Returns the records declared and those without a
+/// valid position.
 fn read_scans<R: Read + Seek>(
     file: &str,
     reader: &mut E57Reader<R>,
-    size: u64,
-) -> Result<Points, LoadError> {
-    let mut out = Points::default();
+    sink: &mut dyn FnMut(E57Point) -> Result<(), LoadError>,
+) -> Result<(u64, usize), LoadError> {
+    let (mut records_declared, mut invalid) = (0u64, 0usize);
     for (index, pc) in reader.pointclouds().iter().enumerate() {
         let scan = Scan::new(pc);
-        out.records = out.records.saturating_add(pc.records);
-        out.any_color |= scan.color.is_some();
-        out.any_intensity |= scan.intensity.is_some();
-        // The declared count bounds the reservation only as far as the file can hold it.
-        let reserve = usize::try_from(pc.records.min(size / 4)).unwrap_or(0);
-        out.world.reserve(reserve);
+        records_declared = records_declared.saturating_add(pc.records);
         let records = reader
             .pointcloud_raw(pc)
             .map_err(|e| crate_error(file, Some(index), e))?;
@@ -275,19 +280,21 @@ fn read_scans<R: Read + Seek>(
                 intensity,
             } = decode(pc, &scan, &values).map_err(at_record)?;
             let Some(world) = world else {
-                out.invalid += 1;
+                invalid += 1;
                 continue;
             };
-            out.world.push(world);
-            out.colors.push(color.unwrap_or(NO_COLOR));
-            out.intensity.push(intensity.unwrap_or(0.0));
+            sink(E57Point {
+                world,
+                color,
+                intensity,
+            })?;
         }
     }
-    Ok(out)
+    Ok((records_declared, invalid))
 }
 
-/// Loads an E57 file.
-pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+/// Opens an E57 file after checking its header: the reader, and the file's size.
+fn open(path: &Path) -> Result<(E57Reader<BufReader<File>>, u64), LoadError> {
     let file = path.display().to_string();
     let io = |source| LoadError::Io {
         file: file.clone(),
@@ -304,11 +311,57 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     }
     check_header(&file, &header, size)?;
     open.rewind().map_err(io)?;
-    let failed = |e: String| LoadError::whole(&file, e);
-    let mut reader = guard::third_party(|| E57Reader::new(BufReader::new(open)))
-        .map_err(failed)?
+    let reader = guard::third_party(|| E57Reader::new(BufReader::new(open)))
+        .map_err(|e| LoadError::whole(&file, e))?
         .map_err(|e| crate_error(&file, None, e))?;
-    let points = guard::third_party(|| read_scans(&file, &mut reader, size)).map_err(failed)??;
+    Ok((reader, size))
+}
+
+/// Streams an E57 file's valid points to `point` without holding them: `begin` learns first
+/// the records declared and whether any scan has colours and intensities. Returns the points
+/// without a valid position.
+pub(crate) fn for_each_point(
+    path: &Path,
+    begin: &mut dyn FnMut(u64, bool, bool) -> Result<(), LoadError>,
+    point: &mut dyn FnMut(E57Point) -> Result<(), LoadError>,
+) -> Result<usize, LoadError> {
+    let file = path.display().to_string();
+    let (mut reader, _) = open(path)?;
+    let scans: Vec<Scan> = reader.pointclouds().iter().map(Scan::new).collect();
+    let records = reader.pointclouds().iter().map(|pc| pc.records).sum();
+    begin(
+        records,
+        scans.iter().any(|s| s.color.is_some()),
+        scans.iter().any(|s| s.intensity.is_some()),
+    )?;
+    let (_, invalid) = guard::third_party(|| read_scans(&file, &mut reader, point))
+        .map_err(|e| LoadError::whole(&file, e))??;
+    Ok(invalid)
+}
+
+/// Loads an E57 file.
+pub fn load(path: &Path) -> Result<Cloud, LoadError> {
+    let file = path.display().to_string();
+    let (mut reader, size) = open(path)?;
+    let mut points = Points::default();
+    for pc in reader.pointclouds() {
+        let scan = Scan::new(&pc);
+        points.any_color |= scan.color.is_some();
+        points.any_intensity |= scan.intensity.is_some();
+        // The declared count bounds the reservation only as far as the file can hold it.
+        let reserve = usize::try_from(pc.records.min(size / 4)).unwrap_or(0);
+        points.world.reserve(reserve);
+    }
+    let mut sink = |p: E57Point| {
+        points.world.push(p.world);
+        points.colors.push(p.color.unwrap_or(NO_COLOR));
+        points.intensity.push(p.intensity.unwrap_or(0.0));
+        Ok(())
+    };
+    let (records, invalid) = guard::third_party(|| read_scans(&file, &mut reader, &mut sink))
+        .map_err(|e| LoadError::whole(&file, e))??;
+    points.records = records;
+    points.invalid = invalid;
     let bounds = points.world.iter().fold(Bounds::EMPTY, |mut b, p| {
         b.add(*p);
         b

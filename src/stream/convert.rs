@@ -236,8 +236,8 @@ fn intensity_scale(cloud: &Cloud) -> f32 {
     else {
         return 1.0;
     };
-    let fractions = values.iter().all(|v| (0.0..=1.0).contains(v))
-        && values.iter().any(|v| v.fract() != 0.0);
+    let fractions =
+        values.iter().all(|v| (0.0..=1.0).contains(v)) && values.iter().any(|v| v.fract() != 0.0);
     if fractions {
         65535.0
     } else {
@@ -317,6 +317,9 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
         if let Some(stats) = convert_streamed(input, out, options.node_points, start)? {
             return Ok(stats);
         }
+    }
+    if extension == "e57" {
+        return convert_e57(input, out, options.node_points, start);
     }
     if matches!(extension.as_str(), "las" | "laz" | "copc.laz") {
         if let Some(stats) = convert_las(input, out, options.node_points, start)? {
@@ -702,4 +705,87 @@ fn convert_las(
         write_seconds: start.elapsed().as_secs_f64(),
         bytes: output_bytes(out)?,
     }))
+}
+
+/// Streams an E57 file's points (every scan, in the file's frame; colour and intensity when
+/// scans record them) into the writer through a [`Shuffler`]. A first pass finds whether the
+/// intensities are fractions of 1 (then scaled to 16 bits, as [`intensity_scale`] does).
+fn convert_e57(input: &Path, out: &Path, node_points: u32, start: Instant) -> Result<ConvertStats> {
+    use crate::scene::e57::{for_each_point, E57Point};
+    let (mut fractions, mut any_fraction) = (true, false);
+    let (mut declared, mut colors) = (0u64, false);
+    for_each_point(
+        input,
+        &mut |records, color, _| {
+            (declared, colors) = (records, color);
+            Ok(())
+        },
+        &mut |p: E57Point| {
+            if let Some(v) = p.intensity {
+                fractions &= (0.0..=1.0).contains(&v);
+                any_fraction |= v.fract() != 0.0;
+            }
+            Ok(())
+        },
+    )?;
+    let scale = if fractions && any_fraction {
+        65535.0
+    } else {
+        1.0
+    };
+    let layout = Fields {
+        colors,
+        normals: false,
+        radii: false,
+        scalars: Vec::new(),
+    }
+    .layout()?;
+    let n = usize::try_from(declared).unwrap_or(usize::MAX);
+    let mut shuffler = Shuffler::new(&spill_dir(out), n, layout.clone())?;
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut points = 0usize;
+    let file = input.display().to_string();
+    for_each_point(input, &mut |_, _, _| Ok(()), &mut |p: E57Point| {
+        if !p.world.is_finite() {
+            return Ok(());
+        }
+        (lo, hi) = (lo.min(p.world), hi.max(p.world));
+        let [r, g, b, _] = p.color.unwrap_or([0; 4]);
+        let record = LasPointRecord {
+            x: p.world.x,
+            y: p.world.y,
+            z: p.world.z,
+            intensity: (p.intensity.unwrap_or(0.0) * scale).clamp(0.0, 65535.0) as u16,
+            red: u16::from(r) * 257,
+            green: u16::from(g) * 257,
+            blue: u16::from(b) * 257,
+            ..LasPointRecord::default()
+        };
+        shuffler
+            .push(&record)
+            .map_err(|e| crate::scene::LoadError::whole(&file, e.to_string()))?;
+        points += 1;
+        Ok(())
+    })?;
+    if points == 0 {
+        bail!("{}: no points to convert", input.display());
+    }
+    let load_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
+    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
+        if done % 65536 == 0 {
+            progress.advance(65536.min(points - done));
+        }
+        r
+    });
+    let result = write_records(out, layout, records, (hi - lo).max_element(), node_points);
+    progress.finish();
+    result?;
+    Ok(ConvertStats {
+        points: points as u64,
+        load_seconds,
+        write_seconds: start.elapsed().as_secs_f64(),
+        bytes: output_bytes(out)?,
+    })
 }

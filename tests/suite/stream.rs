@@ -924,3 +924,43 @@ fn las_and_laz_are_converted_in_blocks_with_every_field() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+#[test]
+fn e57_is_converted_point_by_point() {
+    let dir = scratch("e57-stream");
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = Path::new("../shared/data/e57/tinyCartesianFloatRgb.e57");
+    let out = dir.join("tiny.copc.laz");
+    convert::convert(input, &out, &convert::ConvertOptions::default()).unwrap();
+    let (a, b) = (scene::load(input).unwrap(), scene::load(&out).unwrap());
+    assert_eq!(a.len(), b.len());
+    let key = |c: &Cloud, i: usize| {
+        let w = c.origin + c.positions[i].as_dvec3();
+        [w.x, w.y, w.z].map(|v| (v * 1e4).round() as i64)
+    };
+    let sorted = |c: &Cloud| {
+        let mut k: Vec<_> = (0..c.len())
+            .map(|i| (key(c, i), c.colors.as_ref().unwrap()[i]))
+            .collect();
+        k.sort();
+        k
+    };
+    assert_eq!(sorted(&a), sorted(&b));
+    let m = convert::convert(
+        Path::new("../shared/data/e57/corrupt_crc.e57"),
+        &dir.join("bad.copc.laz"),
+        &convert::ConvertOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        m.contains("corrupt_crc.e57") && m.contains("checksum"),
+        "{m}"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
