@@ -14,9 +14,6 @@ use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
 use crate::gpu::layout::{FrameBlock, GpuBatch, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
-
-/// Bytes of one `GpuBatch`.
-const BATCH_BYTES: u64 = std::mem::size_of::<GpuBatch>() as u64;
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
@@ -28,6 +25,9 @@ use crate::scene::{lights, Camera, Light};
 use crate::upload::{GpuScene, SceneInfo};
 
 use crate::frame::MAX_EDGE;
+
+/// Bytes of one `GpuBatch`.
+const BATCH_BYTES: u64 = std::mem::size_of::<GpuBatch>() as u64;
 
 /// Per-frame settings.
 #[derive(Clone, Debug)]

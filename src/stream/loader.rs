@@ -314,14 +314,19 @@ impl Loader {
     /// What finished since the last call (never waits).
     pub fn poll(&mut self) -> Vec<Done> {
         let done: Vec<Done> = self.done.try_iter().collect();
-        for d in &done {
+        self.finished(&done);
+        done
+    }
+
+    /// Forgets the jobs of `done` as in flight.
+    fn finished(&mut self, done: &[Done]) {
+        for d in done {
             let id = match d {
                 Done::Page { key, .. } => (true, *key),
                 Done::Node { key, .. } => (false, *key),
             };
             self.in_flight.remove(&id);
         }
-        done
     }
 
     /// Waits for the next finished job (for a headless renderer with nothing else to do).
@@ -330,13 +335,7 @@ impl Loader {
             Ok(first) => {
                 let mut done = vec![first];
                 done.extend(self.done.try_iter());
-                for d in &done {
-                    let id = match d {
-                        Done::Page { key, .. } => (true, *key),
-                        Done::Node { key, .. } => (false, *key),
-                    };
-                    self.in_flight.remove(&id);
-                }
+                self.finished(&done);
                 done
             }
             Err(_) => Vec::new(),
