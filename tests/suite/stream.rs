@@ -331,7 +331,7 @@ fn node_selection_matches_a_brute_force_reference_within_budget() {
 
 /// A loopback HTTP/1.1 server for one file, answering `Range` requests (one request per
 /// connection). `fault(at, attempt)` may replace the answer to the `attempt`-th request
-/// (from 0) for a range starting at byte `at` with a status code.
+/// (from 0) for a range starting at byte `at` with a status code, or with silence (0).
 mod http {
     use std::collections::HashMap;
     use std::io::{BufRead, BufReader, Write};
@@ -397,8 +397,21 @@ mod http {
                         *n += 1;
                         *n - 1
                     };
-                    if let Some(code) = fault(a, attempt) {
-                        return reply(&mut stream, &format!("{code} Injected"), String::new(), b"");
+                    match fault(a, attempt) {
+                        // 0: no answer for longer than the client waits, then the connection closes.
+                        Some(0) => {
+                            std::thread::sleep(std::time::Duration::from_millis(1500));
+                            return;
+                        }
+                        Some(code) => {
+                            return reply(
+                                &mut stream,
+                                &format!("{code} Injected"),
+                                String::new(),
+                                b"",
+                            );
+                        }
+                        None => {}
                     }
                     let end = (b as usize).min(bytes.len() - 1);
                     reply(
@@ -963,4 +976,24 @@ fn e57_is_converted_point_by_point() {
         .filter(|n| n.starts_with('.'))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn a_server_that_stops_answering_is_timed_out_and_retried() {
+    let path = gpu::dragon();
+    // Every range's first request gets no answer within the client's 300 ms.
+    let slow = http::serve(
+        std::fs::read(&path).unwrap(),
+        Box::new(|_, attempt| (attempt == 0).then_some(0)),
+    );
+    let mut options = gpu::options(PART, 64 << 20, 1.0);
+    options.loader.http.timeout = std::time::Duration::from_millis(300);
+    let start = std::time::Instant::now();
+    let opened = surfel::stream::loader::Loader::open(&slow.url, options.loader.clone()).unwrap();
+    assert!(start.elapsed() >= std::time::Duration::from_millis(300));
+    assert_eq!(opened.root.len(), 8_000);
+    // Streamed through the same server, every node arrives after its retry.
+    let streamed = gpu::stream(&slow.url, &options, &[&gpu::framing], 128);
+    assert!(streamed.messages.is_empty(), "{:?}", streamed.messages);
+    assert!(streamed.stats.drawn_points > 30_000);
 }
