@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::Args;
 
 use super::render::StreamArgs;
@@ -32,7 +32,8 @@ pub struct ViewArgs {
     /// Scene file where `K` saves and `L` loads the camera (.toml or .json).
     #[arg(long, default_value = "surfel-camera.toml")]
     pub camera_file: PathBuf,
-    /// Directory for `P` screenshots (surfel-<n>.png; default: the current directory).
+    /// Directory for `P` screenshots (surfel-<n>.png; default: the current directory), created
+    /// when missing.
     #[arg(long)]
     pub screenshot_dir: Option<PathBuf>,
     #[command(flatten)]
@@ -59,9 +60,12 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         .transpose()?;
     crate::app::script::check_camera_file(&a.camera_file)?;
     if let Some(dir) = &a.screenshot_dir {
-        if !dir.is_dir() {
-            bail!("{}: the screenshot directory does not exist", dir.display());
-        }
+        std::fs::create_dir_all(dir).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: cannot create the screenshot directory: {e}",
+                dir.display()
+            )
+        })?;
     }
     if a.stream.streams(&a.file) {
         return view_streamed(a, config, size, settings, script);

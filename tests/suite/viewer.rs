@@ -576,3 +576,41 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
     let (changed, _) = difference(&png(&dir.join("again.png")), &png(&dir.join("hud.png")));
     assert!(changed > 0);
 }
+
+#[test]
+fn a_missing_screenshot_directory_is_created() {
+    let dir = tmp_dir("shots");
+    std::fs::write(dir.join("t.txt"), "frames 1\nkey P\nframes 1\n").expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &[
+            "--size",
+            "160x120",
+            "--screenshot-dir",
+            "shots/new",
+            "--script",
+            "t.txt",
+        ],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    assert_eq!(
+        png(&dir.join("shots/new/surfel-1.png")).dimensions(),
+        (160, 120)
+    );
+    // A path that cannot be a directory is refused with the reason.
+    std::fs::write(dir.join("file"), "").expect("file");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &["--screenshot-dir", "file/sub", "--frames", "1"],
+    );
+    assert!(!o.status.success());
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("file/sub: cannot create the screenshot directory"),
+        "{err}"
+    );
+}
