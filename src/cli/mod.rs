@@ -76,8 +76,8 @@ pub struct InputArgs {
     #[arg(long)]
     pub cache: bool,
     /// COPC only: read whole octree levels from the root down while their points fit N (the
-    /// root level always).
-    #[arg(long, value_name = "N")]
+    /// root level always). To draw a COPC by view instead: --stream and --point-budget.
+    #[arg(long = "level-budget", value_name = "N")]
     pub budget: Option<u64>,
     /// Text files (.xyz, .txt, .pts, .csv) without a row of column names: name the columns,
     /// e.g. x,y,z,intensity,red,green,blue (`_` skips one).

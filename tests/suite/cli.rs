@@ -213,7 +213,7 @@ fn bad_post_processing_values_are_named() {
 #[test]
 fn renders_copc_under_a_budget_and_e57_with_their_colors() {
     for (rel, extra, points) in [
-        ("copc/1.2-with-color.copc.laz", &["--budget", "100"][..], 90),
+        ("copc/1.2-with-color.copc.laz", &["--level-budget", "100"][..], 90),
         ("e57/tinyCartesianFloatRgb.e57", &[][..], 2_090),
     ] {
         let name = rel.replace('/', "-");
@@ -389,7 +389,7 @@ fn info_reports_duplicates_and_dropped_points() {
 
 #[test]
 fn info_reports_the_copc_levels_a_budget_reads() {
-    let s = info("copc/1.2-with-color.copc.laz", &["--budget", "100"]);
+    let s = info("copc/1.2-with-color.copc.laz", &["--level-budget", "100"]);
     assert!(s.contains("points            90\n"), "{s}");
     assert!(
         s.contains("octree levels     read 2 of 4 (points per level: 24, 66, 197, 778); 975 points skipped"),
@@ -401,7 +401,7 @@ fn info_reports_the_copc_levels_a_budget_reads() {
         "info",
         data("lidar/autzen_trim.las").to_str().expect("utf8"),
         "--no-device",
-        "--budget",
+        "--level-budget",
         "10",
     ]);
     assert!(!o.status.success());
