@@ -290,11 +290,6 @@ impl Loader {
         self.in_flight.len()
     }
 
-    /// Whether `job` is queued or running.
-    pub fn is_pending(&self, job: &Job) -> bool {
-        self.in_flight.contains(&job.id())
-    }
-
     /// Replaces the jobs not started yet by `jobs` (most wanted first); a job already running
     /// is not queued again.
     pub fn request(&mut self, jobs: &[Job]) {

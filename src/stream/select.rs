@@ -54,11 +54,6 @@ impl Hierarchy {
         }
         true
     }
-
-    /// Points in all known nodes.
-    pub fn points(&self) -> u64 {
-        self.nodes.values().map(|n| n.points).sum()
-    }
 }
 
 /// The view a selection is made for, in the streamed cloud's local frame (file coordinates

@@ -155,7 +155,6 @@ pub struct HttpSource {
     len: u64,
     options: HttpOptions,
     read: AtomicU64,
-    retries: AtomicU64,
 }
 
 /// Why one attempt failed, and whether another may succeed.
@@ -179,16 +178,10 @@ impl HttpSource {
             len: 0,
             options: options.clone(),
             read: AtomicU64::new(0),
-            retries: AtomicU64::new(0),
         };
         let (_, total) = source.fetch(0, 1)?;
         source.len = total;
         Ok(source)
-    }
-
-    /// Retries so far (for reports).
-    pub fn retries(&self) -> u64 {
-        self.retries.load(Ordering::Relaxed)
     }
 
     /// The bytes `at..at + len` and the file's length, with retries.
@@ -202,7 +195,6 @@ impl HttpSource {
                     return Ok(done);
                 }
                 Err(e) if e.retry && attempt < self.options.attempts => {
-                    self.retries.fetch_add(1, Ordering::Relaxed);
                     std::thread::sleep(wait);
                     wait *= 2;
                     attempt += 1;

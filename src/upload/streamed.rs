@@ -275,11 +275,6 @@ impl StreamedScene {
             .sum()
     }
 
-    /// The nodes chosen for the last view.
-    pub fn selection(&self) -> &Selection {
-        &self.selection
-    }
-
     /// This frame's batch table (for `Renderer::set_batches`).
     pub fn batches(&self) -> &[GpuBatch] {
         &self.table
