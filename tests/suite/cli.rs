@@ -213,7 +213,11 @@ fn bad_post_processing_values_are_named() {
 #[test]
 fn renders_copc_under_a_budget_and_e57_with_their_colors() {
     for (rel, extra, points) in [
-        ("copc/1.2-with-color.copc.laz", &["--level-budget", "100"][..], 90),
+        (
+            "copc/1.2-with-color.copc.laz",
+            &["--level-budget", "100"][..],
+            90,
+        ),
         ("e57/tinyCartesianFloatRgb.e57", &[][..], 2_090),
     ] {
         let name = rel.replace('/', "-");
