@@ -328,19 +328,8 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         first
     }
     .context("renderer returned no frame")?;
-    crate::post::composite(&mut frame, settings.post.background);
     drop(renderer);
-    if ctx.validation && ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors", ctx.validation_errors());
-    }
-    image::save_buffer(
-        &a.out,
-        bytemuck::cast_slice(&frame.color),
-        width,
-        height,
-        image::ExtendedColorType::Rgba8,
-    )
-    .with_context(|| format!("{}: cannot write PNG", a.out.display()))?;
+    write_png(&ctx, &mut frame, settings.post.background, &a.out)?;
     eprintln!(
         "{}: {} points, {} -> {}",
         file.display(),
@@ -502,19 +491,8 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         .render_batches(&view, Some(streamed.batches()), true)?
         .context("renderer returned no frame")?;
     let stats = streamed.stats();
-    crate::post::composite(&mut frame, settings.post.background);
     drop(renderer);
-    if ctx.validation && ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors", ctx.validation_errors());
-    }
-    image::save_buffer(
-        &a.out,
-        bytemuck::cast_slice(&frame.color),
-        width,
-        height,
-        image::ExtendedColorType::Rgba8,
-    )
-    .with_context(|| format!("{}: cannot write PNG", a.out.display()))?;
+    write_png(&ctx, &mut frame, settings.post.background, &a.out)?;
     eprintln!(
         "first pixel after {first_pixel_s:.2} s; refined in {refine_s:.2} s: {} of {} selected points drawn from {} nodes, {:.1} MB read, {} -> {}",
         stats.drawn_points,
@@ -539,4 +517,26 @@ fn max_rss_bytes() -> u64 {
     } else {
         0
     }
+}
+
+/// Composites `frame` over `background` and writes it to `out`, after failing on any
+/// validation error the finished renderer left (call it once the renderer is dropped).
+fn write_png(
+    ctx: &crate::gpu::Context,
+    frame: &mut crate::frame::Frame,
+    background: crate::post::Background,
+    out: &std::path::Path,
+) -> Result<()> {
+    crate::post::composite(frame, background);
+    if ctx.validation && ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors", ctx.validation_errors());
+    }
+    image::save_buffer(
+        out,
+        bytemuck::cast_slice(&frame.color),
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgba8,
+    )
+    .with_context(|| format!("{}: cannot write PNG", out.display()))
 }

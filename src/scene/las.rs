@@ -763,11 +763,9 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     Ok(columns.finish(&layout, header.number_of_points()))
 }
 
-/// A LAS or LAZ file opened for reading in blocks with the `las` crate (`surfel convert`),
-/// after the checks [`load`] makes of its header and laszip VLR; `None` for a point-wise
-/// compressed LAZ (LASzip 1.2), which only [`load`] reads. Decode under
-/// [`super::guard::deep_stack`] and [`super::guard::third_party`], as [`load`] does.
-pub(crate) fn open_blocks(path: &Path) -> Result<Option<las::Reader>, LoadError> {
+/// Opens `path` and reads its checked header: the file's name, the reader (at the first point
+/// record), its size and the header.
+fn open_file(path: &Path) -> Result<(String, BufReader<File>, usize, las::Header), LoadError> {
     let file = path.display().to_string();
     let open = File::open(path).map_err(|source| io_error(&file, source))?;
     let size = open
@@ -777,6 +775,15 @@ pub(crate) fn open_blocks(path: &Path) -> Result<Option<las::Reader>, LoadError>
     let size = usize::try_from(size).unwrap_or(usize::MAX);
     let mut read = BufReader::new(open);
     let header = read_header(&file, &mut read, size)?;
+    Ok((file, read, size, header))
+}
+
+/// A LAS or LAZ file opened for reading in blocks with the `las` crate (`surfel convert`),
+/// after the checks [`load`] makes of its header and laszip VLR; `None` for a point-wise
+/// compressed LAZ (LASzip 1.2), which only [`load`] reads. Decode under
+/// [`super::guard::deep_stack`] and [`super::guard::third_party`], as [`load`] does.
+pub(crate) fn open_blocks(path: &Path) -> Result<Option<las::Reader>, LoadError> {
+    let (file, mut read, size, header) = open_file(path)?;
     if header.point_format().is_compressed {
         let laszip = header
             .vlrs()
@@ -816,15 +823,7 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
 
 /// [`load`], reading records in blocks of about `block_bytes`.
 fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
-    let file = path.display().to_string();
-    let open = File::open(path).map_err(|source| io_error(&file, source))?;
-    let size = open
-        .metadata()
-        .map_err(|source| io_error(&file, source))?
-        .len();
-    let size = usize::try_from(size).unwrap_or(usize::MAX);
-    let mut read = BufReader::new(open);
-    let header = read_header(&file, &mut read, size)?;
+    let (file, mut read, size, header) = open_file(path)?;
     if header.point_format().is_compressed {
         return guard::deep_stack(|| read_compressed(&file, read, &header, size));
     }

@@ -607,30 +607,17 @@ fn convert_streamed(
     if points == 0 {
         bail!("{}: no points to convert", input.display());
     }
-    let load_seconds = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
-    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
-        if done % 65536 == 0 {
-            progress.advance(65536.min(points - done));
-        }
-        r
-    });
-    let result = write_records(
+    let scale = decimal_scale((hi - lo).max_element());
+    write_shuffled(
         out,
+        shuffler,
         fields.layout()?,
-        records,
-        (hi - lo).max_element(),
+        points,
+        (scale, scale, scale),
         node_points,
-    );
-    progress.finish();
-    result?;
-    Ok(Some(ConvertStats {
-        points: points as u64,
-        load_seconds,
-        write_seconds: start.elapsed().as_secs_f64(),
-        bytes: output_bytes(out)?,
-    }))
+        start,
+    )
+    .map(Some)
 }
 
 /// Streams a LAS or LAZ file's records (every LAS field as it is, extra bytes included; NIR and
@@ -680,31 +667,17 @@ fn convert_las(
     if read == 0 {
         bail!("{file}: no points to convert");
     }
-    let load_seconds = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    let progress = Progress::new("converting", read, read >= PROGRESS_MIN_POINTS);
-    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
-        if done % 65536 == 0 {
-            progress.advance(65536.min(read - done));
-        }
-        r
-    });
     let t = header.transforms();
-    let result = write_scaled(
+    write_shuffled(
         out,
+        shuffler,
         layout,
-        records,
+        read,
         (t.x.scale, t.y.scale, t.z.scale),
         node_points,
-    );
-    progress.finish();
-    result?;
-    Ok(Some(ConvertStats {
-        points: read as u64,
-        load_seconds,
-        write_seconds: start.elapsed().as_secs_f64(),
-        bytes: output_bytes(out)?,
-    }))
+        start,
+    )
+    .map(Some)
 }
 
 /// Streams an E57 file's points (every scan, in the file's frame; colour and intensity when
@@ -770,6 +743,29 @@ fn convert_e57(input: &Path, out: &Path, node_points: u32, start: Instant) -> Re
     if points == 0 {
         bail!("{}: no points to convert", input.display());
     }
+    let scale = decimal_scale((hi - lo).max_element());
+    write_shuffled(
+        out,
+        shuffler,
+        layout,
+        points,
+        (scale, scale, scale),
+        node_points,
+        start,
+    )
+}
+
+/// Hands the `points` records of `shuffler` to the writer with a progress bar; `start` is when
+/// reading the input began (the load time is measured up to now).
+fn write_shuffled(
+    out: &Path,
+    shuffler: Shuffler,
+    layout: StreamingLayout,
+    points: usize,
+    scale: (f64, f64, f64),
+    node_points: u32,
+    start: Instant,
+) -> Result<ConvertStats> {
     let load_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
@@ -779,7 +775,7 @@ fn convert_e57(input: &Path, out: &Path, node_points: u32, start: Instant) -> Re
         }
         r
     });
-    let result = write_records(out, layout, records, (hi - lo).max_element(), node_points);
+    let result = write_scaled(out, layout, records, scale, node_points);
     progress.finish();
     result?;
     Ok(ConvertStats {

@@ -92,6 +92,20 @@ pub struct Selection {
     pub pages: Vec<Key>,
 }
 
+impl Selection {
+    /// Adds `node` when it fits `budget` with what is chosen; false (nothing added) otherwise.
+    fn take(&mut self, node: &Node, budget: Budget) -> bool {
+        let slots = slots_of(node.points);
+        if self.points + node.points > budget.points || self.slots + slots > budget.slots {
+            return false;
+        }
+        self.points += node.points;
+        self.slots += slots;
+        self.nodes.push(node.key);
+        true
+    }
+}
+
 /// Geometry of a node for the selection, computed once per node and view.
 struct Measure {
     /// Projected size (the priority).
@@ -198,13 +212,9 @@ pub fn select(
     }
     while let Some(Candidate { key, .. }) = heap.pop() {
         let node = &h.nodes[&key];
-        let slots = slots_of(node.points);
-        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
+        if !out.take(node, budget) {
             break;
         }
-        out.points += node.points;
-        out.slots += slots;
-        out.nodes.push(key);
         let m = measure(node, info, origin, view);
         for child in expand(h, key, &m, &mut out.pages) {
             heap.push(Candidate {
@@ -245,13 +255,9 @@ pub fn select_brute_force(
             .max();
         let Some(best) = best else { break };
         let node = &h.nodes[&best.key];
-        let slots = slots_of(node.points);
-        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
+        if !out.take(node, budget) {
             break;
         }
-        out.points += node.points;
-        out.slots += slots;
-        out.nodes.push(best.key);
         chosen.insert(best.key);
     }
     out.pages = h
