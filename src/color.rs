@@ -239,6 +239,35 @@ const CLASSES: [(&str, u32); 19] = [
     ("high noise", CLASS_COLOR_18),
 ];
 
+/// The sRGB color of the scalar ramp at `t` in 0..=1 (clamped), interpolated in sRGB as the
+/// shader's `ramp` does; `COLOR_INTENSITY` is grey instead (`ramp_color`).
+pub fn ramp(t: f32) -> [u8; 3] {
+    const STOPS: [u32; 5] = [RAMP_0, RAMP_1, RAMP_2, RAMP_3, RAMP_4];
+    let x = if t.is_nan() {
+        0.0
+    } else {
+        t.clamp(0.0, 1.0) * 4.0
+    };
+    let k = (x as usize).min(3);
+    let (a, b) = (rgb8(STOPS[k]), rgb8(STOPS[k + 1]));
+    let f = x - k as f32;
+    std::array::from_fn(|i| {
+        (f32::from(a[i]) + (f32::from(b[i]) - f32::from(a[i])) * f).round() as u8
+    })
+}
+
+/// The color mode's ramp at `t` (a grey ramp for intensity), `None` for modes without one.
+pub fn ramp_color(mode: u32, t: f32) -> Option<[u8; 3]> {
+    match mode {
+        COLOR_SCALAR | COLOR_ELEVATION => Some(ramp(t)),
+        COLOR_INTENSITY => {
+            let v = (t.clamp(0.0, 1.0) * 255.0).round() as u8;
+            Some([v; 3])
+        }
+        _ => None,
+    }
+}
+
 /// An sRGB 0xRRGGBB constant as bytes.
 pub fn rgb8(c: u32) -> [u8; 3] {
     [(c >> 16) as u8, (c >> 8) as u8, c as u8]

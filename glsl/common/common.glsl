@@ -28,6 +28,17 @@ mat2x3 tangent_frame(vec3 n) {
     return mat2x3(tu, cross(n, tu));
 }
 
+// Whether the viewer's clipping box keeps local position p (src/scene/clip.rs).
+bool clip_kept(vec3 p) {
+    uint flags = frame.u.flags;
+    if ((flags & FLAG_CLIP) == 0u) {
+        return true;
+    }
+    vec3 b = (frame.u.clip * vec4(p, 1.0)).xyz;
+    bool inside = max(max(abs(b.x), abs(b.y)), abs(b.z)) <= 1.0;
+    return inside != ((flags & FLAG_CLIP_OUTSIDE) != 0u);
+}
+
 vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));
 }

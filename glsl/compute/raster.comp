@@ -116,6 +116,9 @@ void main() {
         if (SKIP_FACE_VERTICES && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) {
             continue;
         }
+        if (!point_kept(i, p)) {
+            continue;
+        }
         if (CULL && (frame.u.flags & FLAG_HAS_NORMALS) != 0u) {
             vec3 n = mat3(frame.u.view) * stream_normal(i);
             if (dot(n, (frame.u.view * vec4(p, 1.0)).xyz) > 0.0) {

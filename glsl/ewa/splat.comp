@@ -93,7 +93,11 @@ struct Splat {
 
 // Sets up splat `i`; false when it is clipped or covers no pixel centre.
 bool setup(uint i, out Splat s) {
-    s.p = (frame.u.view * vec4(stream_position(i), 1.0)).xyz;
+    vec3 local = stream_position(i);
+    if (!point_kept(i, local)) {
+        return false;
+    }
+    s.p = (frame.u.view * vec4(local, 1.0)).xyz;
     vec4 c = frame.u.proj * vec4(s.p, 1.0);
     // Splats are clipped by their centre at the near plane (reversed infinite Z).
     if (c.w <= 0.0 || c.z > c.w) {

@@ -16,9 +16,10 @@ void main() {
     if (i >= p.point_count) {
         return;
     }
-    vec3 v = stream_position(i) - h.eye_radius.xyz;
+    vec3 local = stream_position(i);
+    vec3 v = local - h.eye_radius.xyz;
     float n = length(v);
-    if (n == 0.0) {
+    if (n == 0.0 || !point_kept(i, local)) {
         return;
     }
     uvec2 c = complete_cell(v, n);

@@ -30,9 +30,11 @@ void main() {
     if (i >= p.point_count) {
         return;
     }
-    vec3 v = stream_position(i) - h.eye_radius.xyz;
+    vec3 local = stream_position(i);
+    vec3 v = local - h.eye_radius.xyz;
     float n = length(v);
-    if (n == 0.0) {
+    // A point the viewer's filter hides takes no part, like one at the eye.
+    if (n == 0.0 || !point_kept(i, local)) {
         if (MODE == HPR_SECTOR_SORT) {
             keys[i] = p.sqrt_k_max * p.sqrt_k_max;
             values[i] = 0ul;

@@ -109,6 +109,11 @@ LodSplat lod_splat(GpuLodVertex v, float max_size, bool color_levels) {
     LodSplat o;
     vec3 p = (frame.u.view * vec4(v.sphere.xyz, 1.0)).xyz;
     o.position = frame.u.proj * vec4(p, 1.0);
+    // The viewer's clipping box applies to the sample's centre (a sample stands for many
+    // points: the class filter does not apply); outside the clip volume it is discarded.
+    if (!clip_kept(v.sphere.xyz)) {
+        o.position = vec4(2.0, 2.0, 2.0, 1.0);
+    }
     float d = max(-p.z, 1e-6);
     float r = v.sphere.w;
     float size;

@@ -21,13 +21,15 @@ layout(location = 2) out vec4 v_c;
 
 void main() {
     uint i = uint(gl_VertexIndex);
-    vec3 p = (frame.u.view * vec4(stream_position(i), 1.0)).xyz;
+    vec3 local = stream_position(i);
+    vec3 p = (frame.u.view * vec4(local, 1.0)).xyz;
     vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
     gl_Position = frame.u.proj * vec4(p, 1.0);
     gl_PointSize = 1.0;
     // Hybrid scenes: a face's vertex is drawn as part of its triangles, not as a point; an
-    // empty index of a streamed pool is not drawn at all.
-    if ((HYBRID && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) || !stream_live(i)) {
+    // empty index of a streamed pool or a point the viewer's filter hides is not drawn at all.
+    if ((HYBRID && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) || !stream_live(i)
+        || !point_kept(i, local)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
     if (dot(n, p) > 0.0) {

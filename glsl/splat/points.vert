@@ -9,9 +9,10 @@ layout(location = 2) out vec3 v_view_pos;
 
 void main() {
     uint i = uint(gl_VertexIndex);
-    vec4 view_pos = frame.u.view * vec4(stream_position(i), 1.0);
+    vec3 local = stream_position(i);
+    vec4 view_pos = frame.u.view * vec4(local, 1.0);
     gl_Position = frame.u.proj * view_pos;
-    if (!stream_live(i)) {
+    if (!stream_live(i) || !point_kept(i, local)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
     gl_PointSize = frame.u.params.x;

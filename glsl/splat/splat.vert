@@ -14,7 +14,8 @@ layout(location = 5) flat out mat3 v_field;
 
 void main() {
     uint i = uint(gl_VertexIndex);
-    vec3 p = (frame.u.view * vec4(stream_position(i), 1.0)).xyz;
+    vec3 local = stream_position(i);
+    vec3 p = (frame.u.view * vec4(local, 1.0)).xyz;
     vec3 n = normalize(mat3(frame.u.view) * stream_normal(i));
     float r = stream_radius(i) * splat.radius_scale;
     float d = -p.z;
@@ -38,8 +39,9 @@ void main() {
     size = clamp(size, 1.0, splat.max_point_size);
     gl_Position = frame.u.proj * vec4(p, 1.0);
     // Back-face culling by normal (`cull`): a splat whose normal faces away from the eye is
-    // moved outside the clip volume, which discards the point.
-    if ((CULL != 0u && dot(n, -p) < 0.0) || !stream_live(i)) {
+    // moved outside the clip volume, which discards the point; so is a point the viewer's
+    // filter hides.
+    if ((CULL != 0u && dot(n, -p) < 0.0) || !stream_live(i) || !point_kept(i, local)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
     gl_PointSize = size;

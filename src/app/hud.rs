@@ -8,24 +8,41 @@ use std::time::{Duration, Instant};
 use crate::color::LegendEntry;
 use crate::gpu::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
 use crate::overlay::{Corner, HudLine, Panel};
+use crate::scene::clip::Classes;
 
 /// Every viewer key and mouse control, as shown by the help panel (`H`).
 pub const KEYS: &[(&str, &str)] = &[
     ("left drag", "orbit about the up axis"),
     ("right drag", "pan"),
     ("wheel", "zoom"),
+    ("left click", "pick / measure with the tool (T)"),
+    ("click legend", "hide / show a class"),
+    (
+        "T",
+        "tool: pick, distance, height, polyline, area, box, oriented box",
+    ),
+    ("X", "clear the measurement"),
+    ("B", "clipping box: inside, outside, off"),
+    ("F", "show every class"),
     ("M / N", "next / previous method"),
     ("[ / ]", "pyramid level shown"),
-    (", / .", "point budget / 2, x 2 (streaming)"),
+    ("+ / -", "point size or splat radius"),
+    (
+        ", / .",
+        "point budget / 2, x 2 (streaming, level of detail)",
+    ),
     ("C", "toggle point colors"),
     ("E", "toggle eye-dome lighting"),
     ("V", "color by the next field"),
-    ("0 - 9", "lights: none, headlight, ring of N"),
+    ("G", "lights: none, headlight, ring of N"),
+    ("Ctrl+1 - 9", "store a camera bookmark"),
+    ("1 - 9", "go to a camera bookmark"),
     ("R", "reset the camera"),
-    ("K", "save the camera (--camera-file)"),
-    ("L", "load the camera (--camera-file)"),
+    ("K", "save camera, bookmarks, box, filter (--camera-file)"),
+    ("L", "load them (--camera-file)"),
     ("P", "screenshot (PNG)"),
     ("H", "show / hide this help"),
+    ("U", "list every pass / per-family totals"),
     ("Tab", "show / hide the HUD"),
     ("F11", "fullscreen"),
     ("Esc", "quit"),
@@ -141,12 +158,43 @@ pub struct Stats<'a> {
     /// A streamed file's state, one HUD line per text line: points drawn and chosen, budget,
     /// nodes, loading, bytes read.
     pub stream: Option<&'a str>,
+    /// List every pass (else per-family totals).
+    pub expanded: bool,
+    /// The timings are the previous method's (the new graph has finished no frame yet).
+    pub previous: bool,
+    /// Classes the filter hides (their legend lines say so).
+    pub hidden: &'a Classes,
+    /// The tool's and the measurement's lines.
+    pub tools: &'a [HudLine],
 }
 
 /// The HUD's panels: statistics (top left) and, when asked, the key help (top right).
 pub struct Hud {
     pub stats: Vec<HudLine>,
     pub help: bool,
+    /// The index of the first legend line in `stats`.
+    pub legend_at: usize,
+}
+
+/// The family of a pass: its name up to the first `.` (`compute.raster` is `compute`).
+pub fn family(pass: &str) -> &str {
+    pass.split('.').next().unwrap_or(pass)
+}
+
+/// Per family, in order of first appearance: the summed milliseconds and the pass count.
+pub fn family_totals(passes: &[(String, f64)]) -> Vec<(&str, f64, usize)> {
+    let mut out: Vec<(&str, f64, usize)> = Vec::new();
+    for (name, ms) in passes {
+        let f = family(name);
+        match out.iter_mut().find(|(g, _, _)| *g == f) {
+            Some(entry) => {
+                entry.1 += ms;
+                entry.2 += 1;
+            }
+            None => out.push((f, *ms, 1)),
+        }
+    }
+    out
 }
 
 /// Formats `n` with thousands separators.
@@ -177,13 +225,29 @@ impl Hud {
         stats.push(HudLine::new(
             if s.passes.is_empty() {
                 "GPU: waiting for the first frame".to_string()
+            } else if s.previous {
+                format!("GPU {total:.2} ms per frame (previous method, rebuilding)")
             } else {
                 format!("GPU {total:.2} ms per frame")
             },
             HudLine::TEXT,
         ));
-        for (name, ms) in s.passes {
-            stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
+        if s.expanded {
+            for (name, ms) in s.passes {
+                stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
+            }
+        } else {
+            for (name, ms, n) in family_totals(s.passes) {
+                let passes = if n == 1 {
+                    String::new()
+                } else {
+                    format!(" ({n} passes, U lists them)")
+                };
+                stats.push(HudLine::new(
+                    format!("  {name}  {ms:.2} ms{passes}"),
+                    HudLine::DIM,
+                ));
+            }
         }
         // Batch-culling methods project the points of the batches inside the frustum (counted
         // on the host with the shader's own test); level of detail projects the samples it
@@ -236,18 +300,22 @@ impl Hud {
             format!("color by {} (V)", s.color_by),
             HudLine::TEXT,
         ));
+        let legend_at = stats.len();
         for entry in s.legend {
             let [r, g, b] = entry.color;
+            let hidden = u8::try_from(entry.class).is_ok_and(|c| s.hidden.contains(c));
             stats.push(HudLine::new(
                 format!(
-                    "  {:>3} {}  {}",
+                    "  {:>3} {}  {}{}",
                     entry.class,
                     entry.name,
-                    thousands(entry.count as u64)
+                    thousands(entry.count as u64),
+                    if hidden { "  (hidden)" } else { "" }
                 ),
-                [r, g, b, 255],
+                if hidden { HudLine::DIM } else { [r, g, b, 255] },
             ));
         }
+        stats.extend(s.tools.iter().cloned());
         if !s.use_color {
             stats.push(HudLine::new("point colors off (C)", HudLine::DIM));
         }
@@ -255,7 +323,11 @@ impl Hud {
             stats.push(HudLine::new(s.status, HudLine::HEADING));
         }
         stats.push(HudLine::new("H help   Tab hide HUD", HudLine::DIM));
-        Self { stats, help }
+        Self {
+            stats,
+            help,
+            legend_at,
+        }
     }
 
     /// The panels to draw.
@@ -296,7 +368,38 @@ mod tests {
             legend: &[],
             status: "",
             stream: None,
+            expanded: true,
+            previous: false,
+            hidden: &NONE,
+            tools: &[],
         }
+    }
+
+    static NONE: Classes = Classes([0; 8]);
+
+    #[test]
+    fn collapsed_the_stats_show_per_family_totals_and_keep_the_previous_timings_marked() {
+        let passes = vec![
+            ("hpr.sector".to_string(), 1.0),
+            ("hpr.advance".to_string(), 2.5),
+            ("post".to_string(), 0.25),
+            ("hpr.visible".to_string(), 0.5),
+        ];
+        let s = Stats {
+            expanded: false,
+            previous: true,
+            ..stats(&passes)
+        };
+        let hud = Hud::new(&s, false);
+        let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+        assert_eq!(
+            text[2..5],
+            [
+                "GPU 4.25 ms per frame (previous method, rebuilding)",
+                "  hpr  4.00 ms (3 passes, U lists them)",
+                "  post  0.25 ms",
+            ]
+        );
     }
 
     #[test]
@@ -405,12 +508,15 @@ mod tests {
                 count: 9,
             },
         ];
+        let hidden = Classes::from_list(&[6]);
         let s = Stats {
             color_by: "classification",
             legend: &legend,
+            hidden: &hidden,
             ..stats(&[])
         };
         let hud = Hud::new(&s, false);
+        assert_eq!(hud.stats[hud.legend_at].text, "    2 ground  26,107");
         let at = hud
             .stats
             .iter()
@@ -418,8 +524,8 @@ mod tests {
             .expect("color line");
         assert_eq!(hud.stats[at + 1].text, "    2 ground  26,107");
         assert_eq!(hud.stats[at + 1].color, [170, 85, 0, 255]);
-        assert_eq!(hud.stats[at + 2].text, "    6 building  9");
-        assert_eq!(hud.stats[at + 2].color, [255, 80, 80, 255]);
+        assert_eq!(hud.stats[at + 2].text, "    6 building  9  (hidden)");
+        assert_eq!(hud.stats[at + 2].color, HudLine::DIM);
     }
 
     #[test]

@@ -7,14 +7,16 @@
 
 pub mod estimate;
 pub mod hud;
+mod interact;
 pub mod script;
+pub mod tools;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -28,18 +30,20 @@ use crate::gpu::layout::COLOR_CLASSIFICATION;
 use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
-use crate::overlay::Panel;
+use crate::overlay::{Mark, Panel};
 use crate::post::PostOptions;
 use crate::render::{Extras, Renderer, View, DEFAULT_FRAMES_IN_FLIGHT};
 use crate::scene::camera::{orbit_angles, orbit_direction, Pose};
-use crate::scene::scene_file::SceneFile;
+use crate::scene::clip::{ClipBox, Filter};
+use crate::scene::scene_file::{Bookmark, SceneFile};
 use crate::scene::{Camera, Cloud, Light, Up};
 use crate::streams::upload::DEFAULT_CHUNK_BYTES;
 use crate::upload::streamed::{StreamOptions, StreamedScene};
 use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 use estimate::{EstimateOptions, Estimation};
 use hud::{FrameRate, Hud, Stats};
-use script::{Next, Runner, Script, ViewerKey};
+use interact::ClickTool;
+use script::{Next, Runner, Script, Tool, ViewerKey};
 
 /// What the viewer shows.
 pub struct ViewerOptions {
@@ -72,6 +76,10 @@ pub struct ViewerOptions {
     pub estimate: Option<EstimateOptions>,
     /// Stream this COPC file or URL by view (the viewer's cloud is then its root node).
     pub stream: Option<(String, StreamOptions)>,
+    /// The clipping box and hidden classes at start (the scene file's).
+    pub filter: Filter,
+    /// Camera bookmarks at start (the scene file's).
+    pub bookmarks: Vec<Bookmark>,
 }
 
 /// Orbit state around a target: azimuth around `up`, elevation towards it (radians).
@@ -171,6 +179,33 @@ struct Viewer {
     error: Option<anyhow::Error>,
     /// Normals and radii being estimated in the background.
     estimation: Option<Estimation>,
+    /// What a left click does (`T`).
+    tool: ClickTool,
+    /// The current tool's picked points (file coordinates) and what they measure.
+    picks: Vec<DVec3>,
+    measured: Vec<(&'static str, f64)>,
+    /// The clipping box and hidden classes the projection passes apply.
+    filter: Filter,
+    /// The last clipping box drawn (kept while `B` switches clipping off).
+    clip_box: Option<ClipBox>,
+    /// `hpr::spacing` of the cloud for picking (computed on the first pick).
+    spacing: Option<f64>,
+    /// Tool commands waiting for the next frame's depth.
+    requests: Vec<Tool>,
+    bookmarks: Vec<Bookmark>,
+    /// The newest per-pass timings and the method they are of (kept while a rebuilt renderer
+    /// has none yet).
+    timings: (String, Vec<(String, f64)>),
+    /// The HUD lists every pass (`U`) instead of per-family totals.
+    expanded: bool,
+    /// Ctrl is held.
+    ctrl: bool,
+    /// Where the left button went down (a release within a few pixels is a click).
+    press: Option<Vec2>,
+    /// The HUD's solid quads (the colour ramp's scale bar), rebuilt with the panels.
+    hud_marks: Vec<Mark>,
+    /// The stats panel's legend lines: the index of the first and the classes.
+    legend_rows: (usize, Vec<u32>),
 }
 
 /// The HUD's classification legend: the classes present while coloring by classification.
@@ -221,7 +256,24 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
         start: Instant::now(),
         error: None,
         estimation,
+        tool: ClickTool::Pick,
+        picks: Vec::new(),
+        measured: Vec::new(),
+        filter: Filter::default(),
+        clip_box: None,
+        spacing: None,
+        requests: Vec::new(),
+        bookmarks: Vec::new(),
+        timings: (String::new(), Vec::new()),
+        expanded: false,
+        ctrl: false,
+        press: None,
+        hud_marks: Vec::new(),
+        legend_rows: (0, Vec::new()),
     };
+    viewer.filter = viewer.opts.filter;
+    viewer.clip_box = viewer.filter.clip;
+    viewer.bookmarks = std::mem::take(&mut viewer.opts.bookmarks);
     event_loop.run_app(&mut viewer)?;
     if let Some(ctx) = &viewer.ctx {
         if ctx.validation && ctx.validation_errors() > 0 {
@@ -234,6 +286,9 @@ pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
     }
     viewer.error.map_or(Ok(()), Err)
 }
+
+/// Pixels the cursor may move between press and release of a click.
+const CLICK_SLOP: f32 = 3.0;
 
 /// Rounds of 100 ms a scripted frame waits for a streamed view's nodes.
 const STREAM_WAIT_ROUNDS: u32 = 600;
@@ -291,32 +346,55 @@ pub fn write_png(path: &Path, frame: &Frame) -> Result<()> {
     .with_context(|| format!("{}: cannot write PNG", path.display()))
 }
 
-/// Saves `camera` (and the up axis and lights) as a scene file `--scene` reads back; the
-/// post-processing and coloring settings are not part of a camera and stay unset.
-pub fn save_camera(path: &Path, camera: &Camera, up: Up, lights: &[Light]) -> Result<()> {
+/// What the viewer saves in its camera file besides the camera.
+pub struct Saved<'a> {
+    pub up: Up,
+    pub lights: &'a [Light],
+    pub filter: &'a Filter,
+    pub bookmarks: &'a [Bookmark],
+    /// The local frame's origin in file coordinates (`Cloud::origin`).
+    pub origin: DVec3,
+}
+
+/// Saves `camera` (in the file's coordinates), the up axis, lights, clipping box, hidden
+/// classes and bookmarks as a scene file `--scene` reads back; the post-processing and
+/// coloring settings are not part of a camera and stay unset.
+pub fn save_camera(path: &Path, camera: &Camera, saved: &Saved<'_>) -> Result<()> {
+    let file = |p: Vec3| (saved.origin + p.as_dvec3()).to_array();
     SceneFile {
-        up: Some(up),
+        up: Some(saved.up),
         camera: Some(Pose::LookAt {
-            eye: camera.eye.into(),
-            target: camera.target.into(),
+            eye: file(camera.eye),
+            target: file(camera.target),
         }),
-        lights: lights.to_vec(),
+        lights: saved.lights.to_vec(),
         edl: None,
         background: None,
         color_by: None,
         inputs: Vec::new(),
+        hidden_classes: saved.filter.hidden.list(),
+        clip: saved.filter.clip,
+        bookmarks: saved.bookmarks.to_vec(),
     }
     .save(path)
 }
 
-/// The camera of the scene file at `path` for a scene with this bounding sphere, orbiting
-/// about `up` unless the file names its own up axis.
-pub fn load_camera(path: &Path, centre: Vec3, radius: f32, up: Up) -> Result<Camera> {
+/// The camera of the scene file at `path` for a scene with this bounding sphere and local
+/// origin, orbiting about `up` unless the file names its own up axis; and the file.
+pub fn load_camera(
+    path: &Path,
+    (centre, radius): (Vec3, f32),
+    up: Up,
+    origin: DVec3,
+) -> Result<(Camera, SceneFile)> {
     let file = SceneFile::load(path)?;
     let pose = file
         .camera
         .with_context(|| format!("{}: the scene file has no camera", path.display()))?;
-    Ok(pose.camera(centre, radius, file.up.unwrap_or(up)))
+    Ok((
+        pose.camera(centre, radius, file.up.unwrap_or(up), origin),
+        file,
+    ))
 }
 
 impl Viewer {
@@ -368,6 +446,9 @@ impl Viewer {
             swapchain,
             window,
         });
+        if self.filter.is_active() {
+            self.filter_changed()?;
+        }
         Ok(())
     }
 
@@ -429,6 +510,7 @@ impl Viewer {
             let renderer = self.build_renderer(&ctx, &gpu.swapchain)?;
             self.gpu = Some(Gpu { renderer, ..gpu });
         }
+        self.push_filter();
         self.hud_dirty = true;
         Ok(())
     }
@@ -595,16 +677,40 @@ impl Viewer {
                 }
             }
             ViewerKey::Char('m') => self.switch_method(1)?,
+            ViewerKey::Char('+' | '=') => self.scale_points(1.25)?,
+            ViewerKey::Char('-') => self.scale_points(0.8)?,
+            ViewerKey::Char('t') => {
+                let at = ClickTool::ALL
+                    .iter()
+                    .position(|t| *t == self.tool)
+                    .unwrap_or(0);
+                self.tool = ClickTool::ALL[(at + 1) % ClickTool::ALL.len()];
+                self.picks.clear();
+                self.measured.clear();
+                self.outcome(Ok(format!("tool: {}", self.tool.name())))?;
+            }
+            ViewerKey::Char('x') => {
+                self.picks.clear();
+                self.measured.clear();
+            }
+            ViewerKey::Char('b') => self.cycle_clip()?,
+            ViewerKey::Char('f') => {
+                self.filter.hidden = Default::default();
+                self.filter_changed()?;
+            }
+            ViewerKey::Char('u') => self.expanded = !self.expanded,
+            ViewerKey::Ctrl(digit) => self.bookmark(digit as u8 - b'0', true)?,
             ViewerKey::Char('[') => self.step_level(-1)?,
             ViewerKey::Char(']') => self.step_level(1)?,
             ViewerKey::Char('n') => self.switch_method(-1)?,
             ViewerKey::Char('c') => self.use_color = !self.use_color,
             ViewerKey::Char('e') => self.toggle_edl()?,
             ViewerKey::Char('v') => self.cycle_color()?,
-            ViewerKey::Char(',') => self.scale_budget(0.5)?,
-            ViewerKey::Char('.') => self.scale_budget(2.0)?,
-            ViewerKey::Char(digit @ '0'..='9') => {
-                let count = digit.to_digit(10).unwrap_or(1);
+            ViewerKey::Char(',') => self.scale_any_budget(0.5)?,
+            ViewerKey::Char('.') => self.scale_any_budget(2.0)?,
+            ViewerKey::Char(digit @ '1'..='9') => self.bookmark(digit as u8 - b'0', false)?,
+            ViewerKey::Char('g') => {
+                let count = (self.opts.lights.len() as u32 + 1) % 10;
                 let radius = self.scene.as_ref().map_or(1.0, |(_, info)| info.radius);
                 self.opts.lights = crate::scene::lights::sweep(count, radius);
                 self.outcome(Ok(format!("lights: {count}")))?;
@@ -621,8 +727,13 @@ impl Viewer {
                 let saved = save_camera(
                     &path,
                     &self.orbit.camera(),
-                    self.orbit.up,
-                    &self.opts.lights,
+                    &Saved {
+                        up: self.orbit.up,
+                        lights: &self.opts.lights,
+                        filter: &self.filter,
+                        bookmarks: &self.bookmarks,
+                        origin: self.cloud.origin,
+                    },
                 );
                 self.outcome(saved.map(|()| format!("camera saved to {}", path.display())))?;
             }
@@ -636,12 +747,27 @@ impl Viewer {
     }
 
     fn load_camera(&mut self) -> Result<String> {
-        let (_, info) = self.scene.as_ref().context("scene not uploaded")?;
-        let path = &self.opts.camera_file;
-        let camera = load_camera(path, info.centre, info.radius, self.orbit.up)?;
+        let info = match (&self.scene, &self.streamed) {
+            (Some((_, info)), _) => info,
+            (None, Some(s)) => &s.info,
+            _ => bail!("scene not uploaded"),
+        };
+        let path = self.opts.camera_file.clone();
+        let (camera, file) = load_camera(
+            &path,
+            (info.centre, info.radius),
+            self.orbit.up,
+            self.cloud.origin,
+        )?;
         let home = self.orbit.home;
         self.orbit = Orbit::from_camera(&camera, self.orbit.up);
         self.orbit.home = home;
+        self.filter = file.filter();
+        if file.clip.is_some() {
+            self.clip_box = file.clip;
+        }
+        self.bookmarks = file.bookmarks;
+        self.filter_changed()?;
         Ok(format!("camera loaded from {}", path.display()))
     }
 
@@ -672,6 +798,7 @@ impl Viewer {
                 e.percent()
             );
         }
+        let tool_lines = self.tool_lines();
         let Some(gpu) = self.gpu.as_mut() else {
             return;
         };
@@ -682,6 +809,13 @@ impl Viewer {
             .filter(|(n, _)| !n.starts_with("present"))
             .collect();
         let label = gpu.renderer.config.label();
+        // A rebuilt renderer has no timings until its first frame finishes: the previous
+        // method's stay, marked.
+        if !passes.is_empty() {
+            self.timings = (label.clone(), passes);
+        }
+        let previous = self.timings.0 != label && !self.timings.1.is_empty();
+        let passes = self.timings.1.clone();
         let projected = match &self.scene {
             _ if gpu.renderer.config.method.needs_lod => {
                 hud::Projected::LevelOfDetail(gpu.renderer.samples_per_level().map(<[u64]>::to_vec))
@@ -732,23 +866,63 @@ impl Viewer {
                 color_by: &self.opts.color_by,
                 legend: &self.legend,
                 status: &self.status,
+                expanded: self.expanded,
+                previous,
+                hidden: &self.filter.hidden,
+                tools: &tool_lines,
             },
             self.help,
         );
+        self.legend_rows = (hud.legend_at, self.legend.iter().map(|e| e.class).collect());
         self.panels = hud.panels();
+        let (width, height) = (gpu.renderer.width, gpu.renderer.height);
+        let coloring = gpu.renderer.info.coloring;
         let ms: Vec<String> = passes
             .iter()
             .map(|(n, ms)| format!("{n} {ms:.2}"))
             .collect();
         gpu.window.set_title(&format!(
-            "{} - {} - color: {} - {} ms{}",
+            "{} - {} - color: {} - {} ms{}{}",
             self.opts.title,
             label,
             self.opts.color_by,
             ms.join(" | "),
-            if self.use_color { "" } else { " (no color)" }
+            if self.use_color { "" } else { " (no color)" },
+            if previous { " (previous method)" } else { "" }
         ));
+        self.hud_marks.clear();
+        if let Some(panel) = self.scale_bar(coloring, width, height) {
+            self.panels.push(panel);
+        }
         self.hud_dirty = false;
+    }
+
+    /// The colour ramp's scale bar (bottom left) while coloring by a ramp: a panel naming the
+    /// field and its range, and the ramp's steps as marks above it (`hud_marks`).
+    fn scale_bar(&mut self, coloring: Coloring, width: u32, height: u32) -> Option<Panel> {
+        color::ramp_color(coloring.mode, 0.0)?;
+        let [lo, hi] = coloring.range;
+        let mut panel = Panel::new(crate::overlay::Corner::BottomLeft);
+        panel.line(
+            format!("{}  {lo:.4} to {hi:.4}", self.opts.color_by),
+            crate::overlay::HudLine::TEXT,
+        );
+        let line = crate::overlay::atlas().map_or(18.0, |a| a.line_height);
+        let margin = crate::overlay::MARGIN;
+        let panel_h = line + 2.0 * crate::overlay::PADDING;
+        let (bar_w, bar_h) = (256.0f32.min(width as f32 - 2.0 * margin), 12.0);
+        let bottom = height as f32 - margin - panel_h - 4.0;
+        let steps = 64;
+        for k in 0..steps {
+            let t = (k as f32 + 0.5) / steps as f32;
+            let [r, g, b] = color::ramp_color(coloring.mode, t)?;
+            let x0 = margin + bar_w * k as f32 / steps as f32;
+            self.hud_marks.push(Mark {
+                rect: glam::Vec4::new(x0, bottom - bar_h, x0 + bar_w / steps as f32 + 0.5, bottom),
+                color: [r, g, b, 255],
+            });
+        }
+        Some(panel)
     }
 
     /// Runs script steps up to the next frame; returns false when the script is over.
@@ -793,6 +967,12 @@ impl Viewer {
                     }
                     return Ok(true);
                 }
+                Next::Tool(tool) if tool.needs_frame() => {
+                    // Runs on the next frame's depth.
+                    self.requests.push(tool);
+                    return Ok(true);
+                }
+                Next::Tool(tool) => self.tool_now(tool)?,
                 Next::Quit => return Ok(false),
             }
             if self.quit {
@@ -869,31 +1049,44 @@ impl Viewer {
             return self.rebuild();
         };
         let shot = self.screenshot.take();
+        let readback = shot.is_some() || !self.requests.is_empty();
+        let camera = self.orbit.camera();
+        let marks = self.marks(&camera);
+        let Some(gpu) = self.gpu.as_mut() else {
+            return Ok(());
+        };
         let image = gpu.swapchain.images[index as usize];
         gpu.renderer
             .bind_present_image(image, ash::vk::ImageView::null());
         gpu.renderer.update(&View {
-            camera: self.orbit.camera(),
+            camera,
             lights: self.opts.lights.clone(),
             use_color: self.use_color,
             time: self.start.elapsed().as_secs_f32(),
         })?;
-        let panels: &[Panel] = if self.hud_visible { &self.panels } else { &[] };
-        gpu.renderer.set_overlay(panels)?;
-        gpu.renderer.record(shot.is_some())?;
+        let (panels, marks): (&[Panel], &[Mark]) = if self.hud_visible {
+            (&self.panels, &marks)
+        } else {
+            (&[], &[])
+        };
+        gpu.renderer.set_overlay(panels, marks)?;
+        gpu.renderer.record(readback)?;
         gpu.renderer.submit(
             Some(available),
             Some(gpu.swapchain.rendered[index as usize]),
         )?;
         let presented = gpu.swapchain.present(index)?;
         self.frames += 1;
-        if let Some(path) = shot {
+        if readback {
             gpu.renderer.finish()?;
             let frame = gpu.renderer.read_frame()?;
-            let written =
-                write_png(&path, &frame).map(|()| format!("screenshot {}", path.display()));
-            self.outcome(written)?;
-            self.hud_dirty = true;
+            if let Some(path) = shot {
+                let written =
+                    write_png(&path, &frame).map(|()| format!("screenshot {}", path.display()));
+                self.outcome(written)?;
+                self.hud_dirty = true;
+            }
+            self.resolve_requests(&frame, &camera)?;
         }
         if self.rate.tick(Instant::now()) {
             self.memory = self.ctx.as_deref().and_then(gpu_memory);
@@ -903,6 +1096,40 @@ impl Viewer {
             self.rebuild()?;
         }
         Ok(())
+    }
+
+    /// A left click at a window pixel: on a legend line it toggles the class, elsewhere the
+    /// current tool picks there (on the next frame's depth).
+    fn click(&mut self, x: i32, y: i32) -> Result<()> {
+        if let Some(class) = self.legend_class_at(x as f32, y as f32) {
+            return match u8::try_from(class) {
+                Ok(c) => self.toggle_class(c),
+                Err(_) => self.outcome(Ok("values that are not classes cannot be hidden".into())),
+            };
+        }
+        self.requests.push(Tool::Click(x, y));
+        Ok(())
+    }
+
+    /// The legend class whose HUD line is at window pixel (x, y), if any.
+    fn legend_class_at(&self, x: f32, y: f32) -> Option<u32> {
+        let panel = self.panels.first().filter(|_| self.hud_visible)?;
+        let atlas = crate::overlay::atlas().ok()?;
+        let width = panel
+            .lines
+            .iter()
+            .map(|l| atlas.text_width(&l.text))
+            .fold(0.0f32, f32::max);
+        let left = crate::overlay::MARGIN;
+        let top = crate::overlay::MARGIN + crate::overlay::PADDING;
+        if x < left || x > left + width + 2.0 * crate::overlay::PADDING || y < top {
+            return None;
+        }
+        let row = ((y - top) / atlas.line_height) as usize;
+        let (first, classes) = &self.legend_rows;
+        row.checked_sub(*first)
+            .and_then(|k| classes.get(k))
+            .copied()
     }
 
     fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
@@ -932,15 +1159,35 @@ impl ApplicationHandler for Viewer {
                 Ok(())
             }
             WindowEvent::RedrawRequested => self.frame(),
+            WindowEvent::ModifiersChanged(m) => {
+                self.ctrl = m.state().control_key();
+                Ok(())
+            }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                match ViewerKey::from_winit(&event.logical_key) {
+                match ViewerKey::from_winit(&event.logical_key, self.ctrl) {
                     Some(key) => self.press(key),
                     None => Ok(()),
                 }
             }
             WindowEvent::MouseInput { state, button, .. } => {
-                self.drag = (state == ElementState::Pressed).then_some((button, self.cursor));
-                Ok(())
+                let pressed = state == ElementState::Pressed;
+                self.drag = pressed.then_some((button, self.cursor));
+                match (button, pressed, self.press) {
+                    (MouseButton::Left, true, _) => {
+                        self.press = Some(self.cursor);
+                        Ok(())
+                    }
+                    (MouseButton::Left, false, Some(at)) => {
+                        self.press = None;
+                        // A release where the button went down is a click, not a drag.
+                        if (self.cursor - at).length() <= CLICK_SLOP {
+                            self.click(self.cursor.x as i32, self.cursor.y as i32)
+                        } else {
+                            Ok(())
+                        }
+                    }
+                    _ => Ok(()),
+                }
             }
             WindowEvent::CursorMoved { position, .. } => {
                 let p = Vec2::new(position.x as f32, position.y as f32);

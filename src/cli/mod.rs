@@ -19,7 +19,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::gpu::{Context, ContextOptions};
 use crate::post::{Background, Edl, PostOptions, EDL_DEFAULT_ARG};
 use crate::render::settings::ViewSettings;
-use crate::scene::camera::{parse_vec3, Pose, Up};
+use crate::scene::camera::{parse_dvec3, Pose, Up};
 use crate::scene::preprocess;
 use crate::scene::scene_file::SceneFile;
 use crate::scene::{Cloud, Light, LoadOptions};
@@ -203,13 +203,14 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
     }
     if let (Some(eye), Some(target)) = (&cam.eye, &cam.target) {
         pose = Some(Pose::LookAt {
-            eye: parse_vec3(eye).map_err(anyhow::Error::msg)?,
-            target: parse_vec3(target).map_err(anyhow::Error::msg)?,
+            eye: parse_dvec3(eye).map_err(anyhow::Error::msg)?,
+            target: parse_dvec3(target).map_err(anyhow::Error::msg)?,
         });
     }
     if let Some(pose) = &pose {
         pose.check().map_err(anyhow::Error::msg)?;
     }
+    let filter = file.filter();
     let lights = if file.lights.is_empty() {
         vec![Light::headlight()]
     } else {
@@ -227,6 +228,8 @@ pub fn view_settings(cam: &CameraArgs) -> Result<ViewSettings> {
                 .or(file.background)
                 .unwrap_or(Background::DEFAULT),
         },
+        filter,
+        bookmarks: file.bookmarks,
         color_by: cam.color_by.clone().or(file.color_by),
         inputs: file.inputs,
     })

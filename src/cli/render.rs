@@ -208,7 +208,7 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     check_surfels(config.method, &cloud, &file)?;
     // The camera frames the whole cloud, also when only its visible points are rendered.
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
-    let camera = settings.camera(centre, radius, cloud.up);
+    let camera = settings.camera(centre, radius, cloud.up, cloud.origin);
     let cloud = match a.visibility {
         Some(mode) => {
             let radius = crate::hpr::Radius::Density {
@@ -374,7 +374,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         extras.frames_in_flight,
     )?;
     let (centre, radius) = streamed.bounding_sphere();
-    let camera = settings.camera(centre, radius, streamed.root.up);
+    let camera = settings.camera(centre, radius, streamed.root.up, streamed.origin());
     let mut renderer = Renderer::new(
         &ctx,
         &streamed.scene,

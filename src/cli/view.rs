@@ -90,6 +90,7 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         .unwrap_or_else(|| color::default_field(&cloud).to_owned());
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let up = settings.up(cloud.up);
+    let camera = settings.camera(centre, radius, up, cloud.origin);
     crate::app::run(
         cloud,
         crate::app::ViewerOptions {
@@ -99,10 +100,12 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
                 |n| n.to_string_lossy().into_owned(),
             ),
             method: config,
-            camera: settings.camera(centre, radius, up),
+            camera,
             up,
             lights: settings.lights,
             size,
+            filter: settings.filter,
+            bookmarks: settings.bookmarks.clone(),
             post: settings.post,
             color_by,
             coloring,
@@ -147,16 +150,19 @@ fn view_streamed(
         (lo + hi) * 0.5,
         ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE),
     );
+    let camera = settings.camera(centre, radius, up, root.origin);
     crate::app::run(
         root,
         crate::app::ViewerOptions {
             title: format!("surfel - {location} (streamed)"),
             file: location.rsplit('/').next().unwrap_or(&location).to_owned(),
             method: config,
-            camera: settings.camera(centre, radius, up),
+            camera,
             up,
             lights: settings.lights,
             size,
+            filter: settings.filter,
+            bookmarks: settings.bookmarks.clone(),
             post: settings.post,
             color_by,
             coloring,

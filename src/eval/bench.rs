@@ -65,11 +65,11 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
             distance: *distance,
         },
         PoseSpec::LookAt { eye, target } => Pose::LookAt {
-            eye: *eye,
-            target: *target,
+            eye: eye.map(f64::from),
+            target: target.map(f64::from),
         },
     };
-    let camera = base.camera(info.centre, info.radius, info.up);
+    let camera = base.camera(info.centre, info.radius, info.up, info.origin);
     let Some((kind, value)) = job.stress else {
         return camera;
     };

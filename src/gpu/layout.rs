@@ -35,6 +35,7 @@ pub struct GpuSegment {
     pub color_first: [u32; 4],
     pub scalar: [u32; 4],
     pub normal_field: [u32; 4],
+    pub classes: [u32; 4],
 }
 
 /// One light, resolved to view space on the CPU.
@@ -65,6 +66,9 @@ pub struct FrameUniforms {
     pub pad0: u32,
     pub color_axis: Vec4,
     pub color_range: Vec4,
+    pub clip: Mat4,
+    pub class_hidden_lo: [u32; 4],
+    pub class_hidden_hi: [u32; 4],
 }
 
 /// One overlay quad (`GpuGlyph` in GLSL): a glyph from the atlas or a solid panel.
@@ -281,7 +285,8 @@ pub fn mirrors() -> Vec<Mirror> {
             normal_radius,
             color_first,
             scalar,
-            normal_field
+            normal_field,
+            classes
         }),
         mirror!(GpuLight {
             position,
@@ -303,7 +308,10 @@ pub fn mirrors() -> Vec<Mirror> {
             specular,
             pad0,
             color_axis,
-            color_range
+            color_range,
+            clip,
+            class_hidden_lo,
+            class_hidden_hi
         }),
         mirror!(GpuGlyph {
             rect,

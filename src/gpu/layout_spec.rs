@@ -52,6 +52,12 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     ("FLAG_HAS_NORMALS", 2),
     // Attribute colors are shown as they are, without lighting (src/color.rs).
     ("FLAG_UNLIT", 4),
+    // The clipping box applies (FrameUniforms.clip); with FLAG_CLIP_OUTSIDE it keeps the
+    // points outside the box instead of inside.
+    ("FLAG_CLIP", 8),
+    ("FLAG_CLIP_OUTSIDE", 16),
+    // Hidden classes apply (FrameUniforms.class_hidden_*, GpuSegment.classes).
+    ("FLAG_FILTER", 32),
     // FrameUniforms.color_mode: what the albedo comes from (src/color.rs).
     ("COLOR_NONE", 0),
     ("COLOR_RGB", 1),
@@ -328,6 +334,9 @@ pub const STRUCTS: &[StructSpec] = &[
             // xy: the linear normal fields of the Phong splats (8 B/point: the shape operator
             // [[a, b], [b, c]] times the splat radius as f16 a, b, c and a zero), zw: unused.
             f("uvec4", "normal_field"),
+            // xy: classification classes, one byte per point, four per word (read while the
+            // viewer hides classes), z: the field's index in the cloud, w: 1 when present.
+            f("uvec4", "classes"),
         ],
     },
     StructSpec {
@@ -366,6 +375,13 @@ pub const STRUCTS: &[StructSpec] = &[
             f("vec4", "color_axis"),
             // x: the value at the ramp's start, y: 1 / (end - start), zw: unused.
             f("vec4", "color_range"),
+            // Local position -> clipping-box unit coordinates (inside within +-1), read with
+            // FLAG_CLIP (src/scene/clip.rs).
+            f("mat4", "clip"),
+            // Hidden classification classes 0-127 and 128-255, one bit each, read with
+            // FLAG_FILTER.
+            f("uvec4", "class_hidden_lo"),
+            f("uvec4", "class_hidden_hi"),
         ],
     },
     // One overlay quad (a glyph or a panel background), in pixels. 32 bytes.

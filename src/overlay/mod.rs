@@ -171,6 +171,15 @@ impl HudLine {
 pub enum Corner {
     TopLeft,
     TopRight,
+    BottomLeft,
+}
+
+/// A solid quad in window pixels (markers, scale-bar steps), drawn under the panels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mark {
+    /// Left, top, right, bottom.
+    pub rect: Vec4,
+    pub color: [u8; 4],
 }
 
 /// A block of lines on a translucent background.
@@ -200,11 +209,17 @@ fn pack(color: [u8; 4]) -> u32 {
     u32::from_le_bytes(color)
 }
 
-/// Lays `panels` out in a window `width` pixels wide into `out`: per panel a background quad,
-/// then one quad per visible glyph. Panels hang from their corner `MARGIN` pixels from the
-/// edges; one that would overlap an earlier panel goes below it instead. Returns the quads
-/// written; text that does not fit in `out` is cut.
-pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph]) -> usize {
+/// Lays `marks` and `panels` out in a window of `(width, height)` pixels into `out`: the marks,
+/// then per panel a background quad and one quad per visible glyph. Top panels hang from their
+/// corner `MARGIN` pixels from the edges; one that would overlap an earlier panel goes below
+/// it instead. Returns the quads written; what does not fit in `out` is cut.
+pub fn layout(
+    atlas: &Atlas,
+    panels: &[Panel],
+    marks: &[Mark],
+    (width, height): (u32, u32),
+    out: &mut [GpuGlyph],
+) -> usize {
     let mut n = 0;
     let mut push = |q: GpuGlyph| {
         if n < out.len() {
@@ -215,6 +230,16 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
             false
         }
     };
+    for m in marks {
+        if !push(GpuGlyph {
+            rect: m.rect,
+            color: pack(m.color),
+            flags: OVERLAY_SOLID,
+            ..GpuGlyph::default()
+        }) {
+            return n;
+        }
+    }
     // Panels placed so far: (left, right, bottom).
     let mut placed = [(0.0f32, 0.0f32, 0.0f32); 8];
     for (index, panel) in panels.iter().enumerate() {
@@ -227,17 +252,23 @@ pub fn layout(atlas: &Atlas, panels: &[Panel], width: u32, out: &mut [GpuGlyph])
         let w = text_w + 2.0 * PADDING;
         let h = panel.lines.len() as f32 * atlas.line_height + 2.0 * PADDING;
         let x = match panel.corner {
-            Corner::TopLeft => MARGIN,
+            Corner::TopLeft | Corner::BottomLeft => MARGIN,
             Corner::TopRight => (width as f32 - MARGIN - w).max(0.0).round(),
         };
-        let y = placed[..index.min(placed.len())]
-            .iter()
-            .filter(|(l, r, _)| x < r + MARGIN && *l < x + w + MARGIN)
-            .map(|(_, _, bottom)| bottom + MARGIN)
-            .fold(MARGIN, f32::max);
-        if let Some(slot) = placed.get_mut(index) {
-            *slot = (x, x + w, y + h);
-        }
+        let y = match panel.corner {
+            Corner::BottomLeft => (height as f32 - MARGIN - h).max(0.0).round(),
+            Corner::TopLeft | Corner::TopRight => {
+                let y = placed[..index.min(placed.len())]
+                    .iter()
+                    .filter(|(l, r, _)| x < r + MARGIN && *l < x + w + MARGIN)
+                    .map(|(_, _, bottom)| bottom + MARGIN)
+                    .fold(MARGIN, f32::max);
+                if let Some(slot) = placed.get_mut(index) {
+                    *slot = (x, x + w, y + h);
+                }
+                y
+            }
+        };
         if !push(GpuGlyph {
             rect: Vec4::new(x, y, x + w, y + h),
             color: pack(PANEL_COLOR),
@@ -328,7 +359,7 @@ mod tests {
     fn text_becomes_a_panel_and_one_quad_per_visible_glyph() {
         let a = atlas().expect("atlas");
         let mut out = vec![GpuGlyph::default(); 16];
-        let n = layout(a, &one_line("Hi y"), 640, &mut out);
+        let n = layout(a, &one_line("Hi y"), &[], (640, 480), &mut out);
         // Panel + H, i, y (the space has no quad).
         assert_eq!(n, 4);
         let panel = out[0];
@@ -383,7 +414,7 @@ mod tests {
         let mut right = Panel::new(Corner::TopRight);
         right.line("C", HudLine::DIM);
         let mut out = vec![GpuGlyph::default(); 16];
-        let n = layout(a, &[left, right], 640, &mut out);
+        let n = layout(a, &[left, right], &[], (640, 480), &mut out);
         assert_eq!(n, 5);
         assert_eq!(out[2].rect.y - out[1].rect.y, a.line_height);
         assert_eq!(out[2].color, u32::from_le_bytes(HudLine::HEADING));
@@ -402,14 +433,14 @@ mod tests {
         right.line("key help", HudLine::TEXT);
         let panels = [left, right];
         let mut out = vec![GpuGlyph::default(); 64];
-        let n = layout(a, &panels, 2000, &mut out);
+        let n = layout(a, &panels, &[], (2000, 480), &mut out);
         let solid: Vec<Vec4> = out[..n]
             .iter()
             .filter(|q| q.flags == OVERLAY_SOLID)
             .map(|q| q.rect)
             .collect();
         assert_eq!(solid[1].y, MARGIN, "side by side in a wide window");
-        let n = layout(a, &panels, 200, &mut out);
+        let n = layout(a, &panels, &[], (200, 480), &mut out);
         let solid: Vec<Vec4> = out[..n]
             .iter()
             .filter(|q| q.flags == OVERLAY_SOLID)
@@ -426,7 +457,7 @@ mod tests {
         p.line("M\tx", HudLine::TEXT)
             .line("Wide key\tx", HudLine::TEXT);
         let mut out = vec![GpuGlyph::default(); 16];
-        let n = layout(a, &[p], 640, &mut out);
+        let n = layout(a, &[p], &[], (640, 480), &mut out);
         let x = a.glyph('x');
         let column = |q: &GpuGlyph| q.rect.x - x.offset[0] as f32;
         let xs: Vec<f32> = out[..n]
@@ -444,15 +475,15 @@ mod tests {
         let a = atlas().expect("atlas");
         let text = "x".repeat(100);
         let mut out = vec![GpuGlyph::default(); 40];
-        assert_eq!(layout(a, &one_line(&text), 640, &mut out), 40);
+        assert_eq!(layout(a, &one_line(&text), &[], (640, 480), &mut out), 40);
         // The last quad is the 39th glyph, in order.
         let x = a.glyph('x');
         let pen = MARGIN + PADDING + 38.0 * x.advance;
         assert_eq!(out[39].rect.x, pen.round() + x.offset[0] as f32);
         let mut none: [GpuGlyph; 0] = [];
-        assert_eq!(layout(a, &one_line("abc"), 640, &mut none), 0);
+        assert_eq!(layout(a, &one_line("abc"), &[], (640, 480), &mut none), 0);
         let mut one = [GpuGlyph::default(); 1];
-        assert_eq!(layout(a, &one_line("abc"), 640, &mut one), 1);
+        assert_eq!(layout(a, &one_line("abc"), &[], (640, 480), &mut one), 1);
         assert_eq!(one[0].flags, OVERLAY_SOLID);
     }
 }

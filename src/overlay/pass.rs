@@ -12,7 +12,7 @@ use anyhow::Result;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{atlas, layout, Panel, CAPACITY};
+use super::{atlas, layout, Mark, Panel, CAPACITY};
 use crate::gpu::layout::{GpuGlyph, BINDING_FRAME, BINDING_OVERLAY_ATLAS, BINDING_OVERLAY_GLYPHS};
 use crate::gpu::{Blend, Buffer, Context, GraphicsDesc, Pipeline};
 use crate::graph::{
@@ -29,6 +29,7 @@ pub struct OverlayPass {
     /// Host copy of the current frame's quads (allocated once).
     staging: Vec<GpuGlyph>,
     width: u32,
+    height: u32,
 }
 
 impl OverlayPass {
@@ -41,7 +42,7 @@ impl OverlayPass {
         color: ImageId,
         frame: BufferId,
         slots: usize,
-        width: u32,
+        (width, height): (u32, u32),
     ) -> Result<Self> {
         let atlas = atlas()?;
         let atlas_buffer = Arc::new(Buffer::with_data(
@@ -106,6 +107,7 @@ impl OverlayPass {
             count,
             staging: vec![GpuGlyph::default(); CAPACITY],
             width,
+            height,
         })
     }
 
@@ -116,8 +118,14 @@ impl OverlayPass {
 
     /// Lays out `panels` into slot `slot`'s quad buffer (the GPU is done with it) and sets the
     /// quad count the next recording draws. Returns the quads written.
-    pub fn write(&mut self, slot: usize, panels: &[Panel]) -> Result<usize> {
-        let n = layout(atlas()?, panels, self.width, &mut self.staging);
+    pub fn write(&mut self, slot: usize, panels: &[Panel], marks: &[Mark]) -> Result<usize> {
+        let n = layout(
+            atlas()?,
+            panels,
+            marks,
+            (self.width, self.height),
+            &mut self.staging,
+        );
         self.slots[slot].write(bytemuck::cast_slice(&self.staging[..n]))?;
         self.count.store(n as u32, Ordering::Relaxed);
         Ok(n)

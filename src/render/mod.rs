@@ -13,14 +13,18 @@ use glam::Vec4;
 use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
-use crate::gpu::layout::{FrameBlock, GpuBatch, COLOR_NONE, FLAG_HAS_NORMALS, FLAG_UNLIT};
+use crate::gpu::layout::{
+    FrameBlock, GpuBatch, COLOR_NONE, FLAG_CLIP, FLAG_CLIP_OUTSIDE, FLAG_FILTER, FLAG_HAS_NORMALS,
+    FLAG_UNLIT,
+};
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, MethodConfig, SampleCounters, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };
-use crate::overlay::{pass::OverlayPass, Panel};
+use crate::overlay::{pass::OverlayPass, Mark, Panel};
 use crate::post::{self, PostOptions};
+use crate::scene::clip::{Keep, Resolved};
 use crate::scene::{lights, Camera, Light};
 use crate::upload::{GpuScene, SceneInfo};
 
@@ -149,6 +153,9 @@ pub struct Renderer {
     /// Per frame slot, a streamed scene's batch table (empty for a loaded scene).
     batch_tables: Vec<Buffer>,
     batches_id: BufferId,
+    /// The viewer's clipping box and hidden classes (`set_filter`), applied by the
+    /// projection passes.
+    filter: Option<Resolved>,
 }
 
 impl Renderer {
@@ -284,7 +291,7 @@ impl Renderer {
                 shown.color,
                 frame_id,
                 slots,
-                width,
+                (width, height),
             )?)
         } else {
             None
@@ -322,6 +329,7 @@ impl Renderer {
             batch_count: scene.streams.batch_count,
             batch_tables,
             batches_id,
+            filter: None,
         })
     }
 
@@ -401,6 +409,24 @@ impl Renderer {
         } else {
             0
         };
+        if let Some(filter) = &self.filter {
+            if let Some((clip, keep)) = filter.clip {
+                block.u.clip = clip;
+                block.u.flags |= FLAG_CLIP
+                    | if keep == Keep::Outside {
+                        FLAG_CLIP_OUTSIDE
+                    } else {
+                        0
+                    };
+            }
+            if !filter.hidden.is_empty() {
+                let [lo @ .., _, _, _, _] = filter.hidden.0;
+                let [.., h0, h1, h2, h3] = filter.hidden.0;
+                block.u.class_hidden_lo = lo;
+                block.u.class_hidden_hi = [h0, h1, h2, h3];
+                block.u.flags |= FLAG_FILTER;
+            }
+        }
         block.u.point_count = self.info.points;
         block.u.segment_points = self.segment_points;
         block.u.batch_count = self.batch_count;
@@ -416,6 +442,13 @@ impl Renderer {
             block.u.light_count += 1;
         }
         self.uniforms[self.frames.current()].write(bytemuck::bytes_of(&block))
+    }
+
+    /// Sets the clipping box and hidden classes the projection passes apply from the next
+    /// `update` on (`None`: every point). Hidden classes need the scene's `Classes` stream
+    /// (`GpuStreams::add_classes`); without it they hide nothing.
+    pub fn set_filter(&mut self, filter: Option<Resolved>) {
+        self.filter = filter;
     }
 
     /// Writes the current slot's batch table (after `begin_frame`, before `record`): for a
@@ -436,10 +469,10 @@ impl Renderer {
 
     /// Sets the current slot's overlay text (after `begin_frame`, before `record`); returns the
     /// quads drawn. A renderer built without `Extras::overlay` draws nothing and returns 0.
-    pub fn set_overlay(&mut self, panels: &[Panel]) -> Result<usize> {
+    pub fn set_overlay(&mut self, panels: &[Panel], marks: &[Mark]) -> Result<usize> {
         let slot = self.frames.current();
         match &mut self.overlay {
-            Some(overlay) => overlay.write(slot, panels),
+            Some(overlay) => overlay.write(slot, panels, marks),
             None => Ok(0),
         }
     }

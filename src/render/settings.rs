@@ -9,7 +9,9 @@ use anyhow::Result;
 use crate::color::{self, Coloring};
 use crate::post::PostOptions;
 use crate::scene::camera::{Pose, Up};
+use crate::scene::clip::Filter;
 use crate::scene::compose::SceneInput;
+use crate::scene::scene_file::Bookmark;
 use crate::scene::{Camera, Cloud, Light};
 
 /// What the camera options select; unset fields fall back to the loaded cloud's defaults.
@@ -26,6 +28,10 @@ pub struct ViewSettings {
     pub color_by: Option<String>,
     /// The scene file's extra inputs (hybrid scenes).
     pub inputs: Vec<SceneInput>,
+    /// The scene file's clipping box and hidden classes.
+    pub filter: Filter,
+    /// The scene file's camera bookmarks.
+    pub bookmarks: Vec<Bookmark>,
 }
 
 impl ViewSettings {
@@ -45,11 +51,18 @@ impl ViewSettings {
             .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
     }
 
-    /// The camera for a cloud with this bounding sphere whose format uses `format_up`.
-    pub fn camera(&self, centre: glam::Vec3, radius: f32, format_up: Up) -> Camera {
+    /// The camera for a cloud with this bounding sphere and local origin (in the file's
+    /// coordinates) whose format uses `format_up`.
+    pub fn camera(
+        &self,
+        centre: glam::Vec3,
+        radius: f32,
+        format_up: Up,
+        origin: glam::DVec3,
+    ) -> Camera {
         let up = self.up(format_up);
         self.pose
             .unwrap_or_else(|| up.default_pose())
-            .camera(centre, radius, up)
+            .camera(centre, radius, up, origin)
     }
 }

@@ -4,7 +4,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use glam::{Mat4, Vec3};
+use glam::{DVec3, Mat4, Vec3};
 
 /// Default vertical field of view in degrees.
 pub const DEFAULT_FOV_Y_DEG: f32 = 45.0;
@@ -369,8 +369,9 @@ mod tests {
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(untagged)]
 pub enum Pose {
-    /// `eye`/`target` in scene coordinates.
-    LookAt { eye: [f32; 3], target: [f32; 3] },
+    /// `eye`/`target` in the file's coordinates (a LiDAR file's real-world coordinates, f64);
+    /// the cloud's local origin is subtracted when the camera is made.
+    LookAt { eye: [f64; 3], target: [f64; 3] },
     /// Degrees around the bounding-sphere centre; `distance` scales the framing distance.
     Orbit {
         orbit: [f32; 2],
@@ -421,11 +422,13 @@ impl Pose {
         Ok(())
     }
 
-    /// The camera for a scene with this bounding sphere and up axis.
-    pub fn camera(&self, centre: Vec3, radius: f32, up: Up) -> Camera {
+    /// The camera for a scene with this bounding sphere, up axis and local origin (in the
+    /// file's coordinates).
+    pub fn camera(&self, centre: Vec3, radius: f32, up: Up, origin: DVec3) -> Camera {
         match *self {
             Pose::LookAt { eye, target } => {
-                Camera::look_at_up(up, eye.into(), target.into(), radius)
+                let local = |p: [f64; 3]| (DVec3::from(p) - origin).as_vec3();
+                Camera::look_at_up(up, local(eye), local(target), radius)
             }
             Pose::Orbit { orbit, distance } => {
                 Camera::orbit_about(up, centre, radius, orbit[0], orbit[1], distance)
@@ -467,6 +470,24 @@ pub fn parse_floats(s: &str) -> Result<Vec<f32>, String> {
                 .ok_or_else(|| format!("expected a number, got {:?} in {s:?}", t.trim()))
         })
         .collect()
+}
+
+/// Parses `X,Y,Z` as f64 (file coordinates).
+pub fn parse_dvec3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("expected a number, got {:?} in {s:?}", t.trim()))
+        })
+        .collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        [x, y, z] => Ok([*x, *y, *z]),
+        _ => Err(format!("expected X,Y,Z, got {s:?}")),
+    }
 }
 
 /// Parses `X,Y,Z`.

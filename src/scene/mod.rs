@@ -3,6 +3,7 @@
 
 pub mod appearance;
 pub mod camera;
+pub mod clip;
 pub mod cloud;
 pub mod compose;
 pub mod copc;

@@ -5,8 +5,18 @@
 //! edl = { strength = 1.0, radius = 1.4 }   # eye-dome lighting (both optional)
 //! background = "#202020"   # #rrggbb | r,g,b | black | white | grey | transparent
 //! color_by = "intensity"   # any field `surfel info` lists (default: rgb, else none)
+//! hidden_classes = [7, 18] # classification classes not drawn
 //! [camera]
-//! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z]
+//! orbit = [30.0, 15.0]     # or: eye = [x, y, z]  target = [x, y, z] (file coordinates)
+//! [clip]                   # a clipping box in file coordinates (the viewer's `B`)
+//! centre = [512345.0, 4123456.0, 250.0]
+//! half = [20.0, 10.0, 30.0]
+//! rotation = [30.0, 0.0, 0.0]   # yaw, pitch, roll in degrees (default: axis-aligned)
+//! keep = "inside"          # inside | outside
+//! [[bookmarks]]            # the viewer's camera bookmarks (Ctrl+1-9 store, 1-9 recall)
+//! slot = 1
+//! eye = [512300.0, 4123400.0, 300.0]
+//! target = [512345.0, 4123456.0, 250.0]
 //! [[lights]]
 //! kind = "static"          # camera | static | orbit
 //! position = [1.0, 2.0, 3.0]
@@ -24,6 +34,7 @@ use anyhow::{bail, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
 use super::camera::{Pose, Up};
+use super::clip::{ClipBox, Filter};
 use super::compose::SceneInput;
 use super::lights::Light;
 use crate::scene::appearance::{Background, Edl};
@@ -46,9 +57,34 @@ pub struct SceneFile {
     /// More inputs merged into the scene (hybrid scenes, 000 §5.2).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inputs: Vec<SceneInput>,
+    /// Classification classes not drawn.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hidden_classes: Vec<u8>,
+    /// The clipping box.
+    pub clip: Option<ClipBox>,
+    /// Camera bookmarks, in file coordinates.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bookmarks: Vec<Bookmark>,
+}
+
+/// A stored camera: slot 1-9, eye and target in the file's coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Bookmark {
+    pub slot: u8,
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
 }
 
 impl SceneFile {
+    /// The clipping box and hidden classes the file sets.
+    pub fn filter(&self) -> Filter {
+        Filter {
+            clip: self.clip,
+            hidden: crate::scene::clip::Classes::from_list(&self.hidden_classes),
+        }
+    }
+
     /// Reads `path` as TOML (`.toml`) or JSON (`.json`).
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
@@ -82,6 +118,20 @@ impl SceneFile {
     fn check(&self) -> Result<(), String> {
         if let Some(pose) = &self.camera {
             pose.check()?;
+        }
+        if let Some(clip) = &self.clip {
+            clip.check()?;
+        }
+        for b in &self.bookmarks {
+            if !(1..=9).contains(&b.slot) {
+                return Err(format!("bookmark slot {} must be 1 to 9", b.slot));
+            }
+            Pose::LookAt {
+                eye: b.eye,
+                target: b.target,
+            }
+            .check()
+            .map_err(|e| format!("bookmark {}: {e}", b.slot))?;
         }
         for (i, light) in self.lights.iter().enumerate() {
             if !light.position.iter().all(|v| v.is_finite())

@@ -198,6 +198,10 @@ impl Loader {
         if options.normal_field {
             streams.push(Stream::NormalField);
         }
+        // One byte per point for the viewer's class filter.
+        if let Some(k) = crate::scene::clip::classification_field(&root_cloud) {
+            streams.push(Stream::Classes(k));
+        }
         let shared = Arc::new(Shared {
             counters: Counters::default(),
             copc,

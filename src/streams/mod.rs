@@ -58,6 +58,10 @@ pub enum Stream {
     Scalar(usize),
     /// Linear normal field (`crate::scene::normal_field`): three f16 and a zero.
     NormalField,
+    /// The k-th scalar attribute as a classification class (`scene::clip::class_of`), one
+    /// byte per point, four per 32-bit word: read by the projection passes while the viewer
+    /// hides classes.
+    Classes(usize),
 }
 
 impl Stream {
@@ -67,6 +71,7 @@ impl Stream {
             Stream::Position => 12,
             Stream::Radius => 2,
             Stream::NormalField => 8,
+            Stream::Classes(_) => 1,
             _ => 4,
         }
     }
@@ -83,6 +88,7 @@ impl Stream {
             Stream::Color => "color rgba8".into(),
             Stream::Scalar(k) => format!("scalar {k} f32"),
             Stream::NormalField => "normal field 3×f16".into(),
+            Stream::Classes(k) => format!("classes {k} u8"),
         }
     }
 }
@@ -194,6 +200,8 @@ impl StreamLayout {
         match stream {
             // Radii are packed in pairs: round up to whole words.
             Stream::Radius => points.div_ceil(2) * 4,
+            // Classes are packed four to a word.
+            Stream::Classes(_) => points.div_ceil(4) * 4,
             s => points * s.bytes_per_point(),
         }
     }
@@ -271,8 +279,8 @@ impl StreamLayout {
             });
     }
 
-    /// Encodes stream `stream` for stream indices `range` (an even start, so radius pairs stay
-    /// aligned) into `out`, which must be `stream_bytes(stream, range.len())` long.
+    /// Encodes stream `stream` for stream indices `range` (a start that is a multiple of 4, so
+    /// radius pairs and class quadruples stay aligned) into `out`, which must be `stream_bytes(stream, range.len())` long.
     pub fn encode(&self, cloud: &Cloud, stream: Stream, range: Range<u64>, out: &mut [u8]) {
         debug_assert_eq!(
             out.len() as u64,
@@ -335,6 +343,22 @@ impl StreamLayout {
                             let w = field.get(i as usize).copied().unwrap_or_default();
                             o[..4].copy_from_slice(&w[0].to_le_bytes());
                             o[4..].copy_from_slice(&w[1].to_le_bytes());
+                        }
+                    });
+            }
+            Stream::Classes(k) => {
+                let values = &cloud.scalars[k].values;
+                let class = |i: Option<&u32>| {
+                    i.map_or(0, |&i| {
+                        u32::from(crate::scene::clip::class_of(values[i as usize]))
+                    })
+                };
+                out.par_chunks_mut(chunk * 4)
+                    .zip(ids.par_chunks(chunk * 4))
+                    .for_each(|(o, ids)| {
+                        for (k, o) in o.chunks_exact_mut(4).enumerate() {
+                            let w = (0..4).fold(0, |w, b| w | class(ids.get(4 * k + b)) << (8 * b));
+                            o.copy_from_slice(&u32::to_le_bytes(w));
                         }
                     });
             }

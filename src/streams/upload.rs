@@ -37,6 +37,8 @@ pub struct GpuStreams {
     pub segment_points: u32,
     /// Whether the `NormalField` stream was uploaded.
     pub normal_field: bool,
+    /// The scalar field uploaded as the `Classes` stream, if any.
+    pub classes: Option<usize>,
 }
 
 /// The segment size fitting every stream into one storage-buffer range of `ctx`'s device.
@@ -86,6 +88,20 @@ fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
             Stream::Scalar(k) => {
                 let [lo, hi] = address_pair(b.device_address());
                 Some([lo, hi, *k as u32, 0])
+            }
+            _ => None,
+        })
+        .unwrap_or([0; 4])
+}
+
+/// `GpuSegment.classes` for the classes stream among `buffers` (zeros without one).
+fn classes_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
+    buffers
+        .iter()
+        .find_map(|(s, b)| match s {
+            Stream::Classes(k) => {
+                let [lo, hi] = address_pair(b.device_address());
+                Some([lo, hi, *k as u32, 1])
             }
             _ => None,
         })
@@ -167,6 +183,36 @@ impl GpuStreams {
         Ok(())
     }
 
+    /// Adds the `Classes` stream of scalar field `field` (the classification), when these
+    /// streams were uploaded without it: an event (the viewer hiding a class the first time),
+    /// not per frame. Waits for the device to be idle and writes a new segment table, as
+    /// `select_scalar` does.
+    pub fn add_classes(
+        &mut self,
+        ctx: &Arc<Context>,
+        cloud: &Cloud,
+        field: usize,
+        chunk_bytes: u64,
+    ) -> Result<()> {
+        if self.classes.is_some() {
+            return Ok(());
+        }
+        if field >= cloud.scalars.len() {
+            bail!("scalar field {field} is not in the cloud");
+        }
+        // SAFETY: waits for every submitted use of the segment table replaced below.
+        unsafe { ctx.device.device_wait_idle()? };
+        let layout = StreamLayout::new(cloud, u64::from(self.segment_points), None)
+            .map_err(anyhow::Error::msg)?;
+        self.upload_stream(ctx, cloud, &layout, Stream::Classes(field), chunk_bytes)?;
+        for (entry, buffers) in self.entries.iter_mut().zip(&self.segments) {
+            entry.classes = classes_entry(buffers);
+        }
+        self.table = table_buffer(ctx, &self.entries)?;
+        self.classes = Some(field);
+        Ok(())
+    }
+
     /// Uploads `stream` of `cloud` as `layout` orders it into one new buffer per segment,
     /// added to `segments`.
     fn upload_stream(
@@ -177,7 +223,7 @@ impl GpuStreams {
         stream: Stream,
         chunk_bytes: u64,
     ) -> Result<()> {
-        let chunk_points = (chunk_bytes / stream.bytes_per_point()).max(2) & !1;
+        let chunk_points = (chunk_bytes / stream.bytes_per_point()).max(4) & !3;
         let mut uploader = Uploader::new(ctx, chunk_points * stream.bytes_per_point())?;
         for (s, range) in layout.segments().into_iter().enumerate() {
             let buffer = stream_buffer(ctx, s, stream, range.end - range.start)?;
@@ -244,6 +290,10 @@ pub fn pool(ctx: &Arc<Context>, streams: &[Stream], slots: u32) -> Result<GpuStr
         batch_count: slots,
         segment_points,
         normal_field: streams.contains(&Stream::NormalField),
+        classes: streams.iter().find_map(|s| match s {
+            Stream::Classes(k) => Some(*k),
+            _ => None,
+        }),
     })
 }
 
@@ -269,6 +319,7 @@ fn segment_entry(buffers: &[(Stream, Buffer)], first: u64) -> GpuSegment {
         color_first: [color[0], color[1], first as u32, u32::from(has_scalar)],
         scalar: scalar_entry(buffers),
         normal_field: address_entry(buffers, Stream::NormalField),
+        classes: classes_entry(buffers),
     }
 }
 
@@ -280,8 +331,8 @@ pub fn upload(
     chunk_bytes: u64,
 ) -> Result<GpuStreams> {
     let per_point: u64 = layout.streams.iter().map(|&s| s.bytes_per_point()).sum();
-    // Whole radius pairs per chunk: an even number of points.
-    let chunk_points = (chunk_bytes / per_point.max(1)) & !1;
+    // Whole radius pairs and class quadruples per chunk: a multiple of 4 points.
+    let chunk_points = (chunk_bytes / per_point.max(1)) & !3;
     if chunk_points == 0 {
         bail!(
             "upload chunk of {} bytes is smaller than two points ({per_point} bytes each)",
@@ -354,5 +405,9 @@ pub fn upload(
         batch_count: layout.batches.len() as u32,
         segment_points: layout.segment_points,
         normal_field: layout.normal_field.is_some(),
+        classes: layout.streams.iter().find_map(|s| match s {
+            Stream::Classes(k) => Some(*k),
+            _ => None,
+        }),
     })
 }

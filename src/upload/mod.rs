@@ -73,6 +73,8 @@ pub struct SceneInfo {
     pub has_normals: bool,
     /// The cloud's up axis.
     pub up: Up,
+    /// The local frame's origin in the file's coordinates (`Cloud::origin`).
+    pub origin: glam::DVec3,
     /// What the points are colored by (`color::select`); its scalar field is the one uploaded.
     pub coloring: Coloring,
 }
@@ -270,6 +272,7 @@ pub fn upload(
             has_colors: cloud.colors.is_some(),
             has_normals: cloud.normals.is_some(),
             up: cloud.up,
+            origin: cloud.origin,
             coloring,
         },
     ))

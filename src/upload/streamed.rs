@@ -199,6 +199,7 @@ impl StreamedScene {
             has_colors: copc.has_color(),
             has_normals: loader.has_normals(),
             up: Up::Z,
+            origin: loader.origin(),
             coloring,
         };
         let point_count = streams.point_count;
