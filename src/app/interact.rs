@@ -468,12 +468,19 @@ impl Viewer {
                 config.method.name
             )));
         };
-        let value = (config.get(spec.name) * factor).clamp(spec.min, spec.max);
+        let old = config.get(spec.name);
         let value = if spec.name == "size" {
-            value.round().max(1.0)
+            // Whole pixels, at least one more or less.
+            let v = (old * factor).round();
+            if factor > 1.0 {
+                v.max(old + 1.0)
+            } else {
+                v.min(old - 1.0)
+            }
         } else {
-            value
+            old * factor
         };
+        let value = value.clamp(spec.min.max(1e-3), spec.max);
         config.params.insert(spec.name.into(), value);
         self.opts.method = config.clone();
         if spec.name == "size" {

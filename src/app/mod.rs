@@ -901,7 +901,13 @@ impl Viewer {
     /// field and its range, and the ramp's steps as marks above it (`hud_marks`).
     fn scale_bar(&mut self, coloring: Coloring, width: u32, height: u32) -> Option<Panel> {
         color::ramp_color(coloring.mode, 0.0)?;
-        let [lo, hi] = coloring.range;
+        // Elevations are local: the scale names the file's.
+        let shift = if coloring.mode == crate::gpu::layout::COLOR_ELEVATION {
+            self.cloud.origin.dot(coloring.axis.as_dvec3())
+        } else {
+            0.0
+        };
+        let [lo, hi] = coloring.range.map(|v| f64::from(v) + shift);
         let mut panel = Panel::new(crate::overlay::Corner::BottomLeft);
         panel.line(
             format!("{}  {lo:.4} to {hi:.4}", self.opts.color_by),
@@ -1279,32 +1285,53 @@ mod tests {
         std::fs::create_dir_all(&dir).expect("temp dir");
         let (centre, radius) = (Vec3::new(1.0, -2.0, 0.5), 3.0);
         let camera = Camera::orbit_about(Up::Z, centre, radius, 33.3, 21.7, 1.1);
+        // A UTM-sized local origin: the file holds the file's coordinates.
+        let origin = DVec3::new(512_345.5, 4_123_456.25, 100.0);
+        let filter = Filter {
+            clip: Some(ClipBox::aligned(origin, origin + DVec3::ONE)),
+            hidden: crate::scene::clip::Classes::from_list(&[2, 7]),
+        };
+        let bookmarks = [Bookmark {
+            slot: 3,
+            eye: [512_400.0, 4_123_400.0, 300.0],
+            target: [512_345.0, 4_123_456.0, 100.0],
+        }];
+        let saved = Saved {
+            up: Up::Z,
+            lights: &[Light::headlight()],
+            filter: &filter,
+            bookmarks: &bookmarks,
+            origin,
+        };
         for name in ["cam.toml", "cam.json"] {
             let path = dir.join(name);
-            save_camera(&path, &camera, Up::Z, &[Light::headlight()]).expect("save");
+            save_camera(&path, &camera, &saved).expect("save");
             let file = SceneFile::load(&path).expect("parses");
             assert_eq!(file.up, Some(Up::Z));
             assert_eq!(file.lights, vec![Light::headlight()]);
             assert_eq!(
                 file.camera,
                 Some(Pose::LookAt {
-                    eye: camera.eye.into(),
-                    target: camera.target.into()
+                    eye: (origin + camera.eye.as_dvec3()).to_array(),
+                    target: (origin + camera.target.as_dvec3()).to_array(),
                 })
             );
+            assert_eq!(file.filter(), filter);
+            assert_eq!(file.bookmarks, bookmarks);
             // Loaded about another axis: the file's own up axis wins.
-            assert_eq!(
-                load_camera(&path, centre, radius, Up::Y).expect("load"),
-                camera
-            );
+            let (loaded, _) = load_camera(&path, (centre, radius), Up::Y, origin).expect("load");
+            assert!((loaded.eye - camera.eye).length() < 1e-5, "{loaded:?}");
+            assert!((loaded.target - camera.target).length() < 1e-5);
+            assert_eq!(loaded.up, camera.up);
         }
         let bad = dir.join("cam.txt");
-        let e = save_camera(&bad, &camera, Up::Z, &[]).unwrap_err();
+        let e = save_camera(&bad, &camera, &saved).unwrap_err();
         assert!(format!("{e:#}").contains("cam.txt"), "{e:#}");
-        let e = load_camera(&dir.join("missing.toml"), centre, radius, Up::Z).unwrap_err();
+        let at = (centre, radius);
+        let e = load_camera(&dir.join("missing.toml"), at, Up::Z, origin).unwrap_err();
         assert!(format!("{e:#}").contains("missing.toml"), "{e:#}");
         std::fs::write(dir.join("nocam.toml"), "up = \"z\"\n").expect("write");
-        let e = load_camera(&dir.join("nocam.toml"), centre, radius, Up::Z).unwrap_err();
+        let e = load_camera(&dir.join("nocam.toml"), at, Up::Z, origin).unwrap_err();
         assert!(format!("{e:#}").contains("has no camera"), "{e:#}");
     }
 }

@@ -5,9 +5,14 @@
 //! Visibility is decided twice. The depth buffer of the frame on screen rejects a point whose
 //! view depth lies behind what the frame shows at its pixel. A sparse cloud lets hidden points
 //! through the gaps between its nearer points, so the candidates then go through hidden point
-//! removal (`hpr::exact`, 003 §2.1) of the points in a cone around the pick ray, with the
-//! density radius of the whole cloud: a point on a wall behind a sparse wall is hidden even
-//! where the depth buffer shows it.
+//! removal (`hpr::exact`, 003 §2.1) of the points in a cone around the pick ray: a point on a
+//! wall behind a sparse wall is hidden even where the depth buffer shows it. The flipping
+//! radius is the density radius of `Radius::Density`, R = κ D² / s, taken for the occluders:
+//! D is the nearest layer's depth (the points within `LAYER` of the nearest depth in the cone)
+//! and s the sparser of two spacings, the whole cloud's and that layer's (its points spread
+//! over the cone's square at that depth). The cloud's spacing and centre alone would be the
+//! dense back wall's and keep the back wall visible through the sparse front one; a smaller
+//! radius only hides more, and a pick then snaps to a nearer visible point.
 //!
 //! A pick is an event: it projects every point once on the CPU (in parallel), never per frame.
 
@@ -27,6 +32,8 @@ pub const CONE_RADIUS: i32 = 4 * PICK_RADIUS;
 /// At most this many points go through the cone's hidden point removal; a denser cone (a
 /// cloud seen from far away, dense on screen) relies on the depth buffer alone.
 pub const CONE_MAX_POINTS: usize = 400_000;
+/// The nearest layer of the cone: points within this fraction of the nearest depth.
+pub const LAYER: f32 = 0.05;
 /// A point is in front of the depth buffer when its view depth is at most this much
 /// (relative) behind the buffer's: splats and reconstructions interpolate depth across a
 /// surface, so a point on the surface can lie slightly behind the depth drawn at its pixel.
@@ -142,9 +149,23 @@ pub fn pick(target: &Target<'_>, screen: &Screen<'_>, pixel: IVec2) -> Pick {
     let mut hidden = 0;
     if !candidates.is_empty() && cone.len() <= CONE_MAX_POINTS {
         let points: Vec<Vec3> = cone.iter().map(|(i, _, _)| cloud.positions[*i]).collect();
-        let radius = Radius::Density {
-            spacing: target.spacing,
-        };
+        let nearest = cone.iter().map(|c| c.2).fold(f32::INFINITY, f32::min);
+        let layer = cone
+            .iter()
+            .filter(|c| c.2 <= nearest * (1.0 + LAYER))
+            .count();
+        let pixel_size = 2.0 * nearest * (screen.camera.fov_y * 0.5).tan() / screen.height as f32;
+        let side = (2 * CONE_RADIUS + 1) as f32 * pixel_size;
+        let local = f64::from(side) / (layer.max(1) as f64).sqrt();
+        let eye = screen.camera.eye;
+        let farthest = points
+            .iter()
+            .map(|p| f64::from(p.distance(eye)))
+            .fold(0.0, f64::max);
+        let near = f64::from(nearest);
+        let radius = Radius::Absolute(
+            (hpr::DENSITY_KAPPA * near * near / target.spacing.max(local)).max(1.01 * farthest),
+        );
         if let Ok(v) = hpr::exact(&points, screen.camera.eye, radius) {
             let visible: std::collections::HashSet<usize> =
                 v.visible.iter().map(|&k| cone[k as usize].0).collect();

@@ -304,16 +304,22 @@ mod tests {
     fn the_up_axis_picks_the_default_pose_and_an_explicit_choice_wins() {
         let (c, r) = (Vec3::new(1.0, 2.0, 3.0), 4.0);
         let none = view_settings(&camera_args(None, None)).expect("settings");
-        assert_eq!(none.camera(c, r, Up::Y), Camera::framing(c, r));
         assert_eq!(
-            none.camera(c, r, Up::Z),
+            none.camera(c, r, Up::Y, glam::DVec3::ZERO),
+            Camera::framing(c, r)
+        );
+        assert_eq!(
+            none.camera(c, r, Up::Z, glam::DVec3::ZERO),
             Camera::orbit_about(Up::Z, c, r, 30.0, 35.0, 1.0)
         );
         let forced = view_settings(&camera_args(Some("default"), Some(Up::Y))).expect("settings");
-        assert_eq!(forced.camera(c, r, Up::Z), Camera::framing(c, r));
+        assert_eq!(
+            forced.camera(c, r, Up::Z, glam::DVec3::ZERO),
+            Camera::framing(c, r)
+        );
         let orbit = view_settings(&camera_args(Some("0,84"), Some(Up::Z))).expect("settings");
         assert_eq!(
-            orbit.camera(c, r, Up::Y),
+            orbit.camera(c, r, Up::Y, glam::DVec3::ZERO),
             Camera::orbit_about(Up::Z, c, r, 0.0, 84.0, 1.0)
         );
     }

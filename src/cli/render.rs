@@ -239,7 +239,15 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     let options = config
         .method
         .upload_options(UploadOptions::colored(coloring));
-    let (scene, info) = upload(&ctx, &cloud, &options)?;
+    let (mut scene, info) = upload(&ctx, &cloud, &options)?;
+    // The scene file's hidden classes need the class stream.
+    if let Some(k) = crate::scene::clip::classification_field(&cloud)
+        .filter(|_| !settings.filter.hidden.is_empty())
+    {
+        scene
+            .streams
+            .add_classes(&ctx, &cloud, k, crate::streams::upload::DEFAULT_CHUNK_BYTES)?;
+    }
     let upload_s = since();
     let mut renderer = Renderer::new(
         &ctx,
@@ -255,6 +263,12 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
             ..Extras::default()
         },
     )?;
+    renderer.set_filter(
+        settings
+            .filter
+            .is_active()
+            .then(|| settings.filter.resolve(cloud.origin)),
+    );
     if a.dump_graph {
         print!("{}", renderer.schedule());
     }
@@ -384,6 +398,12 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         height,
         extras,
     )?;
+    renderer.set_filter(
+        settings
+            .filter
+            .is_active()
+            .then(|| settings.filter.resolve(streamed.origin())),
+    );
     if a.dump_graph {
         print!("{}", renderer.schedule());
     }

@@ -310,7 +310,7 @@ mod tests {
         }
         assert_eq!(Up::Y.default_pose(), Pose::default());
         assert_eq!(
-            Pose::default().camera(centre, 3.0, Up::Y),
+            Pose::default().camera(centre, 3.0, Up::Y, DVec3::ZERO),
             Camera::framing(centre, 3.0)
         );
     }

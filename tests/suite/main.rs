@@ -34,3 +34,4 @@ mod splat;
 mod stream;
 mod validation;
 mod viewer;
+mod viewer_tools;

@@ -122,7 +122,7 @@ fn plane_coverage(up: surfel::scene::Up, pose: &str) -> f64 {
         .expect("orbit")
         .expect("not default");
     let frame = common::render_view(&cloud, "points", 64, Default::default(), |c, r| {
-        pose.camera(c, r, cloud.up)
+        pose.camera(c, r, cloud.up, cloud.origin)
     });
     common::coverage(&frame)
 }

@@ -749,9 +749,12 @@ fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
     .unwrap();
     assert!(s.info.has_colors && s.info.has_normals);
     let (centre, radius) = s.bounding_sphere();
-    let camera = surfel::scene::Up::Z
-        .default_pose()
-        .camera(centre, radius, surfel::scene::Up::Z);
+    let camera = surfel::scene::Up::Z.default_pose().camera(
+        centre,
+        radius,
+        surfel::scene::Up::Z,
+        s.origin(),
+    );
     for _ in 0..2000 {
         s.update(&camera, 96, 96).unwrap();
         if s.stable() {
