@@ -125,6 +125,17 @@ impl Viewer {
     /// Runs the tool commands that waited for `frame` (rendered with `camera`).
     pub(super) fn resolve_requests(&mut self, frame: &Frame, camera: &Camera) -> Result<()> {
         for request in std::mem::take(&mut self.requests) {
+            let picks = matches!(
+                request,
+                Tool::Pick(..) | Tool::Measure(..) | Tool::Click(..)
+            );
+            if picks && self.streamed.is_some() {
+                let e = "picking and measuring need a loaded file: the viewer does not keep a \
+                         streamed file's points on the CPU";
+                println!("{}", json!({ "error": e }));
+                self.outcome(Ok(e.into()))?;
+                continue;
+            }
             match request {
                 Tool::Pick(x, y) => {
                     let pick = self.pick_at(frame, camera, IVec2::new(x, y));
@@ -165,8 +176,11 @@ impl Viewer {
                         "{}",
                         json!({ "count": {
                             "covered_pixels": covered,
-                            "points": self.cloud.len(),
-                            "kept_points": self.filter.count(&self.cloud),
+                            "points": self.streamed.is_none().then(|| self.cloud.len()),
+                            "kept_points": self
+                                .streamed
+                                .is_none()
+                                .then(|| self.filter.count(&self.cloud)),
                         }})
                     );
                 }

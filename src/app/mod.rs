@@ -200,6 +200,8 @@ struct Viewer {
     expanded: bool,
     /// Ctrl is held.
     ctrl: bool,
+    /// The file being loaded (the window shows its progress; the viewer starts when it is done).
+    loading: Option<Loading>,
     /// Where the left button went down (a release within a few pixels is a click).
     press: Option<Vec2>,
     /// The HUD's solid quads (the colour ramp's scale bar), rebuilt with the panels.
@@ -218,73 +220,74 @@ fn legend_for(cloud: &Cloud, coloring: &Coloring) -> Vec<LegendEntry> {
 }
 
 /// Opens the viewer window on `cloud` and runs until it is closed (or its script ends).
-pub fn run(cloud: Cloud, mut opts: ViewerOptions) -> Result<()> {
+pub fn run(cloud: Cloud, opts: ViewerOptions) -> Result<()> {
     let event_loop =
         EventLoop::new().context("cannot open a window system connection (is DISPLAY set?)")?;
-    let method = METHODS
-        .iter()
-        .position(|m| m.name == opts.method.method.name)
-        .unwrap_or(0);
-    let script = opts.script.take().map(Runner::new);
-    let estimation = opts.estimate.as_ref().map(|o| Estimation::start(&cloud, o));
-    let mut viewer = Viewer {
-        orbit: Orbit::from_camera(&opts.camera, opts.up),
-        post: opts.post,
-        legend: legend_for(&cloud, &opts.coloring),
-        opts,
-        cloud,
-        ctx: None,
-        scene: None,
-        streamed: None,
-        gpu: None,
-        method,
-        use_color: true,
-        hud_visible: true,
-        help: false,
-        panels: Vec::new(),
-        hud_dirty: true,
-        status: String::new(),
-        rate: FrameRate::new(Instant::now()),
-        memory: None,
-        script,
-        resizing: None,
-        screenshot: None,
-        quit: false,
-        drag: None,
-        cursor: Vec2::ZERO,
-        frames: 0,
-        start: Instant::now(),
-        error: None,
-        estimation,
-        tool: ClickTool::Pick,
-        picks: Vec::new(),
-        measured: Vec::new(),
-        filter: Filter::default(),
-        clip_box: None,
-        spacing: None,
-        requests: Vec::new(),
-        bookmarks: Vec::new(),
-        timings: (String::new(), Vec::new()),
-        expanded: false,
-        ctrl: false,
-        press: None,
-        hud_marks: Vec::new(),
-        legend_rows: (0, Vec::new()),
-    };
-    viewer.filter = viewer.opts.filter;
-    viewer.clip_box = viewer.filter.clip;
-    viewer.bookmarks = std::mem::take(&mut viewer.opts.bookmarks);
+    let mut viewer = Viewer::new(cloud, opts);
     event_loop.run_app(&mut viewer)?;
-    if let Some(ctx) = &viewer.ctx {
-        if ctx.validation && ctx.validation_errors() > 0 {
-            anyhow::bail!(
-                "{} validation errors: {:#?}",
-                ctx.validation_errors(),
-                ctx.first_validation_errors()
-            );
-        }
-    }
-    viewer.error.map_or(Ok(()), Err)
+    viewer.finish()
+}
+
+/// What the window needs before the file is loaded.
+pub struct Early {
+    pub title: String,
+    /// The input's name, shown while it loads.
+    pub file: String,
+    pub size: Option<(u32, u32)>,
+    pub validation: bool,
+}
+
+/// A load running on a worker thread while the window shows its progress.
+struct Loading {
+    handle: std::thread::JoinHandle<Result<(Cloud, ViewerOptions)>>,
+    file: String,
+    started: Instant,
+}
+
+/// Opens the window at once and shows the progress of `load` (run on a worker thread: the
+/// stage and percentage of the newest progress bar, `scene::progress::current`) until it
+/// returns the cloud and the viewer's options; then views them. A failed load is the viewer's
+/// error.
+pub fn run_loading(
+    early: Early,
+    load: impl FnOnce() -> Result<(Cloud, ViewerOptions)> + Send + 'static,
+) -> Result<()> {
+    let event_loop =
+        EventLoop::new().context("cannot open a window system connection (is DISPLAY set?)")?;
+    // One point behind the camera: a blank frame under the progress overlay.
+    let placeholder = Cloud {
+        positions: vec![Vec3::ZERO],
+        ..Cloud::default()
+    };
+    let opts = ViewerOptions {
+        title: early.title,
+        file: early.file.clone(),
+        method: MethodConfig::parse("points")?,
+        camera: Camera::look_at_up(Up::Y, Vec3::Z, Vec3::Z * 2.0, 1.0),
+        up: Up::Y,
+        lights: vec![Light::headlight()],
+        size: early.size,
+        post: PostOptions::NONE,
+        color_by: "none".into(),
+        coloring: color::Coloring::default_for(false),
+        frames: None,
+        validation: early.validation,
+        script: None,
+        camera_file: PathBuf::from("surfel-camera.toml"),
+        screenshot_dir: None,
+        estimate: None,
+        stream: None,
+        filter: Filter::default(),
+        bookmarks: Vec::new(),
+    };
+    let mut viewer = Viewer::new(placeholder, opts);
+    viewer.loading = Some(Loading {
+        handle: std::thread::spawn(load),
+        file: early.file,
+        started: Instant::now(),
+    });
+    event_loop.run_app(&mut viewer)?;
+    viewer.finish()
 }
 
 /// Pixels the cursor may move between press and release of a click.
@@ -398,6 +401,145 @@ pub fn load_camera(
 }
 
 impl Viewer {
+    fn new(cloud: Cloud, mut opts: ViewerOptions) -> Self {
+        let method = METHODS
+            .iter()
+            .position(|m| m.name == opts.method.method.name)
+            .unwrap_or(0);
+        let script = opts.script.take().map(Runner::new);
+        let estimation = opts.estimate.as_ref().map(|o| Estimation::start(&cloud, o));
+        let bookmarks = std::mem::take(&mut opts.bookmarks);
+        Viewer {
+            orbit: Orbit::from_camera(&opts.camera, opts.up),
+            post: opts.post,
+            legend: legend_for(&cloud, &opts.coloring),
+            filter: opts.filter,
+            clip_box: opts.filter.clip,
+            bookmarks,
+            opts,
+            cloud,
+            ctx: None,
+            scene: None,
+            streamed: None,
+            gpu: None,
+            method,
+            use_color: true,
+            hud_visible: true,
+            help: false,
+            panels: Vec::new(),
+            hud_dirty: true,
+            status: String::new(),
+            rate: FrameRate::new(Instant::now()),
+            memory: None,
+            script,
+            resizing: None,
+            screenshot: None,
+            quit: false,
+            drag: None,
+            cursor: Vec2::ZERO,
+            frames: 0,
+            start: Instant::now(),
+            error: None,
+            estimation,
+            tool: ClickTool::Pick,
+            picks: Vec::new(),
+            measured: Vec::new(),
+            spacing: None,
+            requests: Vec::new(),
+            timings: (String::new(), Vec::new()),
+            expanded: false,
+            ctrl: false,
+            press: None,
+            hud_marks: Vec::new(),
+            legend_rows: (0, Vec::new()),
+            loading: None,
+        }
+    }
+
+    /// The viewer's outcome once its event loop ended: its error, else any validation error.
+    fn finish(self) -> Result<()> {
+        if let Some(ctx) = &self.ctx {
+            if ctx.validation && ctx.validation_errors() > 0 {
+                bail!(
+                    "{} validation errors: {:#?}",
+                    ctx.validation_errors(),
+                    ctx.first_validation_errors()
+                );
+            }
+        }
+        self.error.map_or(Ok(()), Err)
+    }
+
+    /// Takes the loaded cloud and options when the load is done (its error is the viewer's);
+    /// true while it still runs.
+    fn poll_loading(&mut self) -> Result<bool> {
+        let Some(loading) = &self.loading else {
+            return Ok(false);
+        };
+        if !loading.handle.is_finished() {
+            return Ok(true);
+        }
+        let Some(loading) = self.loading.take() else {
+            return Ok(false);
+        };
+        let (cloud, opts) = loading.handle.join().map_err(|_| {
+            anyhow::anyhow!("loading {} failed: the loader panicked", loading.file)
+        })??;
+        let ctx = self.ctx.take();
+        let gpu = self.gpu.take();
+        *self = Viewer::new(cloud, opts);
+        self.ctx = ctx;
+        self.gpu = gpu;
+        let ctx = self.ctx.clone().context("context")?;
+        let options =
+            METHODS[self.method].upload_options(UploadOptions::colored(self.opts.coloring));
+        self.scene = Some(upload(&ctx, &self.cloud, &options)?);
+        if let Some(gpu) = &self.gpu {
+            gpu.window.set_title(&self.opts.title);
+        }
+        self.rebuild()?;
+        if self.filter.is_active() {
+            self.filter_changed()?;
+        }
+        Ok(false)
+    }
+
+    /// The load screen: what loads, the stage and its percentage, and a bar (`hud_marks`).
+    fn loading_panels(&mut self, width: u32) {
+        let Some(loading) = &self.loading else {
+            return;
+        };
+        let (stage, percent) = crate::scene::progress::current().unwrap_or(("reading", 0));
+        let mut panel = Panel::new(crate::overlay::Corner::TopLeft);
+        panel.line(
+            format!("loading {}", loading.file),
+            crate::overlay::HudLine::HEADING,
+        );
+        panel.line(
+            format!(
+                "{stage} {percent} %   {:.1} s",
+                loading.started.elapsed().as_secs_f64()
+            ),
+            crate::overlay::HudLine::TEXT,
+        );
+        self.panels = vec![panel];
+        let line = crate::overlay::atlas().map_or(18.0, |a| a.line_height);
+        let margin = crate::overlay::MARGIN;
+        let top = margin + 2.0 * line + 2.0 * crate::overlay::PADDING + 6.0;
+        let w = (width as f32 - 2.0 * margin).clamp(1.0, 400.0);
+        let filled = w * percent.min(100) as f32 / 100.0;
+        self.hud_marks = vec![
+            Mark {
+                rect: glam::Vec4::new(margin, top, margin + w, top + 10.0),
+                color: crate::overlay::PANEL_COLOR,
+            },
+            Mark {
+                rect: glam::Vec4::new(margin, top, margin + filled, top + 10.0),
+                color: crate::overlay::HudLine::HEADING,
+            },
+        ];
+    }
+
     fn init(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
         let size = self.opts.size.map_or_else(
             || default_window_size(event_loop),
@@ -992,12 +1134,19 @@ impl Viewer {
         if self.quit || self.gpu.is_none() {
             return Ok(());
         }
-        // A scripted tour waits for the estimate before its first step: its screenshots do not
-        // depend on how fast the worker is.
-        self.poll_estimation(self.script.is_some())?;
-        if !self.run_script()? {
-            self.quit = true;
-            return Ok(());
+        let loading = self.poll_loading()?;
+        if loading {
+            let width = self.size().0;
+            self.loading_panels(width);
+            self.hud_dirty = false;
+        } else {
+            // A scripted tour waits for the estimate before its first step: its screenshots do
+            // not depend on how fast the worker is.
+            self.poll_estimation(self.script.is_some())?;
+            if !self.run_script()? {
+                self.quit = true;
+                return Ok(());
+            }
         }
         let Some(gpu) = self.gpu.as_ref() else {
             return Ok(());

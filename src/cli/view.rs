@@ -70,6 +70,28 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
     if a.stream.streams(&a.file) {
         return view_streamed(a, config, size, settings, script);
     }
+    let file_name = a.file.file_name().map_or_else(
+        || a.file.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let early = crate::app::Early {
+        title: format!("surfel - {}", a.file.display()),
+        file: file_name,
+        size,
+        validation: a.validation || crate::gpu::context::validation_requested(),
+    };
+    // The window opens at once and shows the load's progress.
+    crate::app::run_loading(early, move || load(a, config, size, settings, script))
+}
+
+/// Loads the file for the viewer and makes its options (on the viewer's loading thread).
+fn load(
+    a: ViewArgs,
+    config: MethodConfig,
+    size: Option<(u32, u32)>,
+    settings: crate::render::settings::ViewSettings,
+    script: Option<crate::app::script::Script>,
+) -> Result<(crate::scene::Cloud, crate::app::ViewerOptions)> {
     let (cloud, _) = compose::load(
         &a.file,
         &settings.inputs,
@@ -91,7 +113,7 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let up = settings.up(cloud.up);
     let camera = settings.camera(centre, radius, up, cloud.origin);
-    crate::app::run(
+    Ok((
         cloud,
         crate::app::ViewerOptions {
             title: format!("surfel - {}", a.file.display()),
@@ -117,7 +139,7 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
             estimate,
             stream: None,
         },
-    )
+    ))
 }
 
 /// The viewer on a streamed COPC file: its root node opens first (for the colour field and
