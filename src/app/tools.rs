@@ -368,7 +368,8 @@ mod tests {
         let camera = Camera::look_at_up(Up::Y, Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 1.0);
         let vp = camera.projection(1.0) * camera.view();
         let (px, d) = pixel_of(vp, Vec3::ZERO, 64, 64).expect("in view");
-        assert_eq!(px, IVec2::new(32, 32));
+        // The point square [31.5, 32.5] covers pixel 31's centre (top-left rule).
+        assert_eq!(px, IVec2::new(31, 31));
         assert!((d - 5.0).abs() < 1e-5);
         assert!(
             pixel_of(vp, Vec3::new(0.0, 0.0, 6.0), 64, 64).is_none(),

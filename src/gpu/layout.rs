@@ -448,9 +448,9 @@ mod tests {
 
     #[test]
     fn frame_block_places_lights_after_the_uniforms() {
-        assert_eq!(std::mem::offset_of!(FrameBlock, lights), 304);
+        assert_eq!(std::mem::offset_of!(FrameBlock, lights), 400);
         assert_eq!(std::mem::size_of::<GpuBatch>(), 32);
-        assert_eq!(std::mem::size_of::<GpuSegment>(), 96);
+        assert_eq!(std::mem::size_of::<GpuSegment>(), 112);
         assert_eq!(TARGET_NORMAL, 2);
     }
 }

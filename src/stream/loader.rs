@@ -446,6 +446,13 @@ fn encode(shared: &Shared, key: Key, mut cloud: Cloud) -> Result<EncodedNode, Lo
     if shared.options.normal_field {
         layout = layout.with_normal_field(crate::scene::normal_field::fit_cloud(&cloud));
     }
+    if let Some(classes) = shared
+        .streams
+        .iter()
+        .find(|s| matches!(s, Stream::Classes(_)))
+    {
+        layout.streams.push(*classes);
+    }
     if layout.streams != shared.streams {
         return Err(LoadError::whole(
             &shared.copc.file,

@@ -321,3 +321,58 @@ fn filtering_classes_and_clipping_boxes_change_the_projected_count_as_the_cpu_pr
     assert_eq!(saved.bookmarks.len(), 1);
     assert_eq!(saved.bookmarks[0].slot, 1);
 }
+
+#[test]
+fn m_reaches_every_method_and_plus_bookmarks_and_the_budget_keys_act() {
+    let dir = tmp_dir("every-method");
+    let n = surfel::methods::METHODS.len();
+    let mut script = String::from(
+        "size 96x72\nkey Tab\nframes 1\ncount\nkey +\nkey +\ncount\nkey ctrl+2\n\
+                                   screenshot a.png\norbit 100,10\nscreenshot b.png\nkey 2\n\
+                                   screenshot c.png\nkey -\nkey -\ncount\nkey .\n",
+    );
+    script.push_str(&"key m\nframes 1\n".repeat(n));
+    std::fs::write(dir.join("t.txt"), &script).expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &["--script", "t.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    for m in surfel::methods::METHODS {
+        assert!(
+            stdout.lines().any(|l| l == format!("method {}", m.name)),
+            "M never reached {}: {stdout}",
+            m.name
+        );
+    }
+    // `+` twice: 1 -> 2 -> 3 pixel points cover more; `-` twice: back to 1 pixel.
+    let covered: Vec<u64> = records(&stdout, "count")
+        .iter()
+        .map(|c| c["covered_pixels"].as_u64().expect("pixels"))
+        .collect();
+    assert_eq!(covered.len(), 3);
+    assert!(
+        covered[1] > covered[0] && covered[2] == covered[0],
+        "{covered:?}"
+    );
+    assert!(stdout.contains("size 3") && stdout.contains("bookmark 2 stored"));
+    assert!(stdout.contains("points has no budget"), "{stdout}");
+    // Bookmark 2 brings the camera back (to float rounding of the orbit angles).
+    let png = |name: &str| image::open(dir.join(name)).expect("png").to_rgb8();
+    let differ = |a: &str, b: &str| {
+        png(a)
+            .pixels()
+            .zip(png(b).pixels())
+            .filter(|(p, q)| p != q)
+            .count()
+    };
+    assert!(differ("a.png", "b.png") > 200, "the orbit moved the view");
+    assert!(
+        differ("a.png", "c.png") < 20,
+        "{} pixels differ",
+        differ("a.png", "c.png")
+    );
+}
