@@ -73,6 +73,17 @@ float stream_scalar(uint i) {
     return FloatStream(segments[s].scalar.xy).v[local_index(i, s)];
 }
 
+// Whether the class filter keeps point l of a segment whose `GpuSegment.classes` is `classes`
+// (a segment without the class stream keeps every point).
+bool class_kept(uvec4 classes, uint l) {
+    if ((frame.u.flags & FLAG_FILTER) == 0u || classes.w == 0u) {
+        return true;
+    }
+    uint c = (WordStream(classes.xy).v[l >> 2u] >> (8u * (l & 3u))) & 255u;
+    uvec4 words = c < 128u ? frame.u.class_hidden_lo : frame.u.class_hidden_hi;
+    return (words[(c >> 5u) & 3u] & (1u << (c & 31u))) == 0u;
+}
+
 // Whether the viewer's clipping box and class filter keep point i at local position p
 // (src/scene/clip.rs, `Resolved::keeps`). Dynamically uniform branches: without a filter
 // nothing more is read; with hidden classes one byte per point.
@@ -80,18 +91,11 @@ bool point_kept(uint i, vec3 p) {
     if (!clip_kept(p)) {
         return false;
     }
-    if ((frame.u.flags & FLAG_FILTER) != 0u) {
-        uint s = segment_of(i);
-        if (segments[s].classes.w != 0u) {
-            uint l = local_index(i, s);
-            uint c = (WordStream(segments[s].classes.xy).v[l >> 2u] >> (8u * (l & 3u))) & 255u;
-            uvec4 words = c < 128u ? frame.u.class_hidden_lo : frame.u.class_hidden_hi;
-            if ((words[(c >> 5u) & 3u] & (1u << (c & 31u))) != 0u) {
-                return false;
-            }
-        }
+    if ((frame.u.flags & FLAG_FILTER) == 0u) {
+        return true;
     }
-    return true;
+    uint s = segment_of(i);
+    return class_kept(segments[s].classes, local_index(i, s));
 }
 
 // An sRGB 0xRRGGBB constant in linear space.

@@ -85,6 +85,7 @@ void main() {
     WordStream medium = WordStream(segments[s].medium_fine.xy);
     WordStream fine = WordStream(segments[s].medium_fine.zw);
     FloatStream exact = FloatStream(segments[s].position_coarse.xy);
+    uvec4 classes = segments[s].classes;
     ivec2 size = ivec2(frame.u.viewport.xy);
 
     for (uint k = gl_LocalInvocationIndex; k < batch.count; k += RASTER_GROUP) {
@@ -116,7 +117,7 @@ void main() {
         if (SKIP_FACE_VERTICES && (face_vertex[i >> 5u] & (1u << (i & 31u))) != 0u) {
             continue;
         }
-        if (!point_kept(i, p)) {
+        if (!clip_kept(p) || !class_kept(classes, l)) {
             continue;
         }
         if (CULL && (frame.u.flags & FLAG_HAS_NORMALS) != 0u) {
