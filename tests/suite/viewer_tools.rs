@@ -199,16 +199,17 @@ fn a_distance_in_a_utm_sized_file_is_measured_to_a_millionth() {
     let ((ax, ay), (bx, by)) = (px(0), px(1));
     let script = format!(
         "frames 2\nmeasure distance {ax} {ay} {bx} {by}\nmeasure height {ax} {ay} {bx} {by}\n\
-         screenshot bar.png\n"
+         size 640x560\nscreenshot bar.png\n"
     );
     let mut colored = camera.to_vec();
     colored.extend(["--color-by", "elevation"]);
     let stdout = run(&dir, &ply, &script, &colored);
-    // The elevation ramp's scale bar, bottom left: the ramp's start and end colours.
+    // The elevation ramp's scale bar, bottom left (below the stats panel in a taller window):
+    // the ramp's start and end colours.
     let shot = image::open(dir.join("bar.png")).expect("png").to_rgb8();
     let line = surfel::overlay::atlas().expect("atlas").line_height;
     let margin = surfel::overlay::MARGIN;
-    let bottom = 240.0 - margin - (line + 2.0 * surfel::overlay::PADDING) - 4.0;
+    let bottom = 560.0 - margin - (line + 2.0 * surfel::overlay::PADDING) - 4.0;
     let y = (bottom - 6.0) as u32;
     for (x, t) in [(margin + 1.0, 0.0), (margin + 254.0, 1.0)] {
         let got = shot.get_pixel(x as u32, y).0;
