@@ -598,10 +598,14 @@ impl Viewer {
             ));
         }
         if let Some(b) = self.filter.clip {
+            let keep = match b.keep {
+                Keep::Inside => "inside",
+                Keep::Outside => "outside",
+            };
             out.push(HudLine::new(
                 format!(
-                    "clip {:?}: centre {:.2}, {:.2}, {:.2}, half {:.2}, {:.2}, {:.2} (B)",
-                    b.keep, b.centre[0], b.centre[1], b.centre[2], b.half[0], b.half[1], b.half[2]
+                    "clip {keep}: centre {:.2}, {:.2}, {:.2}, half {:.2}, {:.2}, {:.2} (B)",
+                    b.centre[0], b.centre[1], b.centre[2], b.half[0], b.half[1], b.half[2]
                 ),
                 HudLine::TEXT,
             ));
