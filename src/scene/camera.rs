@@ -248,6 +248,17 @@ mod tests {
     use super::*;
 
     #[test]
+    fn file_coordinates_parse_in_f64() {
+        assert_eq!(
+            parse_dvec3("512345.678, 4123456.789,250.25"),
+            Ok([512_345.678, 4_123_456.789, 250.25])
+        );
+        assert!(parse_dvec3("1,2").unwrap_err().contains("expected X,Y,Z"));
+        assert!(parse_dvec3("1,inf,2").unwrap_err().contains("\"inf\""));
+        assert_eq!(parse_floats("1.5,-2"), Ok(vec![1.5, -2.0]));
+    }
+
+    #[test]
     fn default_camera_looks_down_minus_z_and_fits_the_sphere() {
         let c = Camera::framing(Vec3::new(1.0, 2.0, 3.0), 2.0);
         assert!((c.eye.x - 1.0).abs() < 1e-6 && (c.eye.y - 2.0).abs() < 1e-6);
@@ -459,32 +470,27 @@ impl Pose {
     }
 }
 
-/// Parses comma-separated finite floats.
-pub fn parse_floats(s: &str) -> Result<Vec<f32>, String> {
+/// Parses comma-separated numbers that `finite` accepts.
+fn parse_list<T: std::str::FromStr>(s: &str, finite: fn(&T) -> bool) -> Result<Vec<T>, String> {
     s.split(',')
         .map(|t| {
             t.trim()
-                .parse::<f32>()
+                .parse::<T>()
                 .ok()
-                .filter(|v| v.is_finite())
+                .filter(finite)
                 .ok_or_else(|| format!("expected a number, got {:?} in {s:?}", t.trim()))
         })
         .collect()
 }
 
+/// Parses comma-separated finite floats.
+pub fn parse_floats(s: &str) -> Result<Vec<f32>, String> {
+    parse_list(s, |v: &f32| v.is_finite())
+}
+
 /// Parses `X,Y,Z` as f64 (file coordinates).
 pub fn parse_dvec3(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("expected a number, got {:?} in {s:?}", t.trim()))
-        })
-        .collect::<Result<_, _>>()?;
-    match v.as_slice() {
+    match parse_list(s, |v: &f64| v.is_finite())?.as_slice() {
         [x, y, z] => Ok([*x, *y, *z]),
         _ => Err(format!("expected X,Y,Z, got {s:?}")),
     }

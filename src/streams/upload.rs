@@ -80,32 +80,39 @@ fn address_entry(buffers: &[(Stream, Buffer)], stream: Stream) -> [u32; 4] {
         })
 }
 
-/// `GpuSegment.scalar` for the scalar stream among `buffers` (zeros without one).
-fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
+/// The `GpuSegment` entry of the stream of a cloud field among `buffers` that `field` picks
+/// (its field index): the address in xy, the index in z, `present` in w; zeros without one.
+fn field_entry(
+    buffers: &[(Stream, Buffer)],
+    field: impl Fn(&Stream) -> Option<usize>,
+    present: u32,
+) -> [u32; 4] {
     buffers
         .iter()
-        .find_map(|(s, b)| match s {
-            Stream::Scalar(k) => {
-                let [lo, hi] = address_pair(b.device_address());
-                Some([lo, hi, *k as u32, 0])
-            }
-            _ => None,
+        .find_map(|(s, b)| {
+            let k = field(s)?;
+            let [lo, hi] = address_pair(b.device_address());
+            Some([lo, hi, k as u32, present])
         })
         .unwrap_or([0; 4])
 }
 
-/// `GpuSegment.classes` for the classes stream among `buffers` (zeros without one).
+/// `GpuSegment.scalar`: the scalar stream's entry (w unused).
+fn scalar_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
+    let scalar = |s: &Stream| match s {
+        Stream::Scalar(k) => Some(*k),
+        _ => None,
+    };
+    field_entry(buffers, scalar, 0)
+}
+
+/// `GpuSegment.classes`: the classes stream's entry (w 1 when present).
 fn classes_entry(buffers: &[(Stream, Buffer)]) -> [u32; 4] {
-    buffers
-        .iter()
-        .find_map(|(s, b)| match s {
-            Stream::Classes(k) => {
-                let [lo, hi] = address_pair(b.device_address());
-                Some([lo, hi, *k as u32, 1])
-            }
-            _ => None,
-        })
-        .unwrap_or([0; 4])
+    let classes = |s: &Stream| match s {
+        Stream::Classes(k) => Some(*k),
+        _ => None,
+    };
+    field_entry(buffers, classes, 1)
 }
 
 fn table_buffer(ctx: &Arc<Context>, entries: &[GpuSegment]) -> Result<Arc<Buffer>> {
