@@ -1270,17 +1270,7 @@ impl Viewer {
     fn legend_class_at(&self, x: f32, y: f32) -> Option<u32> {
         let panel = self.panels.first().filter(|_| self.hud_visible)?;
         let atlas = crate::overlay::atlas().ok()?;
-        let width = panel
-            .lines
-            .iter()
-            .map(|l| atlas.text_width(&l.text))
-            .fold(0.0f32, f32::max);
-        let left = crate::overlay::MARGIN;
-        let top = crate::overlay::MARGIN + crate::overlay::PADDING;
-        if x < left || x > left + width + 2.0 * crate::overlay::PADDING || y < top {
-            return None;
-        }
-        let row = ((y - top) / atlas.line_height) as usize;
+        let row = crate::overlay::line_at(atlas, panel, (x, y))?;
         let (first, classes) = &self.legend_rows;
         row.checked_sub(*first)
             .and_then(|k| classes.get(k))

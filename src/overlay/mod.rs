@@ -303,9 +303,51 @@ pub fn layout(
     n
 }
 
+/// The line of `panel`, laid out first from the top-left corner (as `layout` places it),
+/// under window pixel `(x, y)`; `None` outside its text.
+pub fn line_at(atlas: &Atlas, panel: &Panel, (x, y): (f32, f32)) -> Option<usize> {
+    let width = panel
+        .lines
+        .iter()
+        .map(|l| atlas.text_width(&l.text))
+        .fold(0.0f32, f32::max)
+        .ceil();
+    let top = MARGIN + PADDING;
+    if x < MARGIN || x > MARGIN + width + 2.0 * PADDING || y < top {
+        return None;
+    }
+    let row = ((y - top) / atlas.line_height) as usize;
+    (row < panel.lines.len()).then_some(row)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn line_at_finds_the_line_a_glyph_is_drawn_on() {
+        let a = atlas().expect("atlas");
+        let mut p = Panel::new(Corner::TopLeft);
+        for text in ["first", "second line", "third"] {
+            p.line(text, HudLine::TEXT);
+        }
+        let mut out = vec![GpuGlyph::default(); 64];
+        let n = layout(a, std::slice::from_ref(&p), &[], (640, 480), &mut out);
+        // Quads after the background: the glyphs of the lines in order ("first" has 5).
+        let glyph_line = |k: usize| match k {
+            0..5 => 0,
+            5..15 => 1,
+            _ => 2,
+        };
+        for (k, q) in out[1..n].iter().enumerate() {
+            let centre = ((q.rect.x + q.rect.z) * 0.5, (q.rect.y + q.rect.w) * 0.5);
+            assert_eq!(line_at(a, &p, centre), Some(glyph_line(k)), "glyph {k}");
+        }
+        assert_eq!(line_at(a, &p, (MARGIN + 1.0, 1.0)), None, "above the text");
+        assert_eq!(line_at(a, &p, (600.0, 30.0)), None, "right of the panel");
+        let below = MARGIN + PADDING + 3.5 * a.line_height;
+        assert_eq!(line_at(a, &p, (20.0, below)), None, "below the last line");
+    }
 
     fn one_line(text: &str) -> Vec<Panel> {
         let mut p = Panel::new(Corner::TopLeft);

@@ -512,6 +512,8 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
          screenshot fewer.png\n\
          key .\nkey .\nkey .\n\
          screenshot again.png\n\
+         count\nfilter only 9\ncount\nfilter all\n\
+         clip box 636000 848900 300 636590 849600 700\ncount\nclip off\npick 160 120\n\
          key Tab\n\
          screenshot hud.png\n\
          key M\nkey M\nkey M\nkey M\nkey M\nkey M\n\
@@ -542,6 +544,23 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
     );
     assert!(
         stdout.lines().any(|l| l == "point budget 80000"),
+        "{stdout}"
+    );
+    // The class filter and the box apply to the streamed nodes too (the nodes carry the class
+    // stream); picking refuses a streamed file with a message.
+    let counts: Vec<u64> = stdout
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| v["count"]["covered_pixels"].as_u64())
+        .collect();
+    assert_eq!(counts.len(), 3, "{stdout}");
+    assert_eq!(counts[1], 0, "no point is of class 9: {counts:?}");
+    assert!(
+        counts[2] < counts[0] * 3 / 4 && counts[2] > 0,
+        "the box: {counts:?}"
+    );
+    assert!(
+        stdout.contains(r#"{"error":"picking and measuring need a loaded file"#),
         "{stdout}"
     );
     let methods: Vec<&str> = stdout
