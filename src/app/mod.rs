@@ -1040,8 +1040,23 @@ impl Viewer {
     }
 
     /// The colour ramp's scale bar (bottom left) while coloring by a ramp: a panel naming the
-    /// field and its range, and the ramp's steps as marks above it (`hud_marks`).
+    /// field and its range, and the ramp's steps as marks above it (`hud_marks`); while coloring
+    /// by return number, the palette's key.
     fn scale_bar(&mut self, coloring: Coloring, width: u32, height: u32) -> Option<Panel> {
+        if coloring.mode == crate::gpu::layout::COLOR_RETURN {
+            // The return palette's key.
+            let mut panel = Panel::new(crate::overlay::Corner::BottomLeft);
+            for number in 1..=5 {
+                let [r, g, b] = color::return_color(number);
+                let what = if number == 5 {
+                    "return 5 and later".to_string()
+                } else {
+                    format!("return {number}")
+                };
+                panel.line(what, [r, g, b, 255]);
+            }
+            return Some(panel);
+        }
         color::ramp_color(coloring.mode, 0.0)?;
         // Elevations are local: the scale names the file's.
         let shift = if coloring.mode == crate::gpu::layout::COLOR_ELEVATION {
