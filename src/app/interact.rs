@@ -66,7 +66,7 @@ const MARKER: [u8; 4] = [255, 214, 102, 255];
 const OUTLINE: [u8; 4] = [20, 20, 20, 255];
 const BOX: [u8; 4] = [110, 200, 255, 255];
 
-/// Dotted-line quads between two projected points, `step` pixels apart.
+/// Dotted-line quads between two projected points, about 6 pixels apart.
 fn dotted(out: &mut Vec<Mark>, a: Vec3, b: Vec3, color: [u8; 4]) {
     let d = (b - a).truncate();
     let n = (d.length() / 6.0).ceil().clamp(1.0, 200.0) as usize;
@@ -102,10 +102,7 @@ impl Viewer {
     /// Picks at `pixel` of `frame` (rendered with `camera`).
     fn pick_at(&mut self, frame: &Frame, camera: &Camera, pixel: IVec2) -> Pick {
         let spacing = self.spacing();
-        let resolved = self
-            .filter
-            .is_active()
-            .then(|| self.filter.resolve(self.cloud.origin));
+        let resolved = self.filter.active(self.cloud.origin);
         let target = Target {
             cloud: &self.cloud,
             filter: resolved.as_ref(),
@@ -421,8 +418,7 @@ impl Viewer {
 
     /// Hands the filter to the renderer (after every rebuild, too).
     pub(super) fn push_filter(&mut self) {
-        let origin = self.cloud.origin;
-        let resolved = self.filter.is_active().then(|| self.filter.resolve(origin));
+        let resolved = self.filter.active(self.cloud.origin);
         if let Some(gpu) = self.gpu.as_mut() {
             gpu.renderer.set_filter(resolved);
         }
@@ -527,14 +523,17 @@ impl Viewer {
         self.outcome(Ok(format!("sample budget {value}")))
     }
 
-    /// The markers of the current frame: picked points, the measurement's lines, the clipping
-    /// box's edges, and the HUD's scale bar.
-    pub(super) fn marks(&self, camera: &Camera) -> Vec<Mark> {
+    /// Fills `frame_marks` (kept between frames, so no frame allocates) with the current
+    /// frame's markers: the HUD's scale bar, the clipping box's edges, the measurement's lines
+    /// and the picked points.
+    pub(super) fn fill_marks(&mut self, camera: &Camera) {
         let (w, h) = self.size();
         let view_proj = camera.projection(w as f32 / h.max(1) as f32) * camera.view();
         let origin = self.cloud.origin;
         let at = |p: DVec3| window_of(view_proj, (p - origin).as_vec3(), w, h);
-        let mut out = self.hud_marks.clone();
+        let out = &mut self.frame_marks;
+        out.clear();
+        out.extend_from_slice(&self.hud_marks);
         if let Some(b) = self.filter.clip.or(self.clip_box) {
             let corners = b.corners().map(at);
             for (i, j) in [
@@ -552,20 +551,22 @@ impl Viewer {
                 (3, 7),
             ] {
                 if let (Some(a), Some(b)) = (corners[i], corners[j]) {
-                    dotted(&mut out, a, b, BOX);
+                    dotted(out, a, b, BOX);
                 }
             }
         }
-        let points: Vec<Vec3> = self.picks.iter().filter_map(|&p| at(p)).collect();
-        if matches!(self.tool, ClickTool::Measure(_)) {
-            for pair in points.windows(2) {
-                dotted(&mut out, pair[0], pair[1], MARKER);
-            }
-            if self.tool == ClickTool::Measure(Measure::Area) && points.len() > 2 {
-                dotted(&mut out, points[points.len() - 1], points[0], MARKER);
+        let n = self.picks.len();
+        let lines = match self.tool {
+            ClickTool::Measure(Measure::Area) if n > 2 => n,
+            ClickTool::Measure(_) => n.saturating_sub(1),
+            _ => 0,
+        };
+        for k in 0..lines {
+            if let (Some(a), Some(b)) = (at(self.picks[k]), at(self.picks[(k + 1) % n])) {
+                dotted(out, a, b, MARKER);
             }
         }
-        for p in points {
+        for p in self.picks.iter().filter_map(|&p| at(p)) {
             out.push(Mark {
                 rect: Vec4::new(p.x - 5.0, p.y - 5.0, p.x + 5.0, p.y + 5.0),
                 color: OUTLINE,
@@ -575,7 +576,6 @@ impl Viewer {
                 color: MARKER,
             });
         }
-        out
     }
 
     /// The HUD lines of the tool and the measurement.

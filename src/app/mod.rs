@@ -206,6 +206,8 @@ struct Viewer {
     press: Option<Vec2>,
     /// The HUD's solid quads (the colour ramp's scale bar), rebuilt with the panels.
     hud_marks: Vec<Mark>,
+    /// This frame's marks (`fill_marks`), kept for the next frame's.
+    frame_marks: Vec<Mark>,
     /// The stats panel's legend lines: the index of the first and the classes.
     legend_rows: (usize, Vec<u32>),
 }
@@ -451,6 +453,7 @@ impl Viewer {
             ctrl: false,
             press: None,
             hud_marks: Vec::new(),
+            frame_marks: Vec::new(),
             legend_rows: (0, Vec::new()),
             loading: None,
         }
@@ -1221,7 +1224,7 @@ impl Viewer {
         let shot = self.screenshot.take();
         let readback = shot.is_some() || !self.requests.is_empty();
         let camera = self.orbit.camera();
-        let marks = self.marks(&camera);
+        self.fill_marks(&camera);
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -1235,7 +1238,7 @@ impl Viewer {
             time: self.start.elapsed().as_secs_f32(),
         })?;
         let (panels, marks): (&[Panel], &[Mark]) = if self.hud_visible {
-            (&self.panels, &marks)
+            (&self.panels, &self.frame_marks)
         } else {
             (&[], &[])
         };

@@ -263,12 +263,7 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
             ..Extras::default()
         },
     )?;
-    renderer.set_filter(
-        settings
-            .filter
-            .is_active()
-            .then(|| settings.filter.resolve(cloud.origin)),
-    );
+    renderer.set_filter(settings.filter.active(cloud.origin));
     if a.dump_graph {
         print!("{}", renderer.schedule());
     }
@@ -398,12 +393,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         height,
         extras,
     )?;
-    renderer.set_filter(
-        settings
-            .filter
-            .is_active()
-            .then(|| settings.filter.resolve(streamed.origin())),
-    );
+    renderer.set_filter(settings.filter.active(streamed.origin()));
     if a.dump_graph {
         print!("{}", renderer.schedule());
     }

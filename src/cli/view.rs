@@ -4,13 +4,19 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use glam::Vec3;
 
 use super::render::StreamArgs;
 use super::{check_surfels, estimates, view_settings, CameraArgs, InputArgs};
+use crate::app::estimate::EstimateOptions;
+use crate::app::script::Script;
+use crate::app::ViewerOptions;
 use crate::color;
 use crate::frame::Size;
 use crate::methods::MethodConfig;
-use crate::scene::compose;
+use crate::render::settings::ViewSettings;
+use crate::scene::{compose, Cloud};
+use crate::upload::streamed::StreamOptions;
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -67,134 +73,128 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
             )
         })?;
     }
-    if a.stream.streams(&a.file) {
-        return view_streamed(a, config, size, settings, script);
+    let start = Start {
+        a,
+        config,
+        size,
+        settings,
+        script,
+    };
+    if start.a.stream.streams(&start.a.file) {
+        return view_streamed(start);
     }
-    let file_name = a.file.file_name().map_or_else(
-        || a.file.display().to_string(),
+    let title = format!("surfel - {}", start.a.file.display());
+    let file = start.a.file.file_name().map_or_else(
+        || start.a.file.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
     let early = crate::app::Early {
-        title: format!("surfel - {}", a.file.display()),
-        file: file_name,
+        title: title.clone(),
+        file: file.clone(),
         size,
-        validation: a.validation || crate::gpu::context::validation_requested(),
+        validation: validation(&start.a),
     };
     // The window opens at once and shows the load's progress.
-    crate::app::run_loading(early, move || load(a, config, size, settings, script))
+    crate::app::run_loading(early, move || load(start, (title, file)))
 }
 
-/// Loads the file for the viewer and makes its options (on the viewer's loading thread).
-fn load(
+/// What `view` read from its command line, for the viewer's options.
+struct Start {
     a: ViewArgs,
     config: MethodConfig,
     size: Option<(u32, u32)>,
-    settings: crate::render::settings::ViewSettings,
-    script: Option<crate::app::script::Script>,
-) -> Result<(crate::scene::Cloud, crate::app::ViewerOptions)> {
-    let (cloud, _) = compose::load(
-        &a.file,
-        &settings.inputs,
-        &a.input.options(estimates(config.method, &settings)),
-        &crate::scene::input::estimate_on_cpu,
-    )?;
-    check_surfels(config.method, &cloud, &a.file)?;
-    // What the first method does not read is estimated while the viewer shows the raw points.
-    let lacking = cloud.normals.is_none() || cloud.radii.is_none();
-    let estimate = (lacking && a.input.k > 0).then(|| crate::app::estimate::EstimateOptions {
-        k: a.input.k,
-        cache: (a.input.cache && settings.inputs.is_empty()).then(|| a.file.clone()),
-    });
-    let coloring = settings.coloring(&a.file, &cloud)?;
-    let color_by = settings
+    settings: ViewSettings,
+    script: Option<Script>,
+}
+
+fn validation(a: &ViewArgs) -> bool {
+    a.validation || crate::gpu::context::validation_requested()
+}
+
+/// The viewer's options for `cloud` (the loaded cloud, or a streamed file's root node) framed
+/// by the bounding sphere `(centre, radius)`, titled `(title, file)`.
+fn viewer_options(
+    s: Start,
+    cloud: &Cloud,
+    (centre, radius): (Vec3, f32),
+    (title, file): (String, String),
+    estimate: Option<EstimateOptions>,
+    stream: Option<(String, StreamOptions)>,
+) -> Result<ViewerOptions> {
+    let coloring = s.settings.coloring(&s.a.file, cloud)?;
+    let color_by = s
+        .settings
         .color_by
         .clone()
-        .unwrap_or_else(|| color::default_field(&cloud).to_owned());
-    let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
-    let up = settings.up(cloud.up);
-    let camera = settings.camera(centre, radius, up, cloud.origin);
-    Ok((
-        cloud,
-        crate::app::ViewerOptions {
-            title: format!("surfel - {}", a.file.display()),
-            file: a.file.file_name().map_or_else(
-                || a.file.display().to_string(),
-                |n| n.to_string_lossy().into_owned(),
-            ),
-            method: config,
-            camera,
-            up,
-            lights: settings.lights,
-            size,
-            filter: settings.filter,
-            bookmarks: settings.bookmarks.clone(),
-            post: settings.post,
-            color_by,
-            coloring,
-            frames: a.frames,
-            validation: a.validation || crate::gpu::context::validation_requested(),
-            script,
-            camera_file: a.camera_file,
-            screenshot_dir: a.screenshot_dir,
-            estimate,
-            stream: None,
-        },
-    ))
+        .unwrap_or_else(|| color::default_field(cloud).to_owned());
+    let up = s.settings.up(cloud.up);
+    let camera = s.settings.camera(centre, radius, up, cloud.origin);
+    Ok(ViewerOptions {
+        title,
+        file,
+        method: s.config,
+        camera,
+        up,
+        lights: s.settings.lights,
+        size: s.size,
+        filter: s.settings.filter,
+        bookmarks: s.settings.bookmarks,
+        post: s.settings.post,
+        color_by,
+        coloring,
+        frames: s.a.frames,
+        validation: validation(&s.a),
+        script: s.script,
+        camera_file: s.a.camera_file,
+        screenshot_dir: s.a.screenshot_dir,
+        estimate,
+        stream,
+    })
+}
+
+/// Loads the file for the viewer and makes its options (on the viewer's loading thread).
+fn load(s: Start, shown: (String, String)) -> Result<(Cloud, ViewerOptions)> {
+    let (cloud, _) = compose::load(
+        &s.a.file,
+        &s.settings.inputs,
+        &s.a.input.options(estimates(s.config.method, &s.settings)),
+        &crate::scene::input::estimate_on_cpu,
+    )?;
+    check_surfels(s.config.method, &cloud, &s.a.file)?;
+    // What the first method does not read is estimated while the viewer shows the raw points.
+    let lacking = cloud.normals.is_none() || cloud.radii.is_none();
+    let estimate = (lacking && s.a.input.k > 0).then(|| EstimateOptions {
+        k: s.a.input.k,
+        cache: (s.a.input.cache && s.settings.inputs.is_empty()).then(|| s.a.file.clone()),
+    });
+    let sphere = cloud.bounding_sphere().unwrap_or((Vec3::ZERO, 1.0));
+    let options = viewer_options(s, &cloud, sphere, shown, estimate, None)?;
+    Ok((cloud, options))
 }
 
 /// The viewer on a streamed COPC file: its root node opens first (for the colour field and
 /// the camera), the viewer streams the rest by view.
-fn view_streamed(
-    a: ViewArgs,
-    config: MethodConfig,
-    size: Option<(u32, u32)>,
-    settings: crate::render::settings::ViewSettings,
-    script: Option<crate::app::script::Script>,
-) -> Result<()> {
-    let location = a.file.to_string_lossy().into_owned();
-    let k = if config.method.needs_surfels {
-        a.input.k
+fn view_streamed(s: Start) -> Result<()> {
+    let location = s.a.file.to_string_lossy().into_owned();
+    let k = if s.config.method.needs_surfels {
+        s.a.input.k
     } else {
         0
     };
-    let options = a.stream.options(k, config.method.needs_normal_field);
+    let options = s.a.stream.options(k, s.config.method.needs_normal_field);
     let opened = crate::stream::loader::Loader::open(&location, options.loader.clone())?;
     let (lo, hi) = opened.loader.local_bounds();
     let root = opened.root;
     drop(opened.loader);
-    let coloring = settings.coloring(&a.file, &root)?;
-    let color_by = settings
-        .color_by
-        .clone()
-        .unwrap_or_else(|| color::default_field(&root).to_owned());
-    let up = settings.up(root.up);
-    let (centre, radius) = (
+    let sphere = (
         (lo + hi) * 0.5,
         ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE),
     );
-    let camera = settings.camera(centre, radius, up, root.origin);
-    crate::app::run(
-        root,
-        crate::app::ViewerOptions {
-            title: format!("surfel - {location} (streamed)"),
-            file: location.rsplit('/').next().unwrap_or(&location).to_owned(),
-            method: config,
-            camera,
-            up,
-            lights: settings.lights,
-            size,
-            filter: settings.filter,
-            bookmarks: settings.bookmarks.clone(),
-            post: settings.post,
-            color_by,
-            coloring,
-            frames: a.frames,
-            validation: a.validation || crate::gpu::context::validation_requested(),
-            script,
-            camera_file: a.camera_file,
-            screenshot_dir: a.screenshot_dir,
-            estimate: None,
-            stream: Some((location, options)),
-        },
-    )
+    let shown = (
+        format!("surfel - {location} (streamed)"),
+        location.rsplit('/').next().unwrap_or(&location).to_owned(),
+    );
+    let stream = Some((location.clone(), options));
+    let options = viewer_options(s, &root, sphere, shown, None, stream)?;
+    crate::app::run(root, options)
 }

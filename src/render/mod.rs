@@ -420,10 +420,9 @@ impl Renderer {
                     };
             }
             if !filter.hidden.is_empty() {
-                let [lo @ .., _, _, _, _] = filter.hidden.0;
-                let [.., h0, h1, h2, h3] = filter.hidden.0;
-                block.u.class_hidden_lo = lo;
-                block.u.class_hidden_hi = [h0, h1, h2, h3];
+                let [a, b, c, d, e, f, g, h] = filter.hidden.0;
+                block.u.class_hidden_lo = [a, b, c, d];
+                block.u.class_hidden_hi = [e, f, g, h];
                 block.u.flags |= FLAG_FILTER;
             }
         }

@@ -185,6 +185,12 @@ impl Filter {
         self.clip.is_some() || !self.hidden.is_empty()
     }
 
+    /// The filter resolved for a cloud whose local frame starts at `origin`, `None` when it
+    /// keeps every point (what `Renderer::set_filter` takes).
+    pub fn active(&self, origin: DVec3) -> Option<Resolved> {
+        self.is_active().then(|| self.resolve(origin))
+    }
+
     pub fn resolve(&self, origin: DVec3) -> Resolved {
         Resolved {
             clip: self.clip.map(|b| (b.local_to_unit(origin), b.keep)),
