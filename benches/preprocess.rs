@@ -70,7 +70,7 @@ fn main() {
                 seconds(tree_runs, || {
                     let p = &cloud.positions;
                     let nb = Neighbours::compute_with_tree(p, preprocess::DEFAULT_K);
-                    preprocess::estimate_normals(p, &nb, None, false);
+                    preprocess::estimate_normals(&cloud, &nb, false);
                     preprocess::estimate_radii(p, &nb, RadiusMode::DensitySpacing);
                 })
             });

@@ -773,6 +773,8 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
             )
             .collect(),
         origin,
+        up: super::Up::Z,
+        survey: true,
         ..Cloud::default()
     };
     cloud.adopt_geometry_fields();

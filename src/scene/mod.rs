@@ -16,6 +16,7 @@ pub mod las;
 pub mod lights;
 pub mod normal_field;
 pub mod obj;
+pub mod orient;
 pub mod pack;
 pub mod pcd;
 pub mod ply;
@@ -30,7 +31,7 @@ pub mod xyz;
 use std::path::Path;
 
 pub use camera::{Camera, Pose, Up};
-pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar};
+pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar, Sensor};
 pub use error::{LoadError, Location};
 pub use input::{complete, complete_with, load_prepared, Estimator, LoadOptions};
 pub use lights::{Light, LightKind};
@@ -84,6 +85,7 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
         ));
     }
     check_regular(path)?;
+    let survey = matches!(extension.as_str(), "las" | "laz" | "copc.laz");
     let mut cloud = match extension.as_str() {
         "ply" if crate::lines::is_line_model(path) => {
             crate::lines::load(path).map(|m| m.to_cloud())
@@ -101,6 +103,7 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
         }),
     }?;
     cloud.up = up;
+    cloud.survey = survey;
     Ok(cloud)
 }
 

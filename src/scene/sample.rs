@@ -188,7 +188,7 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         colors: out_colors,
         radii: Some(vec![radius; n_points]),
         origin: mesh.origin,
-        sensor: mesh.sensor,
+        sensors: Vec::new(),
         stats: LoadStats {
             records: n_points,
             ..LoadStats::default()
