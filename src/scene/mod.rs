@@ -14,6 +14,7 @@ pub mod input;
 pub mod knn;
 pub mod las;
 pub mod lights;
+pub mod morton;
 pub mod normal_field;
 pub mod obj;
 pub mod orient;

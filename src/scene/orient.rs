@@ -23,6 +23,7 @@ use rayon::prelude::*;
 
 use super::camera::Up;
 use super::cloud::{Cloud, Sensor};
+use super::morton::morton_order;
 use super::preprocess::centroid;
 
 /// Neighbours per point kept for the propagation graph (the nearest of the k-NN search).
@@ -135,7 +136,9 @@ fn prior(rule: Rule, sensors: &[Sensor], centre: Vec3, i: usize, p: Vec3, n: Vec
     n.dot(reference.normalize_or_zero())
 }
 
-/// Orients `normals` (unit, any sign) of `cloud`'s points by `rule` over `graph`.
+/// Orients `normals` (unit, any sign) of `cloud`'s points by `rule` over `graph`. Anchors are
+/// oriented in parallel; the walk runs over the points in Morton order, so that neighbours
+/// are near in memory.
 pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) -> Report {
     let positions = &cloud.positions;
     let n = positions.len();
@@ -148,30 +151,69 @@ pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) ->
         Rule::Up(_) => UP_ANCHOR,
         Rule::Propagate => f32::INFINITY,
     };
-    let priors: Vec<f32> = (0..n)
-        .into_par_iter()
-        .map(|i| prior(rule, sensors, centre, i, positions[i], normals[i]))
-        .collect();
+    let prior_of = |i: usize, normal: Vec3| prior(rule, sensors, centre, i, positions[i], normal);
     // Anchors take the rule's sign at once.
-    let mut oriented: Vec<bool> = priors.par_iter().map(|p| p.abs() >= threshold).collect();
-    normals
+    let anchors: Vec<bool> = normals
         .par_iter_mut()
-        .zip(&priors)
-        .zip(&oriented)
-        .for_each(|((normal, &prior), &anchor)| {
-            if anchor && prior < 0.0 {
+        .enumerate()
+        .map(|(i, normal)| {
+            let p = prior_of(i, *normal);
+            if p < 0.0 {
                 *normal = -*normal;
             }
-        });
-    let anchored = oriented.iter().filter(|&&o| o).count();
-    let mut report = Report {
-        anchored,
-        ..Report::default()
-    };
+            p.abs() >= threshold
+        })
+        .collect();
+    let anchored = anchors.iter().filter(|&&a| a).count();
     if anchored == n {
-        return report;
+        return Report {
+            anchored,
+            ..Report::default()
+        };
     }
-    let incoming = Incoming::new(graph, &oriented);
+    let order = morton_order(positions);
+    let mut rank = vec![0u32; n];
+    for (s, &i) in order.iter().enumerate() {
+        rank[i as usize] = s as u32;
+    }
+    let mut rows = vec![NONE; n * GRAPH_K];
+    rows.par_chunks_mut(GRAPH_K)
+        .zip(&order)
+        .for_each(|(row, &i)| {
+            let i = i as usize;
+            for (slot, &j) in row
+                .iter_mut()
+                .zip(&graph.rows[i * GRAPH_K..(i + 1) * GRAPH_K])
+            {
+                *slot = rank.get(j as usize).copied().unwrap_or(NONE);
+            }
+        });
+    let mut sorted: Vec<Vec3> = order.par_iter().map(|&i| normals[i as usize]).collect();
+    let mut oriented: Vec<bool> = order.par_iter().map(|&i| anchors[i as usize]).collect();
+    let (propagated, parts) = walk(&Graph { rows }, &mut sorted, &mut oriented, &|s, normal| {
+        prior_of(order[s] as usize, normal)
+    });
+    for (&i, normal) in order.iter().zip(sorted) {
+        normals[i as usize] = normal;
+    }
+    Report {
+        anchored,
+        propagated,
+        parts,
+    }
+}
+
+/// Orients every point not yet `oriented` from its neighbours in `graph` (the anchored spanning
+/// forest, then one tree per part no anchor reaches, signed by the vote of `prior`). Returns
+/// the points oriented and the parts voted.
+fn walk(
+    graph: &Graph,
+    normals: &mut [Vec3],
+    oriented: &mut [bool],
+    prior: &(dyn Fn(usize, Vec3) -> f32 + Sync),
+) -> (usize, usize) {
+    let n = normals.len();
+    let incoming = Incoming::new(graph, oriented);
     let mut queue = Queue::new();
     let weight = |a: Vec3, b: Vec3| a.dot(b).abs();
     // Every edge from an anchor to a point still to orient seeds the walk.
@@ -205,7 +247,8 @@ pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) ->
         }
         reached
     };
-    report.propagated += grow(&mut queue, normals, &mut oriented).len();
+    let mut propagated = grow(&mut queue, normals, oriented).len();
+    let mut parts = 0;
     // What no anchor reaches: one part at a time from its first point, then its sign by vote.
     for seed in 0..n {
         if oriented[seed] {
@@ -217,21 +260,18 @@ pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) ->
                 queue.push(weight(normals[seed], normals[m]), seed as u32, m as u32);
             }
         }
-        let mut part = grow(&mut queue, normals, &mut oriented);
+        let mut part = grow(&mut queue, normals, oriented);
         part.push(seed);
-        let vote: f32 = part
-            .iter()
-            .map(|&i| prior(rule, sensors, centre, i, positions[i], normals[i]))
-            .sum();
+        let vote: f32 = part.iter().map(|&i| prior(i, normals[i])).sum();
         if vote < 0.0 {
             for &i in &part {
                 normals[i] = -normals[i];
             }
         }
-        report.propagated += part.len();
-        report.parts += 1;
+        propagated += part.len();
+        parts += 1;
     }
-    report
+    (propagated, parts)
 }
 
 /// The reverse of the graph's rows where they touch a point still to orient: for each point,
