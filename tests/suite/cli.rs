@@ -656,7 +656,39 @@ fn text_columns_by_name_or_by_flag() {
 }
 
 #[test]
-fn a_directory_as_input_reports_the_os_error_once() {
+fn a_directory_as_input_is_named_a_directory() {
+    let dir = tmp("directory-inputs");
+    let formats = ".ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts, .csv";
+    for name in ["scans", "model.ply", "model.laz", "model.copc.laz"] {
+        let model = dir.join(name);
+        std::fs::create_dir_all(&model).expect("directory");
+        let model = model.to_str().expect("utf8");
+        let png = dir.join("out.png");
+        for args in [
+            vec!["info", model, "--no-device"],
+            vec!["render", model, "-o", png.to_str().expect("utf8")],
+            vec![
+                "convert",
+                model,
+                "--out",
+                dir.join("out.copc.laz").to_str().expect("utf8"),
+            ],
+        ] {
+            let o = surfel(&args);
+            assert_eq!(o.status.code(), Some(1), "{args:?}");
+            assert_eq!(
+                stderr(&o).lines().last().map(str::to_owned),
+                Some(format!(
+                    "error: {model}: is a directory; expected a point-cloud file ({formats})"
+                )),
+                "{args:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_directory_as_scene_or_cache_reports_the_os_error_once() {
     let dir = tmp("directories");
     std::fs::create_dir_all(&dir).expect("temp dir");
     let os_error = std::fs::read(&dir).expect_err("directory").to_string();
@@ -669,19 +701,7 @@ fn a_directory_as_input_reports_the_os_error_once() {
         path.to_str().expect("utf8").to_owned()
     };
     let mut cases = Vec::new();
-    for ext in ["ply", "obj", "pcd", "las", "laz", "xyz"] {
-        let model = subdir(&format!("model.{ext}"));
-        cases.push((
-            vec!["info".into(), model.clone(), "--no-device".into()],
-            format!("{model}: cannot read file"),
-        ));
-    }
     let (cloud, png) = (cloud.to_str().expect("utf8"), png.to_str().expect("utf8"));
-    let model = subdir("render.laz");
-    cases.push((
-        vec!["render".into(), model.clone(), "-o".into(), png.into()],
-        format!("{model}: cannot read file"),
-    ));
     let scene = subdir("scene.json");
     cases.push((
         vec![
