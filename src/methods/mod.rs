@@ -226,10 +226,18 @@ impl MethodConfig {
                 .parse()
                 .ok()
                 .filter(|x: &f32| x.is_finite())
-                .ok_or_else(|| anyhow::anyhow!("parameter '{k}': expected a number, got '{v}'"))?;
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "{}: {k}={v} is not a number (expected {}..={})",
+                        method.name,
+                        spec.min,
+                        spec.max
+                    )
+                })?;
             if value < spec.min || value > spec.max {
                 bail!(
-                    "parameter '{k}' = {value} is outside {}..={}",
+                    "{}: {k}={v} is out of range ({}..={})",
+                    method.name,
                     spec.min,
                     spec.max
                 );
@@ -340,5 +348,36 @@ impl BuildContext<'_> {
                 Access::StorageRead(Stages::Vertex),
             ),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_error(spec: &str) -> String {
+        format!("{:#}", MethodConfig::parse(spec).expect_err(spec))
+    }
+
+    #[test]
+    fn a_value_outside_its_range_names_the_method_the_parameter_and_the_range() {
+        assert_eq!(
+            parse_error("points:size=100"),
+            "points: size=100 is out of range (1..=64)"
+        );
+        assert_eq!(
+            parse_error("pyramid:radius=0.01"),
+            "pyramid: radius=0.01 is out of range (0.05..=20)"
+        );
+        assert_eq!(
+            parse_error("points:size=big"),
+            "points: size=big is not a number (expected 1..=64)"
+        );
+        assert_eq!(
+            parse_error("points:size=inf"),
+            "points: size=inf is not a number (expected 1..=64)"
+        );
+        let at_limit = MethodConfig::parse("points:size=64").expect("the upper limit");
+        assert_eq!(at_limit.get("size"), 64.0);
     }
 }

@@ -308,7 +308,12 @@ fn bad_arguments_are_explained() {
     let o = surfel(&["render", b, "--method", "nope"]);
     assert!(stderr(&o).contains("unknown method 'nope'") && stderr(&o).contains("points"));
     let o = surfel(&["render", b, "--method", "points:size=500"]);
-    assert!(stderr(&o).contains("outside"), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).lines().last(),
+        Some("error: points: size=500 is out of range (1..=64)"),
+        "{}",
+        stderr(&o)
+    );
     let o = surfel(&["render", b, "--size", "0x10"]);
     assert!(stderr(&o).contains("each edge"), "{}", stderr(&o));
     let o = surfel(&["render", b, "--orbit", "1,x"]);
