@@ -241,7 +241,8 @@ impl FromStr for StressKind {
             .ok_or_else(|| {
                 let names: Vec<_> = StressKind::ALL.iter().map(|k| k.as_str()).collect();
                 format!(
-                    "unknown stress kind {s:?} (expected one of {})",
+                    "unknown stress kind {s:?}{} (expected one of {})",
+                    crate::suggest::did_you_mean(s, names.iter().copied()),
                     names.join(", ")
                 )
             })
@@ -1050,5 +1051,15 @@ values = [1.0, 0.1]
         assert!(!StressKind::Inside.severity_increases_with_value());
         assert!(StressKind::Magnification.check_value(0.5).is_err());
         assert!(StressKind::Noise.check_value(f64::NAN).is_err());
+        let expected =
+            "(expected one of grazing, magnification, subsample, noise, nonuniform, inside)";
+        assert_eq!(
+            "grazng".parse::<StressKind>().unwrap_err(),
+            format!("unknown stress kind \"grazng\"; did you mean 'grazing'? {expected}")
+        );
+        assert_eq!(
+            "wobble".parse::<StressKind>().unwrap_err(),
+            format!("unknown stress kind \"wobble\" {expected}")
+        );
     }
 }

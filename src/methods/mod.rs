@@ -21,6 +21,7 @@ use ash::vk;
 use crate::gpu::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::gpu::{Capabilities, Context};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
+use crate::suggest::did_you_mean;
 use crate::upload::{GpuScene, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
@@ -179,7 +180,11 @@ pub static METHODS: &[MethodInfo] = &[
 pub fn find(name: &str) -> Result<&'static MethodInfo> {
     METHODS.iter().find(|m| m.name == name).ok_or_else(|| {
         let names: Vec<_> = METHODS.iter().map(|m| m.name).collect();
-        anyhow::anyhow!("unknown method '{name}' (available: {})", names.join(", "))
+        anyhow::anyhow!(
+            "unknown method '{name}'{} (available: {})",
+            did_you_mean(name, names.iter().copied()),
+            names.join(", ")
+        )
     })
 }
 
@@ -217,8 +222,9 @@ impl MethodConfig {
             let Some(spec) = method.params.iter().find(|p| p.name == k) else {
                 let known: Vec<_> = method.params.iter().map(|p| p.name).collect();
                 bail!(
-                    "method '{}' has no parameter '{k}' (parameters: {})",
+                    "method '{}' has no parameter '{k}'{} (parameters: {})",
                     method.name,
+                    did_you_mean(k, known.iter().copied()),
                     known.join(", ")
                 );
             };
@@ -379,5 +385,39 @@ mod tests {
         );
         let at_limit = MethodConfig::parse("points:size=64").expect("the upper limit");
         assert_eq!(at_limit.get("size"), 64.0);
+    }
+
+    #[test]
+    fn a_mistyped_method_or_parameter_gets_the_closest_name() {
+        let names: Vec<_> = METHODS.iter().map(|m| m.name).collect();
+        let names = names.join(", ");
+        assert_eq!(
+            parse_error("pyrmid"),
+            format!("unknown method 'pyrmid'; did you mean 'pyramid'? (available: {names})")
+        );
+        assert_eq!(
+            parse_error("pyramid-hybird:cull=0"),
+            format!("unknown method 'pyramid-hybird'; did you mean 'pyramid-hybrid'? (available: {names})")
+        );
+        assert_eq!(
+            parse_error("splat"),
+            format!("unknown method 'splat' (available: {names})")
+        );
+        let pyramid: Vec<_> = pyramid::INFO.params.iter().map(|p| p.name).collect();
+        assert_eq!(
+            parse_error("pyramid:cul=0"),
+            format!(
+                "method 'pyramid' has no parameter 'cul'; did you mean 'cull'? (parameters: {})",
+                pyramid.join(", ")
+            )
+        );
+        assert_eq!(
+            parse_error("points:szie=2"),
+            "method 'points' has no parameter 'szie'; did you mean 'size'? (parameters: size)"
+        );
+        assert_eq!(
+            parse_error("points:width=2"),
+            "method 'points' has no parameter 'width' (parameters: size)"
+        );
     }
 }
