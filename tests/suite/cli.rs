@@ -1258,3 +1258,59 @@ fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(s.contains("normals, radii    none (--k 0)\n"), "{s}");
 }
+
+#[test]
+fn sample_counts_beyond_the_memory_are_refused_before_anything_is_allocated() {
+    let dir = tmp("huge-samples");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mesh = dir.join("triangle.obj");
+    std::fs::write(&mesh, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("write mesh");
+    let mesh = mesh.to_str().expect("utf8");
+    let o = surfel(&[
+        "sample",
+        mesh,
+        "--points",
+        "1000000000000000",
+        "--out",
+        dir.join("huge.ply").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    let line = e.lines().last().expect("a message");
+    let head = format!(
+        "error: {mesh}: cannot sample: 1000000000000000 sampled points need 29103.8 TiB of \
+         memory (32 bytes each), "
+    );
+    assert!(
+        line.starts_with(&head) && line.ends_with(" is available"),
+        "{e}"
+    );
+    assert!(!dir.join("huge.ply").exists());
+
+    let sweep = dir.join("huge.toml");
+    std::fs::write(
+        &sweep,
+        "resolutions = [\"8x8\"]\n[[methods]]\nname = \"points\"\n\
+         [[models]]\npath = \"triangle.obj\"\npoints = [1000, 1000000000000000]\n",
+    )
+    .expect("write sweep");
+    let out = dir.join("bench-out");
+    let o = surfel(&[
+        "bench",
+        sweep.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    let line = e.lines().last().expect("a message");
+    let head = format!(
+        "error: sweep file {}, models[0].points[1]: 1000000000000000 sampled points need \
+         50931.7 TiB of memory, ",
+        sweep.display()
+    );
+    let tail = " is available (a sampled point takes 56 bytes while it is uploaded and 32 \
+                after, and the sweep keeps every cloud it samples: 1000 points before these)";
+    assert!(line.starts_with(&head) && line.ends_with(tail), "{e}");
+    assert!(!out.join("results.json").exists());
+}
