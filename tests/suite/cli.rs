@@ -1259,6 +1259,63 @@ fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
     assert!(s.contains("normals, radii    none (--k 0)\n"), "{s}");
 }
 
+/// The default docs/cli.md gives for `--FLAG`: the first `(default …)` after the flag's first
+/// mention, up to `)` or `;`, without backticks and thousands separators.
+fn documented_default(docs: &str, flag: &str) -> String {
+    let mention = format!("`--{flag}");
+    let at = docs
+        .find(&mention)
+        .unwrap_or_else(|| panic!("{mention} in docs/cli.md"));
+    let after = &docs[at..];
+    let start = after
+        .find("(default ")
+        .filter(|&i| i < 120)
+        .unwrap_or_else(|| panic!("a default after {mention} in docs/cli.md"))
+        + "(default ".len();
+    let value = &after[start..];
+    let end = value.find([')', ';']).expect("end of the default");
+    value[..end].replace(['`', ','], "")
+}
+
+#[test]
+fn documented_defaults_agree_with_the_help() {
+    use clap::CommandFactory;
+    let docs = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/cli.md"))
+        .expect("docs/cli.md");
+    let cli = surfel::cli::Cli::command();
+    for flag in ["error-px", "point-budget", "gpu-budget", "camera-file"] {
+        let documented = documented_default(&docs, flag);
+        let mut subcommands = 0;
+        for sub in cli.get_subcommands() {
+            let Some(arg) = sub.get_arguments().find(|a| a.get_long() == Some(flag)) else {
+                continue;
+            };
+            subcommands += 1;
+            let defaults: Vec<_> = arg
+                .get_default_values()
+                .iter()
+                .map(|v| v.to_string_lossy().into_owned())
+                .collect();
+            assert_eq!(
+                defaults.as_slice(),
+                std::slice::from_ref(&documented),
+                "surfel {} --{flag}: the help's default against docs/cli.md's",
+                sub.get_name()
+            );
+            let help = surfel(&[sub.get_name(), "--help"]);
+            let help = String::from_utf8_lossy(&help.stdout).into_owned();
+            let entry = &help[help.find(&format!("--{flag}")).expect("flag in --help")..];
+            let entry = &entry[..entry.find("\n  -").unwrap_or(entry.len())];
+            assert!(
+                entry.contains(&format!("[default: {documented}]")),
+                "surfel {} --help: {entry}",
+                sub.get_name()
+            );
+        }
+        assert!(subcommands > 0, "--{flag} is an option of some subcommand");
+    }
+}
+
 #[test]
 fn sample_counts_beyond_the_memory_are_refused_before_anything_is_allocated() {
     let dir = tmp("huge-samples");
