@@ -131,16 +131,17 @@ pub fn format_up(extension: &str) -> Up {
     }
 }
 
-/// Refuses a device, FIFO or socket before a loader opens it: reading a FIFO waits for a
-/// writer, and `/dev/zero` or `/dev/urandom` never end.
+/// Refuses a directory, device, FIFO or socket before a loader opens it: reading a FIFO waits
+/// for a writer, and `/dev/zero` or `/dev/urandom` never end.
 pub fn check_regular(path: &Path) -> Result<(), LoadError> {
     let file = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(|source| LoadError::Io {
         file: file.clone(),
         source,
     })?;
-    // A folder fails when it is read, with the operating system's reason.
-    if meta.is_file() || meta.is_dir() {
+    if meta.is_dir() {
+        Err(LoadError::Directory { file })
+    } else if meta.is_file() {
         Ok(())
     } else {
         Err(LoadError::whole(
