@@ -11,9 +11,11 @@
 //!   (candidates of colliding cells only add work: every distance is measured), verified
 //!   against the block's inner bound, else the 5×5×5 block; the PCA normal by Jacobi
 //!   rotations in single precision; the k-th neighbour's squared distance;
-//! * the result (16 bytes per point) is read back and `scene::preprocess::complete_from`
-//!   turns distances into radii, with the same floor, after searching the points the GPU left
-//!   unresolved (outliers whose 5×5×5 block holds fewer than k verified neighbours) on the CPU.
+//! * the result (16 bytes per point) and the 6 nearest neighbours (24 bytes per point, the
+//!   orientation's graph) are read back and `scene::preprocess::complete_from` turns distances
+//!   into radii, with the same floor, after searching the points the GPU left unresolved
+//!   (outliers whose 5×5×5 block holds fewer than k verified neighbours) on the CPU; then it
+//!   signs the normals by the same walk as the CPU path (`scene::orient`).
 //!
 //! Deviations from the CPU path, measured by `tests/suite/estimate.rs`: single precision (the CPU
 //! accumulates the covariance in double), a neighbourhood counts as flat only with spread in

@@ -9,7 +9,10 @@
 //! centre becomes [`Cloud::origin`] and is subtracted before the conversion to f32, as for LAS.
 //! Colors are normalized by the scan's color limits (else the color fields' type bounds) to
 //! sRGB bytes (points without a valid color in a file that has colors are white); intensity
-//! becomes the `intensity` scalar, in the file's units (0 where a point has none).
+//! becomes the `intensity` scalar, in the file's units (0 where a point has none). A scan with
+//! a pose, or with spherical coordinates (ranges measured from the scanner), records where its
+//! scanner stood: the pose's translation becomes that scan's [`Sensor`], which estimated
+//! normals face.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek};

@@ -357,3 +357,32 @@ fn culling_keeps_the_ground_of_an_airborne_tile() {
     assert!(all > 192 * 192 / 4, "the tile fills the view: {all}");
     assert!(culled as f64 >= 0.99 * all as f64, "{culled} of {all}");
 }
+
+#[test]
+fn info_names_the_rule_each_file_gets() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    for (file, rule) in [
+        (
+            "lidar/autzen_trim.laz",
+            "up (z), propagated over the k-NN graph where |n·up| < 0.5 (walls, slopes)",
+        ),
+        (
+            "e57/tiny_spherical.e57",
+            "towards the scanner (the file's scan positions), propagated where |n·d| < 0.1",
+        ),
+        (
+            "stanford/bun000.ply",
+            "propagated over the k-NN graph (Hoppe 1992 spanning tree), each part facing away from the centroid",
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_surfel"))
+            .args(["info", data.join(file).to_str().expect("utf8"), "--no-device"])
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .expect("surfel runs");
+        assert!(out.status.success(), "{file}");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let line = format!("normal signs      {rule}\n");
+        assert!(stdout.contains(&line), "{file}: {stdout}");
+    }
+}
