@@ -17,7 +17,8 @@ layout(std430, set = 0, binding = BINDING_LOD_LIST) readonly buffer List { uint 
 
 layout(location = 0) out vec4 v_a;
 layout(location = 1) out vec4 v_b;
-layout(location = 2) out vec4 v_c;
+layout(location = 2) out vec3 v_c;
+layout(location = 3) flat out uint v_primitive;
 
 void main() {
     GpuLodVertex v = vertices[list[gl_VertexIndex]];
@@ -39,5 +40,6 @@ void main() {
     v_a = vec4(n, r * 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]) / depth);
     v_b = vec4(depth, r, 0.0, 0.0);
     vec3 albedo = sample_albedo(v.normal_color.y, v.sphere.xyz, oct_decode(v.normal_color.x));
-    v_c = vec4(COLOR ? albedo : vec3(0.0), float(PRIMITIVE_POINT));
+    v_c = COLOR ? albedo : vec3(0.0);
+    v_primitive = PRIMITIVE_POINT;
 }
