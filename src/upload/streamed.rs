@@ -129,6 +129,8 @@ pub struct StreamedScene {
     table: Vec<GpuBatch>,
     frame: u64,
     evicted: u64,
+    /// The point budget was found below the root node's points (warned once).
+    budget_warned: bool,
 }
 
 impl StreamedScene {
@@ -237,7 +239,9 @@ impl StreamedScene {
             table,
             frame: 0,
             evicted: 0,
+            budget_warned: false,
         };
+        out.check_budget();
         // The root is resident before the first frame.
         let root = out.loader.encode(Key::ROOT, opened.root)?;
         out.ready.insert(Key::ROOT, root);
@@ -260,6 +264,24 @@ impl StreamedScene {
     /// Changes the point budget from the next update on.
     pub fn set_point_budget(&mut self, points: u64) {
         self.options.point_budget = points;
+        self.check_budget();
+    }
+
+    /// Points of the root node (drawn whatever the point budget).
+    pub fn root_points(&self) -> u64 {
+        self.hierarchy.nodes.get(&Key::ROOT).map_or(0, |n| n.points)
+    }
+
+    /// A point budget below the root node's points still draws the root: says so once.
+    fn check_budget(&mut self) {
+        let root = self.root_points();
+        if self.options.point_budget < root && !self.budget_warned {
+            self.budget_warned = true;
+            self.messages.push(format!(
+                "the point budget {} is below the root node's {root} points; drawing the root",
+                self.options.point_budget
+            ));
+        }
     }
 
     /// Points in the file.
