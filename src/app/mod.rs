@@ -1133,6 +1133,12 @@ impl Viewer {
                     }
                     return Ok(true);
                 }
+                Next::Tool(Tool::Click(x, y)) => {
+                    // A legend line toggles its class at once; a pick waits for a frame.
+                    if self.click(x, y)? {
+                        return Ok(true);
+                    }
+                }
                 Next::Tool(tool) if tool.needs_frame() => {
                     // Runs on the next frame's depth.
                     self.requests.push(tool);
@@ -1271,17 +1277,24 @@ impl Viewer {
         Ok(())
     }
 
-    /// A left click at a window pixel: on a legend line it toggles the class, elsewhere the
-    /// current tool picks there (on the next frame's depth).
-    fn click(&mut self, x: i32, y: i32) -> Result<()> {
+    /// A left click at a window pixel: on a legend line of the HUD as it stands it toggles the
+    /// class, elsewhere the current tool picks there on the next frame's depth (then it returns
+    /// true).
+    fn click(&mut self, x: i32, y: i32) -> Result<bool> {
+        if self.hud_dirty {
+            self.refresh_hud();
+        }
         if let Some(class) = self.legend_class_at(x as f32, y as f32) {
-            return match u8::try_from(class) {
-                Ok(c) => self.toggle_class(c),
-                Err(_) => self.outcome(Ok("values that are not classes cannot be hidden".into())),
-            };
+            match u8::try_from(class) {
+                Ok(c) => self.toggle_class(c)?,
+                Err(_) => {
+                    self.outcome(Ok("values that are not classes cannot be hidden".into()))?
+                }
+            }
+            return Ok(false);
         }
         self.requests.push(Tool::Click(x, y));
-        Ok(())
+        Ok(true)
     }
 
     /// The legend class whose HUD line is at window pixel (x, y), if any.
@@ -1345,6 +1358,7 @@ impl ApplicationHandler for Viewer {
                         // A release where the button went down is a click, not a drag.
                         if (self.cursor - at).length() <= CLICK_SLOP {
                             self.click(self.cursor.x as i32, self.cursor.y as i32)
+                                .map(|_| ())
                         } else {
                             Ok(())
                         }
