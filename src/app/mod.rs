@@ -186,7 +186,7 @@ struct Viewer {
     measured: Vec<(&'static str, f64)>,
     /// The clipping box and hidden classes the projection passes apply.
     filter: Filter,
-    /// The last clipping box drawn (kept while `B` switches clipping off).
+    /// The last clipping box set (kept, not drawn, while clipping is off: `B` turns it back on).
     clip_box: Option<ClipBox>,
     /// `hpr::spacing` of the cloud for picking (computed on the first pick).
     spacing: Option<f64>,

@@ -458,3 +458,38 @@ fn a_scripted_click_on_a_legend_line_toggles_its_class() {
         .collect();
     assert_eq!(counts, [(400, 400), (0, 0)], "{stdout}");
 }
+
+#[test]
+fn the_clipping_box_outline_is_drawn_only_while_the_box_clips() {
+    let dir = tmp_dir("clip-outline");
+    let (points, classes) = grid();
+    let ply = dir.join("grid.ply");
+    write_ply(&ply, &points, Some(&classes));
+    // The box's corner of the grid is drawn below and right of the HUD's panel.
+    let script = "frames 2\nclip box 0.45 -0.95 -1 0.95 -0.45 1\nscreenshot on.png\nclip off\n\
+                  screenshot off.png\nclip outside\nscreenshot outside.png\n";
+    std::fs::write(dir.join("t.txt"), script).expect("script");
+    let args = [
+        "--size", "640x480", "--script", "t.txt", "--eye", "0,0,10", "--target", "0,0,0", "--k",
+        "0",
+    ];
+    let o = view(&dir, "800x600", &ply, &args);
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    // The outline's colour (the overlay draws it opaque); the grid is drawn in another.
+    let outline = |name: &str| {
+        image::open(dir.join(name))
+            .expect("png")
+            .to_rgb8()
+            .pixels()
+            .filter(|p| p.0 == [110, 200, 255])
+            .count()
+    };
+    let (on, off, outside) = (
+        outline("on.png"),
+        outline("off.png"),
+        outline("outside.png"),
+    );
+    assert!(on > 100, "{on} outline pixels");
+    assert_eq!(off, 0, "the outline stays after `clip off`");
+    assert_eq!(outside, on, "`clip outside` draws the remembered box again");
+}
