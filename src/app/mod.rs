@@ -764,7 +764,11 @@ impl Viewer {
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
         if self.streamed.is_some() {
-            bail!("a streamed file's colour field is chosen when it opens (--color-by)");
+            // Reported like a streamed pick: the tour goes on.
+            let e = "V is off for a streamed file: its colour field is chosen when it opens \
+                     (--color-by)";
+            println!("{}", serde_json::json!({ "error": e }));
+            return self.outcome(Ok(e.into()));
         }
         let fields = color::fields(&self.cloud);
         let name = color::next_field(&fields, &self.opts.color_by)
