@@ -584,16 +584,9 @@ impl Viewer {
             format!("tool: {} (T), click to pick, X clears", self.tool.name()),
             HudLine::TEXT,
         )];
-        let unit = |name: &str| {
-            if name.contains("area") {
-                " sq. units"
-            } else {
-                ""
-            }
-        };
         for (name, v) in &self.measured {
             out.push(HudLine::new(
-                format!("  {name} {v:.3}{}", unit(name)),
+                tools::measure_line(name, *v),
                 HudLine::HEADING,
             ));
         }
