@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use crate::color::LegendEntry;
 use crate::gpu::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
 use crate::overlay::{Corner, HudLine, Panel};
+use crate::scene::appearance::Edl;
 use crate::scene::clip::Classes;
 
 /// Every viewer key and mouse control, as shown by the help panel (`H`).
@@ -142,6 +143,8 @@ pub struct Stats<'a> {
     /// Bytes allocated and reserved by the GPU allocator.
     pub memory: Option<(u64, u64)>,
     pub use_color: bool,
+    /// Eye-dome lighting as drawn (`E`), off when `None`.
+    pub edl: Option<Edl>,
     /// The field colored by (`V`).
     pub color_by: &'a str,
     /// The classes present with their palette colors, shown while coloring by
@@ -291,6 +294,16 @@ impl Hud {
             HudLine::TEXT,
         ));
         stats.push(HudLine::new(
+            match s.edl {
+                Some(e) => format!(
+                    "eye-dome lighting on: strength {}, radius {} px (E)",
+                    e.strength, e.radius
+                ),
+                None => "eye-dome lighting off (E)".to_string(),
+            },
+            HudLine::TEXT,
+        ));
+        stats.push(HudLine::new(
             format!("color by {} (V)", s.color_by),
             HudLine::TEXT,
         ));
@@ -358,6 +371,7 @@ mod tests {
             fps: Some(59.94),
             memory: Some((3 << 20, 64 << 20)),
             use_color: true,
+            edl: None,
             color_by: "rgb",
             legend: &[],
             status: "",
@@ -415,11 +429,24 @@ mod tests {
                 "points 110,000, 54,321 projected (batches in view)",
                 "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
                 "59.9 frames/s  800x600",
+                "eye-dome lighting off (E)",
                 "color by rgb (V)",
                 "H help   Tab hide HUD",
             ]
         );
         assert_eq!(hud.panels().len(), 1);
+        let s = Stats {
+            edl: Some(Edl {
+                strength: 1.0,
+                radius: 1.4,
+            }),
+            ..stats(&passes)
+        };
+        let hud = Hud::new(&s, false);
+        assert!(hud
+            .stats
+            .iter()
+            .any(|l| l.text == "eye-dome lighting on: strength 1, radius 1.4 px (E)"));
     }
 
     #[test]

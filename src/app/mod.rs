@@ -1012,6 +1012,7 @@ impl Viewer {
                 fps: self.rate.fps,
                 memory: self.memory,
                 use_color: self.use_color,
+                edl: self.post.edl,
                 color_by: &self.opts.color_by,
                 legend: &self.legend,
                 status: &self.status,
