@@ -165,8 +165,8 @@ struct Viewer {
     script: Option<Runner>,
     /// A script's `size` step: the size asked for and the frames rendered since.
     resizing: Option<(PhysicalSize<u32>, u32)>,
-    /// Write the next frame to this PNG.
-    screenshot: Option<PathBuf>,
+    /// Write the next frame to these PNGs, in the order asked (`P`, a script's `screenshot`).
+    screenshots: Vec<PathBuf>,
     quit: bool,
     /// The post-processing shown now (`E` switches EDL on and off).
     post: PostOptions,
@@ -321,13 +321,13 @@ fn gpu_memory(ctx: &Context) -> Option<(u64, u64)> {
 }
 
 /// The first `surfel-<n>.png` (n = 1, 2, ...) that does not exist in `dir` (or the current
-/// directory).
-fn next_screenshot_path(dir: Option<&Path>) -> PathBuf {
+/// directory) and is not `pending`.
+fn next_screenshot_path(dir: Option<&Path>, pending: &[PathBuf]) -> PathBuf {
     let mut n = 1u64;
     loop {
         let name = format!("surfel-{n}.png");
         let path = dir.map_or_else(|| PathBuf::from(&name), |d| d.join(&name));
-        if !path.exists() {
+        if !path.exists() && !pending.contains(&path) {
             return path;
         }
         n += 1;
@@ -435,7 +435,7 @@ impl Viewer {
             memory: None,
             script,
             resizing: None,
-            screenshot: None,
+            screenshots: Vec::new(),
             quit: false,
             drag: None,
             cursor: Vec2::ZERO,
@@ -869,7 +869,9 @@ impl Viewer {
             }
             ViewerKey::Char('h') => self.help = !self.help,
             ViewerKey::Char('p') => {
-                self.screenshot = Some(next_screenshot_path(self.opts.screenshot_dir.as_deref()))
+                let path =
+                    next_screenshot_path(self.opts.screenshot_dir.as_deref(), &self.screenshots);
+                self.screenshots.push(path);
             }
             ViewerKey::Char('k') => {
                 let path = self.opts.camera_file.clone();
@@ -1133,9 +1135,7 @@ impl Viewer {
                     return self.run_script();
                 }
                 Next::Frame(shot) => {
-                    if shot.is_some() {
-                        self.screenshot = shot;
-                    }
+                    self.screenshots.extend(shot);
                     return Ok(true);
                 }
                 Next::Tool(Tool::Click(x, y)) => {
@@ -1232,8 +1232,8 @@ impl Viewer {
         let Some(index) = gpu.swapchain.acquire(available)? else {
             return self.rebuild();
         };
-        let shot = self.screenshot.take();
-        let readback = shot.is_some() || !self.requests.is_empty();
+        let shots = std::mem::take(&mut self.screenshots);
+        let readback = !shots.is_empty() || !self.requests.is_empty();
         let camera = self.orbit.camera();
         self.fill_marks(&camera);
         let Some(gpu) = self.gpu.as_mut() else {
@@ -1264,7 +1264,7 @@ impl Viewer {
         if readback {
             gpu.renderer.finish()?;
             let frame = gpu.renderer.read_frame()?;
-            if let Some(path) = shot {
+            for path in shots {
                 let written =
                     write_png(&path, &frame).map(|()| format!("screenshot {}", path.display()));
                 self.outcome(written)?;

@@ -635,6 +635,44 @@ fn a_missing_screenshot_directory_is_created() {
 }
 
 #[test]
+fn key_p_then_a_screenshot_writes_both_from_the_same_frame() {
+    let dir = tmp_dir("p-then-shot");
+    std::fs::write(
+        dir.join("t.txt"),
+        "frames 1\nkey Tab\nkey P\nscreenshot b.png\nkey P\nkey P\norbit 90,10\nscreenshot c.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &["--size", "160x120", "--script", "t.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let written: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("screenshot "))
+        .collect();
+    assert_eq!(
+        written,
+        [
+            "screenshot surfel-1.png",
+            "screenshot b.png",
+            "screenshot surfel-2.png",
+            "screenshot surfel-3.png",
+            "screenshot c.png",
+        ],
+        "{stdout}"
+    );
+    let shot = |name: &str| png(&dir.join(name));
+    assert_eq!(difference(&shot("surfel-1.png"), &shot("b.png")).0, 0);
+    assert_eq!(difference(&shot("surfel-2.png"), &shot("c.png")).0, 0);
+    assert_eq!(difference(&shot("surfel-3.png"), &shot("c.png")).0, 0);
+    assert!(difference(&shot("b.png"), &shot("c.png")).0 > 100);
+}
+
+#[test]
 fn key_v_in_a_streamed_tour_is_reported_and_the_tour_goes_on() {
     let dir = tmp_dir("stream-v");
     let cloud = surfel::scene::load(&data("stanford/bun_zipper.ply")).expect("load");
