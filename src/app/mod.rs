@@ -950,6 +950,12 @@ impl Viewer {
             );
         }
         let tool_lines = self.tool_lines();
+        if let Some(s) = &self.streamed {
+            // A streamed file's classes are those of the nodes loaded so far.
+            if s.info.coloring.mode == COLOR_CLASSIFICATION {
+                self.legend = s.legend();
+            }
+        }
         let Some(gpu) = self.gpu.as_mut() else {
             return;
         };
@@ -1223,6 +1229,11 @@ impl Viewer {
                 )?;
             }
             gpu.renderer.set_batches(streamed.batches())?;
+            let classes = streamed.info.coloring.mode == COLOR_CLASSIFICATION;
+            if classes && streamed.legend_classes() != self.legend.len() {
+                // A class arrived with a node: its legend line appears at once.
+                self.hud_dirty = true;
+            }
             for m in streamed.take_messages() {
                 eprintln!("warning: {m}");
                 self.status = m;

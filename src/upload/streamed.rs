@@ -12,7 +12,7 @@
 //! rendering goes on with the rest.
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet, VecDeque};
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -20,7 +20,7 @@ use ash::vk;
 use glam::Vec3;
 
 use super::{GpuScene, SceneInfo};
-use crate::color::Coloring;
+use crate::color::{self, Coloring, LegendEntry};
 use crate::gpu::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
@@ -131,6 +131,9 @@ pub struct StreamedScene {
     evicted: u64,
     /// The point budget was found below the root node's points (warned once).
     budget_warned: bool,
+    /// Points per classification class of the nodes placed so far, each node counted once.
+    classes: BTreeMap<u32, usize>,
+    counted: HashSet<Key>,
 }
 
 impl StreamedScene {
@@ -240,6 +243,8 @@ impl StreamedScene {
             frame: 0,
             evicted: 0,
             budget_warned: false,
+            classes: BTreeMap::new(),
+            counted: HashSet::new(),
         };
         out.check_budget();
         // The root is resident before the first frame.
@@ -265,6 +270,20 @@ impl StreamedScene {
     pub fn set_point_budget(&mut self, points: u64) {
         self.options.point_budget = points;
         self.check_budget();
+    }
+
+    /// The classes of the nodes loaded so far with their points (every node once, also
+    /// after it was evicted), for the HUD's legend: it grows as nodes arrive.
+    pub fn legend(&self) -> Vec<LegendEntry> {
+        self.classes
+            .iter()
+            .map(|(&class, &count)| color::legend_entry(class, count))
+            .collect()
+    }
+
+    /// How many classes [`Self::legend`] lists.
+    pub fn legend_classes(&self) -> usize {
+        self.classes.len()
     }
 
     /// Points of the root node (drawn whatever the point budget).
@@ -477,6 +496,11 @@ impl StreamedScene {
         }
         let node = self.ready.remove(&key).expect("ready");
         *budget -= bytes;
+        if self.counted.insert(key) {
+            for &(class, count) in &node.classes {
+                *self.classes.entry(class).or_default() += count;
+            }
+        }
         let slots: Vec<u32> = (0..need)
             .map(|_| self.free.pop().expect("counted").0)
             .collect();

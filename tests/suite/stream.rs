@@ -656,6 +656,56 @@ fn a_point_budget_below_the_root_node_draws_the_root_with_one_warning() {
 }
 
 #[test]
+fn the_streamed_legend_lists_the_classes_of_every_node_loaded_with_their_points() {
+    use surfel::upload::streamed::StreamedScene;
+
+    // A survey whose class 65 is two points: the root's subsample lacks it.
+    let mut cloud = survey(40_000);
+    let classes = &mut cloud
+        .scalars
+        .iter_mut()
+        .find(|s| s.name == "classification")
+        .unwrap()
+        .values;
+    classes[7] = 65.0;
+    classes[39_998] = 65.0;
+    let path = scratch("legend.copc.laz");
+    convert::write_with(&cloud, &path, 2_000).unwrap();
+    let ctx = common::context();
+    let mut s = StreamedScene::open(
+        &ctx,
+        path.to_str().unwrap(),
+        &gpu::options(u64::MAX, 64 << 20, 0.0),
+        |root| Ok(surfel::color::select(root, "classification", surfel::scene::Up::Z).unwrap()),
+        2,
+    )
+    .unwrap();
+    let has =
+        |legend: &[surfel::color::LegendEntry], class: u32| legend.iter().any(|e| e.class == class);
+    // At open: the root's classes.
+    assert_eq!(s.legend(), surfel::color::legend(&s.root));
+    assert!(!has(&s.legend(), 65), "the root holds class 65");
+    let (centre, radius) = s.bounding_sphere();
+    let camera = gpu::framing(centre, radius);
+    for round in 0.. {
+        assert!(round < 2000, "streaming never settled");
+        s.update(&camera, 128, 128).unwrap();
+        if s.stable() {
+            break;
+        }
+        s.wait(std::time::Duration::from_millis(50));
+    }
+    // Every node loaded: the file's classes with their exact counts, class 65 included.
+    assert_eq!(s.stats().drawn_points, 40_000);
+    let whole = surfel::color::legend(&scene::load(&path).unwrap());
+    assert_eq!(s.legend(), whole);
+    assert_eq!(s.legend_classes(), 13);
+    let rare = s.legend().into_iter().find(|e| e.class == 65).unwrap();
+    assert_eq!(rare.count, 2);
+    common::assert_clean(&ctx);
+}
+
+#[test]
 fn http_and_local_file_stream_the_same_image() {
     let path = gpu::dragon();
     let options = gpu::options(PART, 64 << 20, 1.0);
