@@ -157,8 +157,8 @@ pub struct Stats<'a> {
     pub stream: Option<&'a str>,
     /// List every pass (else per-family totals).
     pub expanded: bool,
-    /// The timings are the previous method's (the new graph has finished no frame yet).
-    pub previous: bool,
+    /// The renderer has no timings yet (a new graph: its first frames are in flight).
+    pub measuring: bool,
     /// Classes the filter hides (their legend lines say so).
     pub hidden: &'a Classes,
     /// The tool's and the measurement's lines.
@@ -218,23 +218,24 @@ impl Hud {
             HudLine::new(s.method, HudLine::HEADING),
             HudLine::new(s.file, HudLine::DIM),
         ];
-        let total: f64 = s.passes.iter().map(|(_, ms)| ms).sum();
+        // A new graph's passes are shown once its own first frame is timed, never another's.
+        let passes: &[(String, f64)] = if s.measuring { &[] } else { s.passes };
+        let total: f64 = passes.iter().map(|(_, ms)| ms).sum();
         stats.push(HudLine::new(
-            if s.passes.is_empty() {
-                "GPU: waiting for the first frame".to_string()
-            } else if s.previous {
-                format!("GPU {total:.2} ms per frame (previous method, rebuilding)")
+            if s.measuring || passes.is_empty() {
+                let name = s.method.split(':').next().unwrap_or(s.method);
+                format!("GPU: measuring {name}...")
             } else {
                 format!("GPU {total:.2} ms per frame")
             },
             HudLine::TEXT,
         ));
         if s.expanded {
-            for (name, ms) in s.passes {
+            for (name, ms) in passes {
                 stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
             }
         } else {
-            for (name, ms, n) in family_totals(s.passes) {
+            for (name, ms, n) in family_totals(passes) {
                 let passes = if n == 1 {
                     String::new()
                 } else {
@@ -377,7 +378,7 @@ mod tests {
             status: "",
             stream: None,
             expanded: true,
-            previous: false,
+            measuring: false,
             hidden: &NONE,
             tools: &[],
         }
@@ -386,7 +387,7 @@ mod tests {
     static NONE: Classes = Classes([0; 8]);
 
     #[test]
-    fn collapsed_the_stats_show_per_family_totals_and_keep_the_previous_timings_marked() {
+    fn collapsed_the_stats_show_per_family_totals() {
         let passes = vec![
             ("hpr.sector".to_string(), 1.0),
             ("hpr.advance".to_string(), 2.5),
@@ -395,7 +396,6 @@ mod tests {
         ];
         let s = Stats {
             expanded: false,
-            previous: true,
             ..stats(&passes)
         };
         let hud = Hud::new(&s, false);
@@ -403,11 +403,32 @@ mod tests {
         assert_eq!(
             text[2..5],
             [
-                "GPU 4.25 ms per frame (previous method, rebuilding)",
+                "GPU 4.25 ms per frame",
                 "  hpr  4.00 ms (3 passes, U lists them)",
                 "  post  0.25 ms",
             ]
         );
+    }
+
+    #[test]
+    fn a_new_graph_is_measuring_until_its_own_timings_arrive() {
+        // Passes the caller still holds are never shown while the new graph measures.
+        let passes = [("hpr.sector".to_string(), 1.0)];
+        for (held, measuring) in [(&passes[..], true), (&[][..], true), (&[][..], false)] {
+            let s = Stats {
+                measuring,
+                ..stats(held)
+            };
+            let hud = Hud::new(&s, false);
+            let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+            assert_eq!(
+                text[2..4],
+                [
+                    "GPU: measuring compute...",
+                    "points 110,000, 54,321 projected (batches in view)",
+                ]
+            );
+        }
     }
 
     #[test]
@@ -567,7 +588,7 @@ mod tests {
                 "{key} missing"
             );
         }
-        assert!(hud.stats[2].text.contains("waiting"));
+        assert!(hud.stats[2].text.contains("measuring"));
     }
 
     #[test]

@@ -193,9 +193,9 @@ struct Viewer {
     /// Tool commands waiting for the next frame's depth.
     requests: Vec<Tool>,
     bookmarks: Vec<Bookmark>,
-    /// The newest per-pass timings and the method they are of (kept while a rebuilt renderer
-    /// has none yet).
-    timings: (String, Vec<(String, f64)>),
+    /// The renderer has finished no timed frame yet (after a start, a method, parameter or
+    /// size change): the HUD says it is measuring and is rebuilt every frame until it has.
+    measuring: bool,
     /// The HUD lists every pass (`U`) instead of per-family totals.
     expanded: bool,
     /// Ctrl is held.
@@ -448,7 +448,7 @@ impl Viewer {
             measured: Vec::new(),
             spacing: None,
             requests: Vec::new(),
-            timings: (String::new(), Vec::new()),
+            measuring: true,
             expanded: false,
             ctrl: false,
             press: None,
@@ -966,13 +966,10 @@ impl Viewer {
             .filter(|(n, _)| !n.starts_with("present"))
             .collect();
         let label = gpu.renderer.config.label();
-        // A rebuilt renderer has no timings until its first frame finishes: the previous
-        // method's stay, marked.
-        if !passes.is_empty() {
-            self.timings = (label.clone(), passes);
-        }
-        let previous = self.timings.0 != label && !self.timings.1.is_empty();
-        let passes = self.timings.1.clone();
+        // A rebuilt renderer has no timings until its first frame's timestamps are collected
+        // (when its slot comes round again, after the frames in flight): until then the HUD
+        // says it is measuring, never showing another renderer's passes.
+        self.measuring = passes.is_empty();
         let projected = match &self.scene {
             _ if gpu.renderer.config.method.needs_lod => {
                 hud::Projected::LevelOfDetail(gpu.renderer.samples_per_level().map(<[u64]>::to_vec))
@@ -1025,7 +1022,7 @@ impl Viewer {
                 legend: &self.legend,
                 status: &self.status,
                 expanded: self.expanded,
-                previous,
+                measuring: self.measuring,
                 hidden: &self.filter.hidden,
                 tools: &tool_lines,
             },
@@ -1046,7 +1043,7 @@ impl Viewer {
             self.opts.color_by,
             ms.join(" | "),
             if self.use_color { "" } else { " (no color)" },
-            if previous { " (previous method)" } else { "" }
+            if self.measuring { " (measuring)" } else { "" }
         ));
         self.hud_marks.clear();
         if let Some(panel) = self.scale_bar(coloring, width, height) {
@@ -1193,9 +1190,6 @@ impl Viewer {
         if (size.width, size.height) != (gpu.swapchain.extent.width, gpu.swapchain.extent.height) {
             self.rebuild()?;
         }
-        if self.hud_dirty {
-            self.refresh_hud();
-        }
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -1246,6 +1240,11 @@ impl Viewer {
         let shots = std::mem::take(&mut self.screenshots);
         let readback = !shots.is_empty() || !self.requests.is_empty();
         let camera = self.orbit.camera();
+        // After `begin_frame`, which collects the timings of the frame that used this slot:
+        // while the renderer has none yet, every frame looks for them.
+        if !loading && (self.hud_dirty || self.measuring) {
+            self.refresh_hud();
+        }
         self.fill_marks(&camera);
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
