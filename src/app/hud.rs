@@ -194,6 +194,46 @@ pub fn family_totals(passes: &[(String, f64)]) -> Vec<(&str, f64, usize)> {
     out
 }
 
+/// Characters a HUD line of free text (the method's parameters, the file's name) takes at
+/// most: about a third of a 960-pixel window.
+pub const LINE_CHARS: usize = 40;
+
+/// `text` in lines of at most `width` characters, broken after commas where it can (a
+/// method's `name:key=value,...`), continuation lines indented by two spaces.
+pub fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for token in text.split_inclusive(',') {
+        let mut rest: Vec<char> = token.chars().collect();
+        while !rest.is_empty() {
+            let line = lines.last_mut().expect("one line");
+            let room = width.saturating_sub(line.chars().count());
+            let empty = line.trim().is_empty();
+            if rest.len() <= room || (empty && room > 0) {
+                let take = rest.len().min(room);
+                line.extend(rest.drain(..take));
+            } else {
+                lines.push("  ".to_string());
+            }
+        }
+    }
+    lines
+}
+
+/// `text` shortened to `width` characters by replacing its middle with `...`.
+pub fn elide(text: &str, width: usize) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    if chars.len() <= width {
+        return text.to_string();
+    }
+    let keep = width.saturating_sub(3);
+    let head = keep / 2;
+    let tail = keep - head;
+    let mut out: String = chars[..head].iter().collect();
+    out.push_str("...");
+    out.extend(&chars[chars.len() - tail..]);
+    out
+}
+
 /// Formats `n` with thousands separators.
 pub fn thousands(n: u64) -> String {
     let digits = n.to_string();
@@ -214,10 +254,13 @@ fn mib(bytes: u64) -> f64 {
 impl Hud {
     /// The statistics lines for `s`.
     pub fn new(s: &Stats<'_>, help: bool) -> Self {
-        let mut stats = vec![
-            HudLine::new(s.method, HudLine::HEADING),
-            HudLine::new(s.file, HudLine::DIM),
-        ];
+        // The method's parameters wrap and the file's name is elided, so the panel stays
+        // narrow whatever they hold.
+        let mut stats: Vec<HudLine> = wrap(s.method, LINE_CHARS)
+            .into_iter()
+            .map(|l| HudLine::new(l, HudLine::HEADING))
+            .collect();
+        stats.push(HudLine::new(elide(s.file, LINE_CHARS), HudLine::DIM));
         // A new graph's passes are shown once its own first frame is timed, never another's.
         let passes: &[(String, f64)] = if s.measuring { &[] } else { s.passes };
         let total: f64 = passes.iter().map(|(_, ms)| ms).sum();
@@ -589,6 +632,40 @@ mod tests {
             );
         }
         assert!(hud.stats[2].text.contains("measuring"));
+    }
+
+    #[test]
+    fn long_parameters_wrap_and_long_file_names_are_elided() {
+        let label = "lod-compute:epsilon=0.02,budget=4000000,shape=1,levels=0,max_size=16,\
+                     a_parameter_name_longer_than_a_line_of_the_hud=1";
+        let file = format!("/data/{}autzen.copc.laz", "deep/".repeat(20));
+        let s = Stats {
+            method: label,
+            file: &file,
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+        assert_eq!(
+            text[..5],
+            [
+                "lod-compute:epsilon=0.02,budget=4000000,",
+                "  shape=1,levels=0,max_size=16,",
+                "  a_parameter_name_longer_than_a_line_of",
+                "  _the_hud=1",
+                "/data/deep/deep/de...eep/autzen.copc.laz",
+            ]
+        );
+        assert!(hud
+            .stats
+            .iter()
+            .take(5)
+            .all(|l| l.text.chars().count() <= LINE_CHARS));
+        let joined: String = text[..4].iter().map(|l| l.trim_start()).collect();
+        assert_eq!(joined, label);
+        // Short ones stay as they are.
+        assert_eq!(wrap("points:size=1", LINE_CHARS), ["points:size=1"]);
+        assert_eq!(elide("bun.ply", LINE_CHARS), "bun.ply");
     }
 
     #[test]
