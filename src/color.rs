@@ -331,15 +331,20 @@ pub fn legend(cloud: &Cloud) -> Vec<LegendEntry> {
         .iter()
         .enumerate()
         .filter(|(_, &n)| n > 0)
-        .map(|(class, &count)| LegendEntry {
-            class: class as u32,
-            name: CLASSES
-                .get(class)
-                .map_or_else(|| "other".to_owned(), |c| c.0.to_owned()),
-            color: class_color(class as u32),
-            count,
-        })
+        .map(|(class, &count)| legend_entry(class as u32, count))
         .collect()
+}
+
+/// The legend line of `count` points of `class` (256: values that are not classes).
+pub fn legend_entry(class: u32, count: usize) -> LegendEntry {
+    LegendEntry {
+        class,
+        name: CLASSES
+            .get(class as usize)
+            .map_or_else(|| "other".to_owned(), |c| c.0.to_owned()),
+        color: class_color(class),
+        count,
+    }
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use crate::color::LegendEntry;
 use crate::gpu::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
 use crate::overlay::{Corner, HudLine, Panel};
+use crate::scene::appearance::Edl;
 use crate::scene::clip::Classes;
 
 /// Every viewer key and mouse control, as shown by the help panel (`H`).
@@ -142,6 +143,8 @@ pub struct Stats<'a> {
     /// Bytes allocated and reserved by the GPU allocator.
     pub memory: Option<(u64, u64)>,
     pub use_color: bool,
+    /// Eye-dome lighting as drawn (`E`), off when `None`.
+    pub edl: Option<Edl>,
     /// The field colored by (`V`).
     pub color_by: &'a str,
     /// The classes present with their palette colors, shown while coloring by
@@ -154,8 +157,8 @@ pub struct Stats<'a> {
     pub stream: Option<&'a str>,
     /// List every pass (else per-family totals).
     pub expanded: bool,
-    /// The timings are the previous method's (the new graph has finished no frame yet).
-    pub previous: bool,
+    /// The renderer has no timings yet (a new graph: its first frames are in flight).
+    pub measuring: bool,
     /// Classes the filter hides (their legend lines say so).
     pub hidden: &'a Classes,
     /// The tool's and the measurement's lines.
@@ -191,6 +194,46 @@ pub fn family_totals(passes: &[(String, f64)]) -> Vec<(&str, f64, usize)> {
     out
 }
 
+/// Characters a HUD line of free text (the method's parameters, the file's name) takes at
+/// most: about a third of a 960-pixel window.
+pub const LINE_CHARS: usize = 40;
+
+/// `text` in lines of at most `width` characters, broken after commas where it can (a
+/// method's `name:key=value,...`), continuation lines indented by two spaces.
+pub fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for token in text.split_inclusive(',') {
+        let mut rest: Vec<char> = token.chars().collect();
+        while !rest.is_empty() {
+            let line = lines.last_mut().expect("one line");
+            let room = width.saturating_sub(line.chars().count());
+            let empty = line.trim().is_empty();
+            if rest.len() <= room || (empty && room > 0) {
+                let take = rest.len().min(room);
+                line.extend(rest.drain(..take));
+            } else {
+                lines.push("  ".to_string());
+            }
+        }
+    }
+    lines
+}
+
+/// `text` shortened to `width` characters by replacing its middle with `...`.
+pub fn elide(text: &str, width: usize) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    if chars.len() <= width {
+        return text.to_string();
+    }
+    let keep = width.saturating_sub(3);
+    let head = keep / 2;
+    let tail = keep - head;
+    let mut out: String = chars[..head].iter().collect();
+    out.push_str("...");
+    out.extend(&chars[chars.len() - tail..]);
+    out
+}
+
 /// Formats `n` with thousands separators.
 pub fn thousands(n: u64) -> String {
     let digits = n.to_string();
@@ -211,27 +254,31 @@ fn mib(bytes: u64) -> f64 {
 impl Hud {
     /// The statistics lines for `s`.
     pub fn new(s: &Stats<'_>, help: bool) -> Self {
-        let mut stats = vec![
-            HudLine::new(s.method, HudLine::HEADING),
-            HudLine::new(s.file, HudLine::DIM),
-        ];
-        let total: f64 = s.passes.iter().map(|(_, ms)| ms).sum();
+        // The method's parameters wrap and the file's name is elided, so the panel stays
+        // narrow whatever they hold.
+        let mut stats: Vec<HudLine> = wrap(s.method, LINE_CHARS)
+            .into_iter()
+            .map(|l| HudLine::new(l, HudLine::HEADING))
+            .collect();
+        stats.push(HudLine::new(elide(s.file, LINE_CHARS), HudLine::DIM));
+        // A new graph's passes are shown once its own first frame is timed, never another's.
+        let passes: &[(String, f64)] = if s.measuring { &[] } else { s.passes };
+        let total: f64 = passes.iter().map(|(_, ms)| ms).sum();
         stats.push(HudLine::new(
-            if s.passes.is_empty() {
-                "GPU: waiting for the first frame".to_string()
-            } else if s.previous {
-                format!("GPU {total:.2} ms per frame (previous method, rebuilding)")
+            if s.measuring || passes.is_empty() {
+                let name = s.method.split(':').next().unwrap_or(s.method);
+                format!("GPU: measuring {name}...")
             } else {
                 format!("GPU {total:.2} ms per frame")
             },
             HudLine::TEXT,
         ));
         if s.expanded {
-            for (name, ms) in s.passes {
+            for (name, ms) in passes {
                 stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
             }
         } else {
-            for (name, ms, n) in family_totals(s.passes) {
+            for (name, ms, n) in family_totals(passes) {
                 let passes = if n == 1 {
                     String::new()
                 } else {
@@ -287,6 +334,16 @@ impl Hud {
             match s.fps {
                 Some(fps) => format!("{fps:.1} frames/s  {}x{}", s.width, s.height),
                 None => format!("- frames/s  {}x{}", s.width, s.height),
+            },
+            HudLine::TEXT,
+        ));
+        stats.push(HudLine::new(
+            match s.edl {
+                Some(e) => format!(
+                    "eye-dome lighting on: strength {}, radius {} px (E)",
+                    e.strength, e.radius
+                ),
+                None => "eye-dome lighting off (E)".to_string(),
             },
             HudLine::TEXT,
         ));
@@ -358,12 +415,13 @@ mod tests {
             fps: Some(59.94),
             memory: Some((3 << 20, 64 << 20)),
             use_color: true,
+            edl: None,
             color_by: "rgb",
             legend: &[],
             status: "",
             stream: None,
             expanded: true,
-            previous: false,
+            measuring: false,
             hidden: &NONE,
             tools: &[],
         }
@@ -372,7 +430,7 @@ mod tests {
     static NONE: Classes = Classes([0; 8]);
 
     #[test]
-    fn collapsed_the_stats_show_per_family_totals_and_keep_the_previous_timings_marked() {
+    fn collapsed_the_stats_show_per_family_totals() {
         let passes = vec![
             ("hpr.sector".to_string(), 1.0),
             ("hpr.advance".to_string(), 2.5),
@@ -381,7 +439,6 @@ mod tests {
         ];
         let s = Stats {
             expanded: false,
-            previous: true,
             ..stats(&passes)
         };
         let hud = Hud::new(&s, false);
@@ -389,11 +446,32 @@ mod tests {
         assert_eq!(
             text[2..5],
             [
-                "GPU 4.25 ms per frame (previous method, rebuilding)",
+                "GPU 4.25 ms per frame",
                 "  hpr  4.00 ms (3 passes, U lists them)",
                 "  post  0.25 ms",
             ]
         );
+    }
+
+    #[test]
+    fn a_new_graph_is_measuring_until_its_own_timings_arrive() {
+        // Passes the caller still holds are never shown while the new graph measures.
+        let passes = [("hpr.sector".to_string(), 1.0)];
+        for (held, measuring) in [(&passes[..], true), (&[][..], true), (&[][..], false)] {
+            let s = Stats {
+                measuring,
+                ..stats(held)
+            };
+            let hud = Hud::new(&s, false);
+            let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+            assert_eq!(
+                text[2..4],
+                [
+                    "GPU: measuring compute...",
+                    "points 110,000, 54,321 projected (batches in view)",
+                ]
+            );
+        }
     }
 
     #[test]
@@ -415,11 +493,24 @@ mod tests {
                 "points 110,000, 54,321 projected (batches in view)",
                 "GPU memory 3.0 MiB in use, 64.0 MiB reserved",
                 "59.9 frames/s  800x600",
+                "eye-dome lighting off (E)",
                 "color by rgb (V)",
                 "H help   Tab hide HUD",
             ]
         );
         assert_eq!(hud.panels().len(), 1);
+        let s = Stats {
+            edl: Some(Edl {
+                strength: 1.0,
+                radius: 1.4,
+            }),
+            ..stats(&passes)
+        };
+        let hud = Hud::new(&s, false);
+        assert!(hud
+            .stats
+            .iter()
+            .any(|l| l.text == "eye-dome lighting on: strength 1, radius 1.4 px (E)"));
     }
 
     #[test]
@@ -540,7 +631,41 @@ mod tests {
                 "{key} missing"
             );
         }
-        assert!(hud.stats[2].text.contains("waiting"));
+        assert!(hud.stats[2].text.contains("measuring"));
+    }
+
+    #[test]
+    fn long_parameters_wrap_and_long_file_names_are_elided() {
+        let label = "lod-compute:epsilon=0.02,budget=4000000,shape=1,levels=0,max_size=16,\
+                     a_parameter_name_longer_than_a_line_of_the_hud=1";
+        let file = format!("/data/{}autzen.copc.laz", "deep/".repeat(20));
+        let s = Stats {
+            method: label,
+            file: &file,
+            ..stats(&[])
+        };
+        let hud = Hud::new(&s, false);
+        let text: Vec<&str> = hud.stats.iter().map(|l| l.text.as_str()).collect();
+        assert_eq!(
+            text[..5],
+            [
+                "lod-compute:epsilon=0.02,budget=4000000,",
+                "  shape=1,levels=0,max_size=16,",
+                "  a_parameter_name_longer_than_a_line_of",
+                "  _the_hud=1",
+                "/data/deep/deep/de...eep/autzen.copc.laz",
+            ]
+        );
+        assert!(hud
+            .stats
+            .iter()
+            .take(5)
+            .all(|l| l.text.chars().count() <= LINE_CHARS));
+        let joined: String = text[..4].iter().map(|l| l.trim_start()).collect();
+        assert_eq!(joined, label);
+        // Short ones stay as they are.
+        assert_eq!(wrap("points:size=1", LINE_CHARS), ["points:size=1"]);
+        assert_eq!(elide("bun.ply", LINE_CHARS), "bun.ply");
     }
 
     #[test]

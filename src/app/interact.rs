@@ -524,8 +524,8 @@ impl Viewer {
     }
 
     /// Fills `frame_marks` (kept between frames, so no frame allocates) with the current
-    /// frame's markers: the HUD's scale bar, the clipping box's edges, the measurement's lines
-    /// and the picked points.
+    /// frame's markers: the HUD's scale bar, the edges of the clipping box while it clips, the
+    /// measurement's lines and the picked points.
     pub(super) fn fill_marks(&mut self, camera: &Camera) {
         let (w, h) = self.size();
         let view_proj = camera.projection(w as f32 / h.max(1) as f32) * camera.view();
@@ -534,7 +534,7 @@ impl Viewer {
         let out = &mut self.frame_marks;
         out.clear();
         out.extend_from_slice(&self.hud_marks);
-        if let Some(b) = self.filter.clip.or(self.clip_box) {
+        if let Some(b) = self.filter.clip {
             let corners = b.corners().map(at);
             for (i, j) in [
                 (0, 1),
@@ -584,16 +584,9 @@ impl Viewer {
             format!("tool: {} (T), click to pick, X clears", self.tool.name()),
             HudLine::TEXT,
         )];
-        let unit = |name: &str| {
-            if name.contains("area") {
-                " sq. units"
-            } else {
-                ""
-            }
-        };
         for (name, v) in &self.measured {
             out.push(HudLine::new(
-                format!("  {name} {v:.3}{}", unit(name)),
+                tools::measure_line(name, *v),
                 HudLine::HEADING,
             ));
         }

@@ -165,8 +165,8 @@ struct Viewer {
     script: Option<Runner>,
     /// A script's `size` step: the size asked for and the frames rendered since.
     resizing: Option<(PhysicalSize<u32>, u32)>,
-    /// Write the next frame to this PNG.
-    screenshot: Option<PathBuf>,
+    /// Write the next frame to these PNGs, in the order asked (`P`, a script's `screenshot`).
+    screenshots: Vec<PathBuf>,
     quit: bool,
     /// The post-processing shown now (`E` switches EDL on and off).
     post: PostOptions,
@@ -186,16 +186,16 @@ struct Viewer {
     measured: Vec<(&'static str, f64)>,
     /// The clipping box and hidden classes the projection passes apply.
     filter: Filter,
-    /// The last clipping box drawn (kept while `B` switches clipping off).
+    /// The last clipping box set (kept, not drawn, while clipping is off: `B` turns it back on).
     clip_box: Option<ClipBox>,
     /// `hpr::spacing` of the cloud for picking (computed on the first pick).
     spacing: Option<f64>,
     /// Tool commands waiting for the next frame's depth.
     requests: Vec<Tool>,
     bookmarks: Vec<Bookmark>,
-    /// The newest per-pass timings and the method they are of (kept while a rebuilt renderer
-    /// has none yet).
-    timings: (String, Vec<(String, f64)>),
+    /// The renderer has finished no timed frame yet (after a start, a method, parameter or
+    /// size change): the HUD says it is measuring and is rebuilt every frame until it has.
+    measuring: bool,
     /// The HUD lists every pass (`U`) instead of per-family totals.
     expanded: bool,
     /// Ctrl is held.
@@ -321,13 +321,13 @@ fn gpu_memory(ctx: &Context) -> Option<(u64, u64)> {
 }
 
 /// The first `surfel-<n>.png` (n = 1, 2, ...) that does not exist in `dir` (or the current
-/// directory).
-fn next_screenshot_path(dir: Option<&Path>) -> PathBuf {
+/// directory) and is not `pending`.
+fn next_screenshot_path(dir: Option<&Path>, pending: &[PathBuf]) -> PathBuf {
     let mut n = 1u64;
     loop {
         let name = format!("surfel-{n}.png");
         let path = dir.map_or_else(|| PathBuf::from(&name), |d| d.join(&name));
-        if !path.exists() {
+        if !path.exists() && !pending.contains(&path) {
             return path;
         }
         n += 1;
@@ -435,7 +435,7 @@ impl Viewer {
             memory: None,
             script,
             resizing: None,
-            screenshot: None,
+            screenshots: Vec::new(),
             quit: false,
             drag: None,
             cursor: Vec2::ZERO,
@@ -448,7 +448,7 @@ impl Viewer {
             measured: Vec::new(),
             spacing: None,
             requests: Vec::new(),
-            timings: (String::new(), Vec::new()),
+            measuring: true,
             expanded: false,
             ctrl: false,
             press: None,
@@ -764,7 +764,11 @@ impl Viewer {
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
         if self.streamed.is_some() {
-            bail!("a streamed file's colour field is chosen when it opens (--color-by)");
+            // Reported like a streamed pick: the tour goes on.
+            let e = "V is off for a streamed file: its colour field is chosen when it opens \
+                     (--color-by)";
+            println!("{}", serde_json::json!({ "error": e }));
+            return self.outcome(Ok(e.into()));
         }
         let fields = color::fields(&self.cloud);
         let name = color::next_field(&fields, &self.opts.color_by)
@@ -865,7 +869,9 @@ impl Viewer {
             }
             ViewerKey::Char('h') => self.help = !self.help,
             ViewerKey::Char('p') => {
-                self.screenshot = Some(next_screenshot_path(self.opts.screenshot_dir.as_deref()))
+                let path =
+                    next_screenshot_path(self.opts.screenshot_dir.as_deref(), &self.screenshots);
+                self.screenshots.push(path);
             }
             ViewerKey::Char('k') => {
                 let path = self.opts.camera_file.clone();
@@ -944,6 +950,12 @@ impl Viewer {
             );
         }
         let tool_lines = self.tool_lines();
+        if let Some(s) = &self.streamed {
+            // A streamed file's classes are those of the nodes loaded so far.
+            if s.info.coloring.mode == COLOR_CLASSIFICATION {
+                self.legend = s.legend();
+            }
+        }
         let Some(gpu) = self.gpu.as_mut() else {
             return;
         };
@@ -954,13 +966,10 @@ impl Viewer {
             .filter(|(n, _)| !n.starts_with("present"))
             .collect();
         let label = gpu.renderer.config.label();
-        // A rebuilt renderer has no timings until its first frame finishes: the previous
-        // method's stay, marked.
-        if !passes.is_empty() {
-            self.timings = (label.clone(), passes);
-        }
-        let previous = self.timings.0 != label && !self.timings.1.is_empty();
-        let passes = self.timings.1.clone();
+        // A rebuilt renderer has no timings until its first frame's timestamps are collected
+        // (when its slot comes round again, after the frames in flight): until then the HUD
+        // says it is measuring, never showing another renderer's passes.
+        self.measuring = passes.is_empty();
         let projected = match &self.scene {
             _ if gpu.renderer.config.method.needs_lod => {
                 hud::Projected::LevelOfDetail(gpu.renderer.samples_per_level().map(<[u64]>::to_vec))
@@ -1008,11 +1017,12 @@ impl Viewer {
                 fps: self.rate.fps,
                 memory: self.memory,
                 use_color: self.use_color,
+                edl: self.post.edl,
                 color_by: &self.opts.color_by,
                 legend: &self.legend,
                 status: &self.status,
                 expanded: self.expanded,
-                previous,
+                measuring: self.measuring,
                 hidden: &self.filter.hidden,
                 tools: &tool_lines,
             },
@@ -1033,7 +1043,7 @@ impl Viewer {
             self.opts.color_by,
             ms.join(" | "),
             if self.use_color { "" } else { " (no color)" },
-            if previous { " (previous method)" } else { "" }
+            if self.measuring { " (measuring)" } else { "" }
         ));
         self.hud_marks.clear();
         if let Some(panel) = self.scale_bar(coloring, width, height) {
@@ -1128,10 +1138,14 @@ impl Viewer {
                     return self.run_script();
                 }
                 Next::Frame(shot) => {
-                    if shot.is_some() {
-                        self.screenshot = shot;
-                    }
+                    self.screenshots.extend(shot);
                     return Ok(true);
+                }
+                Next::Tool(Tool::Click(x, y)) => {
+                    // A legend line toggles its class at once; a pick waits for a frame.
+                    if self.click(x, y)? {
+                        return Ok(true);
+                    }
                 }
                 Next::Tool(tool) if tool.needs_frame() => {
                     // Runs on the next frame's depth.
@@ -1176,9 +1190,6 @@ impl Viewer {
         if (size.width, size.height) != (gpu.swapchain.extent.width, gpu.swapchain.extent.height) {
             self.rebuild()?;
         }
-        if self.hud_dirty {
-            self.refresh_hud();
-        }
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -1212,6 +1223,11 @@ impl Viewer {
                 )?;
             }
             gpu.renderer.set_batches(streamed.batches())?;
+            let classes = streamed.info.coloring.mode == COLOR_CLASSIFICATION;
+            if classes && streamed.legend_classes() != self.legend.len() {
+                // A class arrived with a node: its legend line appears at once.
+                self.hud_dirty = true;
+            }
             for m in streamed.take_messages() {
                 eprintln!("warning: {m}");
                 self.status = m;
@@ -1221,9 +1237,14 @@ impl Viewer {
         let Some(index) = gpu.swapchain.acquire(available)? else {
             return self.rebuild();
         };
-        let shot = self.screenshot.take();
-        let readback = shot.is_some() || !self.requests.is_empty();
+        let shots = std::mem::take(&mut self.screenshots);
+        let readback = !shots.is_empty() || !self.requests.is_empty();
         let camera = self.orbit.camera();
+        // After `begin_frame`, which collects the timings of the frame that used this slot:
+        // while the renderer has none yet, every frame looks for them.
+        if !loading && (self.hud_dirty || self.measuring) {
+            self.refresh_hud();
+        }
         self.fill_marks(&camera);
         let Some(gpu) = self.gpu.as_mut() else {
             return Ok(());
@@ -1253,7 +1274,7 @@ impl Viewer {
         if readback {
             gpu.renderer.finish()?;
             let frame = gpu.renderer.read_frame()?;
-            if let Some(path) = shot {
+            for path in shots {
                 let written =
                     write_png(&path, &frame).map(|()| format!("screenshot {}", path.display()));
                 self.outcome(written)?;
@@ -1271,17 +1292,24 @@ impl Viewer {
         Ok(())
     }
 
-    /// A left click at a window pixel: on a legend line it toggles the class, elsewhere the
-    /// current tool picks there (on the next frame's depth).
-    fn click(&mut self, x: i32, y: i32) -> Result<()> {
+    /// A left click at a window pixel: on a legend line of the HUD as it stands it toggles the
+    /// class, elsewhere the current tool picks there on the next frame's depth (then it returns
+    /// true).
+    fn click(&mut self, x: i32, y: i32) -> Result<bool> {
+        if self.hud_dirty {
+            self.refresh_hud();
+        }
         if let Some(class) = self.legend_class_at(x as f32, y as f32) {
-            return match u8::try_from(class) {
-                Ok(c) => self.toggle_class(c),
-                Err(_) => self.outcome(Ok("values that are not classes cannot be hidden".into())),
-            };
+            match u8::try_from(class) {
+                Ok(c) => self.toggle_class(c)?,
+                Err(_) => {
+                    self.outcome(Ok("values that are not classes cannot be hidden".into()))?
+                }
+            }
+            return Ok(false);
         }
         self.requests.push(Tool::Click(x, y));
-        Ok(())
+        Ok(true)
     }
 
     /// The legend class whose HUD line is at window pixel (x, y), if any.
@@ -1345,6 +1373,7 @@ impl ApplicationHandler for Viewer {
                         // A release where the button went down is a click, not a drag.
                         if (self.cursor - at).length() <= CLICK_SLOP {
                             self.click(self.cursor.x as i32, self.cursor.y as i32)
+                                .map(|_| ())
                         } else {
                             Ok(())
                         }

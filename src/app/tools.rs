@@ -316,12 +316,22 @@ pub fn measure(m: Measure, points: &[DVec3], up: Up) -> Vec<(&'static str, f64)>
                 .sum();
             vec![
                 ("area", v.length()),
-                ("horizontal_area", v.dot(axis).abs()),
+                ("plan_area", v.dot(axis).abs()),
                 ("perimeter", perimeter),
             ]
         }
         _ => Vec::new(),
     }
+}
+
+/// The HUD line of measured value `name` (its words spaced; areas in square units).
+pub fn measure_line(name: &str, value: f64) -> String {
+    let unit = if name.contains("area") {
+        " sq. units"
+    } else {
+        ""
+    };
+    format!("  {} {value:.3}{unit}", name.replace('_', " "))
 }
 
 #[cfg(test)]
@@ -346,6 +356,13 @@ mod tests {
             o + DVec3::Y * 3.0,
         ];
         let area = measure(Measure::Area, &square, Up::Z);
+        let names: Vec<&str> = area.iter().map(|(n, _)| *n).collect();
+        assert_eq!(names, ["area", "plan_area", "perimeter"]);
+        assert_eq!(
+            measure_line("plan_area", 6.0),
+            "  plan area 6.000 sq. units"
+        );
+        assert_eq!(measure_line("horizontal", 5.0), "  horizontal 5.000");
         assert!((area[0].1 - 6.0).abs() < 1e-9 && (area[1].1 - 6.0).abs() < 1e-9);
         assert!((area[2].1 - 10.0).abs() < 1e-9);
         // A vertical wall has an area but no plan area.

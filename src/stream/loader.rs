@@ -61,6 +61,9 @@ pub struct EncodedNode {
     pub batches: Vec<GpuBatch>,
     /// Every stream of [`Loader::streams`] in turn, each `StreamLayout::stream_bytes` long.
     pub data: Vec<u8>,
+    /// The node's points per classification class, ascending (`color::legend`; empty without
+    /// the field).
+    pub classes: Vec<(u32, usize)>,
 }
 
 /// What a worker finished.
@@ -468,10 +471,15 @@ fn encode(shared: &Shared, key: Key, mut cloud: Cloud) -> Result<EncodedNode, Lo
     if n > 0 {
         layout.encode_chunk(&cloud, 0..n as u64, &mut data);
     }
+    let classes = crate::color::legend(&cloud)
+        .into_iter()
+        .map(|e| (e.class, e.count))
+        .collect();
     Ok(EncodedNode {
         key,
         points: n as u32,
         batches: layout.batches,
         data,
+        classes,
     })
 }

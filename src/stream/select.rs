@@ -8,7 +8,8 @@
 //! it fits both budgets; a node's children are candidates only when it is in the view frustum
 //! and its own point spacing ([`spacing`]) projects to more than `error_px` pixels (the
 //! screen-space error: a finer level would add visible detail). The first candidate that does not fit ends the
-//! selection, so a large near node is never skipped for many small far ones.
+//! selection, so a large near node is never skipped for many small far ones. The root is taken
+//! even when it alone exceeds the point budget: a view always draws it.
 //!
 //! [`select`] uses a heap; [`select_brute_force`] rescans every node per step and exists to
 //! check it.
@@ -194,6 +195,16 @@ fn expand(h: &Hierarchy, key: Key, m: &Measure, pages: &mut Vec<Key>) -> Vec<Key
         .collect()
 }
 
+/// `budget` with its point budget raised to the root node's points: the root is drawn
+/// whatever the point budget (a view without it would be empty).
+fn with_root(h: &Hierarchy, budget: Budget) -> Budget {
+    let root = h.nodes.get(&Key::ROOT).map_or(0, |n| n.points);
+    Budget {
+        points: budget.points.max(root),
+        ..budget
+    }
+}
+
 /// The nodes `view` draws from `h` within `budget` (see the module documentation).
 pub fn select(
     h: &Hierarchy,
@@ -202,6 +213,7 @@ pub fn select(
     view: &SelectView,
     budget: Budget,
 ) -> Selection {
+    let budget = with_root(h, budget);
     let mut out = Selection::default();
     let mut heap = BinaryHeap::new();
     if let Some(root) = h.nodes.get(&Key::ROOT) {
@@ -235,6 +247,7 @@ pub fn select_brute_force(
     view: &SelectView,
     budget: Budget,
 ) -> Selection {
+    let budget = with_root(h, budget);
     let mut out = Selection::default();
     let mut chosen = HashSet::new();
     loop {

@@ -12,7 +12,7 @@
 //! rendering goes on with the rest.
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet, VecDeque};
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -20,7 +20,7 @@ use ash::vk;
 use glam::Vec3;
 
 use super::{GpuScene, SceneInfo};
-use crate::color::Coloring;
+use crate::color::{self, Coloring, LegendEntry};
 use crate::gpu::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
@@ -129,6 +129,11 @@ pub struct StreamedScene {
     table: Vec<GpuBatch>,
     frame: u64,
     evicted: u64,
+    /// The point budget was found below the root node's points (warned once).
+    budget_warned: bool,
+    /// Points per classification class of the nodes placed so far, each node counted once.
+    classes: BTreeMap<u32, usize>,
+    counted: HashSet<Key>,
 }
 
 impl StreamedScene {
@@ -237,7 +242,11 @@ impl StreamedScene {
             table,
             frame: 0,
             evicted: 0,
+            budget_warned: false,
+            classes: BTreeMap::new(),
+            counted: HashSet::new(),
         };
+        out.check_budget();
         // The root is resident before the first frame.
         let root = out.loader.encode(Key::ROOT, opened.root)?;
         out.ready.insert(Key::ROOT, root);
@@ -260,6 +269,38 @@ impl StreamedScene {
     /// Changes the point budget from the next update on.
     pub fn set_point_budget(&mut self, points: u64) {
         self.options.point_budget = points;
+        self.check_budget();
+    }
+
+    /// The classes of the nodes loaded so far with their points (every node once, also
+    /// after it was evicted), for the HUD's legend: it grows as nodes arrive.
+    pub fn legend(&self) -> Vec<LegendEntry> {
+        self.classes
+            .iter()
+            .map(|(&class, &count)| color::legend_entry(class, count))
+            .collect()
+    }
+
+    /// How many classes [`Self::legend`] lists.
+    pub fn legend_classes(&self) -> usize {
+        self.classes.len()
+    }
+
+    /// Points of the root node (drawn whatever the point budget).
+    pub fn root_points(&self) -> u64 {
+        self.hierarchy.nodes.get(&Key::ROOT).map_or(0, |n| n.points)
+    }
+
+    /// A point budget below the root node's points still draws the root: says so once.
+    fn check_budget(&mut self) {
+        let root = self.root_points();
+        if self.options.point_budget < root && !self.budget_warned {
+            self.budget_warned = true;
+            self.messages.push(format!(
+                "the point budget {} is below the root node's {root} points; drawing the root",
+                self.options.point_budget
+            ));
+        }
     }
 
     /// Points in the file.
@@ -455,6 +496,11 @@ impl StreamedScene {
         }
         let node = self.ready.remove(&key).expect("ready");
         *budget -= bytes;
+        if self.counted.insert(key) {
+            for &(class, count) in &node.classes {
+                *self.classes.entry(class).or_default() += count;
+            }
+        }
         let slots: Vec<u32> = (0..need)
             .map(|_| self.free.pop().expect("counted").0)
             .collect();

@@ -282,12 +282,18 @@ fn node_selection_matches_a_brute_force_reference_within_budget() {
             (400_000, 1000),
             (2_000_000, 60),
             (u64::MAX, u64::MAX),
+            (1, 1000),
         ] {
             let budget = Budget { points, slots };
             let fast = select(&h, &info, DVec3::ZERO, v, budget);
             let slow = select_brute_force(&h, &info, DVec3::ZERO, v, budget);
             assert_eq!(fast, slow, "budget {budget:?}");
-            assert!(fast.points <= points && fast.slots <= slots);
+            // A budget below the root still draws the root, alone.
+            let root = h.nodes[&Key::ROOT].points;
+            assert!(fast.points <= points.max(root) && fast.slots <= slots);
+            if points < root {
+                assert_eq!(fast.nodes, [Key::ROOT]);
+            }
             let sum: u64 = fast.nodes.iter().map(|k| h.nodes[k].points).sum();
             assert_eq!(sum, fast.points);
             let chosen: std::collections::HashSet<_> = fast.nodes.iter().collect();
@@ -525,7 +531,8 @@ mod gpu {
                 assert!(round < 2000, "streaming never settled");
                 s.update(&camera, size, size).unwrap();
                 let stats = s.stats();
-                assert!(stats.selected_points <= options.point_budget);
+                // The root alone may exceed the budget: it is drawn whatever the budget.
+                assert!(stats.selected_points <= options.point_budget || stats.selected_nodes == 1);
                 assert!(stats.used_slots <= stats.slots);
                 // Frames are drawn while nodes arrive, as the viewer does.
                 r.render_batches(&view, Some(s.batches()), false).unwrap();
@@ -585,6 +592,118 @@ fn streaming_everything_matches_the_loaded_file() {
 
 /// A budget that makes the view choose part of the octree.
 const PART: u64 = 150_000;
+
+/// The root node's point count in the COPC file at `path`.
+fn root_points(path: &Path) -> u64 {
+    let source = FileSource::open(path).unwrap();
+    let copc = CopcFile::open(&source).unwrap();
+    let (at, len) = copc.info.root;
+    scene::copc::read_page(&copc.file, &source, at, len, copc.size)
+        .unwrap()
+        .into_iter()
+        .find_map(|e| match e {
+            Entry::Node(n) if n.key == Key::ROOT => Some(n.points),
+            _ => None,
+        })
+        .unwrap()
+}
+
+#[test]
+fn a_point_budget_below_the_root_node_draws_the_root_with_one_warning() {
+    let path = gpu::dragon();
+    let root = root_points(&path);
+    assert!(root > 1_000, "{root}");
+    let render = |budget: u64, out: &str| {
+        let out = scratch(out);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_surfel"))
+            .arg("render")
+            .arg(&path)
+            .args(["--stream", "--size", "128x128", "--point-budget"])
+            .arg(budget.to_string())
+            .arg("--out")
+            .arg(&out)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        (image::open(&out).unwrap().to_rgba8(), stderr)
+    };
+    let (tiny, warned) = render(1, "budget-1.png");
+    let (whole_root, quiet) = render(root, "budget-root.png");
+    let warning = format!(
+        "warning: the point budget 1 is below the root node's {root} points; drawing the root"
+    );
+    assert_eq!(
+        warned
+            .lines()
+            .filter(|l| l.starts_with("warning"))
+            .collect::<Vec<_>>(),
+        [warning.as_str()],
+        "{warned}"
+    );
+    assert!(!quiet.contains("warning"), "{quiet}");
+    let drawn = format!("{root} of {root} selected points drawn from 1 nodes");
+    assert!(
+        warned.contains(&drawn) && quiet.contains(&drawn),
+        "{warned}\n{quiet}"
+    );
+    // The root's points, exactly as a budget of the root's size draws them.
+    let covered = |img: &image::RgbaImage| img.pixels().filter(|p| p.0[..3] != [0, 0, 0]).count();
+    assert!(covered(&tiny) > 500, "{}", covered(&tiny));
+    assert_eq!(covered(&tiny), covered(&whole_root));
+    assert!(tiny == whole_root);
+}
+
+#[test]
+fn the_streamed_legend_lists_the_classes_of_every_node_loaded_with_their_points() {
+    use surfel::upload::streamed::StreamedScene;
+
+    // A survey whose class 65 is two points: the root's subsample lacks it.
+    let mut cloud = survey(40_000);
+    let classes = &mut cloud
+        .scalars
+        .iter_mut()
+        .find(|s| s.name == "classification")
+        .unwrap()
+        .values;
+    classes[7] = 65.0;
+    classes[39_998] = 65.0;
+    let path = scratch("legend.copc.laz");
+    convert::write_with(&cloud, &path, 2_000).unwrap();
+    let ctx = common::context();
+    let mut s = StreamedScene::open(
+        &ctx,
+        path.to_str().unwrap(),
+        &gpu::options(u64::MAX, 64 << 20, 0.0),
+        |root| Ok(surfel::color::select(root, "classification", surfel::scene::Up::Z).unwrap()),
+        2,
+    )
+    .unwrap();
+    let has =
+        |legend: &[surfel::color::LegendEntry], class: u32| legend.iter().any(|e| e.class == class);
+    // At open: the root's classes.
+    assert_eq!(s.legend(), surfel::color::legend(&s.root));
+    assert!(!has(&s.legend(), 65), "the root holds class 65");
+    let (centre, radius) = s.bounding_sphere();
+    let camera = gpu::framing(centre, radius);
+    for round in 0.. {
+        assert!(round < 2000, "streaming never settled");
+        s.update(&camera, 128, 128).unwrap();
+        if s.stable() {
+            break;
+        }
+        s.wait(std::time::Duration::from_millis(50));
+    }
+    // Every node loaded: the file's classes with their exact counts, class 65 included.
+    assert_eq!(s.stats().drawn_points, 40_000);
+    let whole = surfel::color::legend(&scene::load(&path).unwrap());
+    assert_eq!(s.legend(), whole);
+    assert_eq!(s.legend_classes(), 13);
+    let rare = s.legend().into_iter().find(|e| e.class == 65).unwrap();
+    assert_eq!(rare.count, 2);
+    common::assert_clean(&ctx);
+}
 
 #[test]
 fn http_and_local_file_stream_the_same_image() {

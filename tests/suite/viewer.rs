@@ -633,3 +633,71 @@ fn a_missing_screenshot_directory_is_created() {
         "{err}"
     );
 }
+
+#[test]
+fn key_p_then_a_screenshot_writes_both_from_the_same_frame() {
+    let dir = tmp_dir("p-then-shot");
+    std::fs::write(
+        dir.join("t.txt"),
+        "frames 1\nkey Tab\nkey P\nscreenshot b.png\nkey P\nkey P\norbit 90,10\nscreenshot c.png\n",
+    )
+    .expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &data("stanford/bun_zipper.ply"),
+        &["--size", "160x120", "--script", "t.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let written: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("screenshot "))
+        .collect();
+    assert_eq!(
+        written,
+        [
+            "screenshot surfel-1.png",
+            "screenshot b.png",
+            "screenshot surfel-2.png",
+            "screenshot surfel-3.png",
+            "screenshot c.png",
+        ],
+        "{stdout}"
+    );
+    let shot = |name: &str| png(&dir.join(name));
+    assert_eq!(difference(&shot("surfel-1.png"), &shot("b.png")).0, 0);
+    assert_eq!(difference(&shot("surfel-2.png"), &shot("c.png")).0, 0);
+    assert_eq!(difference(&shot("surfel-3.png"), &shot("c.png")).0, 0);
+    assert!(difference(&shot("b.png"), &shot("c.png")).0 > 100);
+}
+
+#[test]
+fn key_v_in_a_streamed_tour_is_reported_and_the_tour_goes_on() {
+    let dir = tmp_dir("stream-v");
+    let cloud = surfel::scene::load(&data("stanford/bun_zipper.ply")).expect("load");
+    let copc = dir.join("bunny.copc.laz");
+    surfel::stream::convert::write_with(&cloud, &copc, 5_000).expect("convert");
+    std::fs::write(dir.join("t.txt"), "frames 1\nkey V\nscreenshot after.png\n").expect("script");
+    let o = view(
+        &dir,
+        "800x600",
+        &copc,
+        &["--size", "160x120", "--stream", "--script", "t.txt"],
+    );
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let e = "V is off for a streamed file: its colour field is chosen when it opens (--color-by)";
+    let lines: Vec<&str> = stdout.lines().collect();
+    let json = serde_json::json!({ "error": e }).to_string();
+    let at = lines
+        .iter()
+        .position(|l| *l == json)
+        .unwrap_or_else(|| panic!("no error line: {stdout}"));
+    assert_eq!(lines[at + 1], e);
+    assert!(
+        lines[at + 2..].contains(&"screenshot after.png"),
+        "{stdout}"
+    );
+    assert_eq!(png(&dir.join("after.png")).dimensions(), (160, 120));
+}

@@ -392,3 +392,104 @@ fn m_reaches_every_method_and_plus_bookmarks_and_the_budget_keys_act() {
         differ("a.png", "c.png")
     );
 }
+
+#[test]
+fn a_scripted_click_on_a_legend_line_toggles_its_class() {
+    let dir = tmp_dir("legend-click");
+    let (points, classes) = grid();
+    let ply = dir.join("grid.ply");
+    write_ply(&ply, &points, Some(&classes));
+    // One click on every row of the stats panel (left edge, mid-line): the four legend lines
+    // hide their classes, the other rows pick (away from the grid: nothing there).
+    let line = surfel::overlay::atlas().expect("atlas").line_height;
+    let top = surfel::overlay::MARGIN + surfel::overlay::PADDING;
+    let x = top as i32 + 4;
+    // The class stream is uploaded (and the graph rebuilt, which changes the HUD's lines
+    // until the new graph is timed) the first time a class is hidden: before the clicks.
+    let mut script = String::from("filter hide 0\nframes 5\nfilter all\nframes 5\ncount\n");
+    let rows = 20;
+    for row in 0..rows {
+        let y = (top + (row as f32 + 0.5) * line) as i32;
+        script.push_str(&format!("click {x} {y}\n"));
+    }
+    script.push_str("count\n");
+    std::fs::write(dir.join("t.txt"), script).expect("script");
+    let args = [
+        "--size",
+        "480x480",
+        "--script",
+        "t.txt",
+        "--eye",
+        "0,0,10",
+        "--target",
+        "0,0,0",
+        "--k",
+        "0",
+        "--color-by",
+        "classification",
+    ];
+    let o = view(&dir, "800x600", &ply, &args);
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let hidden: Vec<Value> = records(&stdout, "filter")
+        .iter()
+        .skip(2)
+        .map(|f| f["hidden_classes"].clone())
+        .collect();
+    assert_eq!(
+        hidden,
+        [
+            serde_json::json!([0]),
+            serde_json::json!([0, 1]),
+            serde_json::json!([0, 1, 2]),
+            serde_json::json!([0, 1, 2, 3]),
+        ],
+        "{stdout}"
+    );
+    assert_eq!(records(&stdout, "pick").len(), rows - 4, "{stdout}");
+    let counts: Vec<(u64, u64)> = records(&stdout, "count")
+        .iter()
+        .map(|c| {
+            (
+                c["covered_pixels"].as_u64().expect("pixels"),
+                c["kept_points"].as_u64().expect("kept"),
+            )
+        })
+        .collect();
+    assert_eq!(counts, [(400, 400), (0, 0)], "{stdout}");
+}
+
+#[test]
+fn the_clipping_box_outline_is_drawn_only_while_the_box_clips() {
+    let dir = tmp_dir("clip-outline");
+    let (points, classes) = grid();
+    let ply = dir.join("grid.ply");
+    write_ply(&ply, &points, Some(&classes));
+    // The box's corner of the grid is drawn below and right of the HUD's panel.
+    let script = "frames 2\nclip box 0.45 -0.95 -1 0.95 -0.45 1\nscreenshot on.png\nclip off\n\
+                  screenshot off.png\nclip outside\nscreenshot outside.png\n";
+    std::fs::write(dir.join("t.txt"), script).expect("script");
+    let args = [
+        "--size", "640x480", "--script", "t.txt", "--eye", "0,0,10", "--target", "0,0,0", "--k",
+        "0",
+    ];
+    let o = view(&dir, "800x600", &ply, &args);
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    // The outline's colour (the overlay draws it opaque); the grid is drawn in another.
+    let outline = |name: &str| {
+        image::open(dir.join(name))
+            .expect("png")
+            .to_rgb8()
+            .pixels()
+            .filter(|p| p.0 == [110, 200, 255])
+            .count()
+    };
+    let (on, off, outside) = (
+        outline("on.png"),
+        outline("off.png"),
+        outline("outside.png"),
+    );
+    assert!(on > 100, "{on} outline pixels");
+    assert_eq!(off, 0, "the outline stays after `clip off`");
+    assert_eq!(outside, on, "`clip outside` draws the remembered box again");
+}
