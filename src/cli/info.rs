@@ -94,7 +94,10 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
     }
     let (up, source) = match a.up {
         Some(up) => (up, "--up"),
-        None => (cloud.up, "format default"),
+        None => (
+            cloud.up,
+            cloud.stats.up_rule.as_deref().unwrap_or("format default"),
+        ),
     };
     println!("up axis           {} ({source})", up.name());
     let n = cloud.len() as u64;

@@ -13,7 +13,7 @@ pub struct Scalar {
 }
 
 /// What a loader had to do to the file's records, reported by `surfel info`.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadStats {
     /// Records in the file (header count for PLY/PCD/LAS).
     pub records: usize,
@@ -27,6 +27,9 @@ pub struct LoadStats {
     pub levels: Option<Levels>,
     /// For a text file without column names: the columns as their count made them.
     pub guessed_columns: Option<String>,
+    /// Why the loader chose [`Cloud::up`] from the data, when it did; `None` leaves the
+    /// format's convention ([`super::format_up`]).
+    pub up_rule: Option<String>,
 }
 
 /// The octree levels of a COPC file and the levels a point budget let a load read.
@@ -125,8 +128,9 @@ pub struct Cloud {
     /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
     /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
     pub sensor: Option<Vec3>,
-    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ,
-    /// COPC, E57 and PCD; +y otherwise); cameras orbit about it.
+    /// The axis pointing up in the data: the format's convention (+z for LAS, LAZ, COPC, E57
+    /// and PCD; +y otherwise), or what the loader read from the data (`stats.up_rule`: an
+    /// organized PCD's camera frame, survey-sized text coordinates); cameras orbit about it.
     pub up: Up,
 }
 

@@ -34,15 +34,24 @@
 //!
 //! Values are read as f64; the position's f64 centre is subtracted when the coordinates are
 //! large (UTM, ~5 × 10⁶ m), as for the binary formats, so centimetres survive the f32 cloud.
+//!
+//! **Up axis.** Text clouds are +y up (the convention of the mesh formats) unless their
+//! coordinates are survey-sized: x and y both reach [`SURVEY_MAGNITUDE`] (10⁴) in absolute
+//! value, or either reaches [`RECENTRE_MAGNITUDE`] (10⁵, which also re-centres the cloud), as
+//! projected coordinates such as UTM eastings and northings do. Those are +z up.
 
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
 
+use super::camera::Up;
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::{show, LoadError};
 use super::pcd::RECENTRE_MAGNITUDE;
 use super::text::{self, Lines};
+
+/// Coordinates this large in both x and y make a text cloud z-up (see the module docs).
+pub const SURVEY_MAGNITUDE: f64 = 1e4;
 
 /// More columns than this on a line is refused (a 10 MB line of one-byte values would
 /// otherwise make millions of scalar attributes).
@@ -401,6 +410,10 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
             _ => None,
         })
         .collect();
+    let magnitude = bounds.lo.abs().max(bounds.hi.abs());
+    let survey = bounds.centre().is_some()
+        && ((magnitude.x >= SURVEY_MAGNITUDE && magnitude.y >= SURVEY_MAGNITUDE)
+            || magnitude.x.max(magnitude.y) >= RECENTRE_MAGNITUDE);
     let mut cloud = Cloud {
         positions: rows.iter().map(|r| (world(r) - origin).as_vec3()).collect(),
         normals,
@@ -409,8 +422,11 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
         origin,
         stats: LoadStats {
             records: rows.len(),
+            up_rule: survey
+                .then(|| "survey-sized x, y coordinates (projected, such as UTM): z up".to_owned()),
             ..LoadStats::default()
         },
+        up: if survey { Up::Z } else { Up::Y },
         ..Cloud::default()
     };
     cloud.retain_finite();
@@ -514,6 +530,23 @@ mod tests {
                 .max_element()
                 < 1e-3
         );
+    }
+
+    #[test]
+    fn survey_sized_coordinates_are_z_up() {
+        let rule = "survey-sized x, y coordinates (projected, such as UTM): z up";
+        for text in [
+            &b"500000.01 4320000.01 100.01\n500004.36 4320004.36 104.36\n"[..],
+            b"-10000 10000 0\n0 0 5\n",
+            b"100000 5 0\n0 0 5\n",
+        ] {
+            let c = parse("utm.xyz", text).unwrap();
+            assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Z, Some(rule)));
+        }
+        for text in [&b"9999 9999 0\n0 0 1\n"[..], b"10000 5 1000000\n0 0 1\n"] {
+            let c = parse("local.xyz", text).unwrap();
+            assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Y, None));
+        }
     }
 
     #[test]

@@ -357,6 +357,39 @@ fn info_prints_the_up_axis_of_the_format_or_the_override() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("up axis           -x"));
 }
 
+#[test]
+fn info_prints_the_up_axis_the_data_chose() {
+    let o = surfel(&[
+        "info",
+        data("pcd/milk_cartoon_all_small_clorox.pcd")
+            .to_str()
+            .expect("utf8"),
+        "--no-device",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout)
+            .contains("up axis           -y (organized PCD 640x480: a camera's frame, y down)\n"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let utm = tmp("utm.xyz");
+    std::fs::write(
+        &utm,
+        "500000.01 4320000.01 100.01\n500004.36 4320004.36 104.36\n500002 4320001 103\n",
+    )
+    .expect("write");
+    let o = surfel(&["info", utm.to_str().expect("utf8"), "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(
+            "up axis           z (survey-sized x, y coordinates (projected, such as UTM): z up)\n"
+        ),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+}
+
 /// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
 fn info(rel: &str, extra: &[&str]) -> String {
     let path = data(rel);
