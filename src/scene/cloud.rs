@@ -30,6 +30,9 @@ pub struct LoadStats {
     /// Why the loader chose [`Cloud::up`] from the data, when it did; `None` leaves the
     /// format's convention ([`super::format_up`]).
     pub up_rule: Option<String>,
+    /// Problems that did not stop the load, each naming the file (`scene::load_with` prints
+    /// them on stderr).
+    pub warnings: Vec<String>,
 }
 
 /// The octree levels of a COPC file and the levels a point budget let a load read.

@@ -104,6 +104,9 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
     if cloud.stats.up_rule.is_none() {
         cloud.up = up;
     }
+    for warning in &cloud.stats.warnings {
+        eprintln!("warning: {warning}");
+    }
     Ok(cloud)
 }
 

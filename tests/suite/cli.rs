@@ -390,6 +390,21 @@ fn info_prints_the_up_axis_the_data_chose() {
     );
 }
 
+#[test]
+fn a_possibly_truncated_obj_loads_with_a_warning() {
+    let obj = tmp("cut.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3").expect("write");
+    let o = surfel(&["info", obj.to_str().expect("utf8"), "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "warning: {}: line 4: the file ends inside a \"f\" record, without a line end; it may be cut short\n",
+            obj.display()
+        )
+    );
+}
+
 /// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
 fn info(rel: &str, extra: &[&str]) -> String {
     let path = data(rel);
