@@ -110,18 +110,63 @@ fn role(name: &str) -> Role {
     }
 }
 
-/// The tokens of a line: split at commas, semicolons and white space, each without the quotes
-/// a spreadsheet puts around names and values.
+/// Whether `b` separates the values of a row: a comma, semicolon or white space.
+fn value_separator(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | b'\r' | 0x0c | b',' | b';')
+}
+
+/// Whether `b` separates the names of a name row that has commas, semicolons or tabs, where
+/// a space belongs to a name (`M3C2 distance`, as CloudCompare writes it).
+fn name_separator(b: u8) -> bool {
+    matches!(b, b'\t' | b',' | b';')
+}
+
+/// The non-empty tokens of `line` between `separator`s, white space around them trimmed. A
+/// token opening with a quote (`"` or `'`, as spreadsheets write names and values) runs to the
+/// matching quote, separators included, and is returned without its quotes.
+fn split_fields(line: &[u8], separator: fn(u8) -> bool) -> impl Iterator<Item = &[u8]> {
+    let mut rest = line;
+    std::iter::from_fn(move || loop {
+        let start = rest
+            .iter()
+            .position(|&b| !separator(b) && !b.is_ascii_whitespace())?;
+        rest = &rest[start..];
+        let quote = rest[0];
+        let token = if quote == b'"' || quote == b'\'' {
+            let end = rest[1..].iter().position(|&b| b == quote);
+            let token = &rest[1..end.map_or(rest.len(), |e| e + 1)];
+            rest = &rest[end.map_or(rest.len(), |e| e + 2)..];
+            token
+        } else {
+            let end = rest
+                .iter()
+                .position(|&b| separator(b))
+                .unwrap_or(rest.len());
+            let token = rest[..end].trim_ascii_end();
+            rest = &rest[end..];
+            token
+        };
+        if !token.is_empty() {
+            return Some(token);
+        }
+    })
+}
+
+/// The values of a row: split at commas, semicolons and white space (quotes as
+/// [`split_fields`] reads them).
 fn fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
-    line.split(|&b| matches!(b, b' ' | b'\t' | b'\r' | 0x0c | b',' | b';'))
-        .filter(|t| !t.is_empty())
-        .map(|t| {
-            let t = t.strip_prefix(b"\"").unwrap_or(t);
-            let t = t.strip_suffix(b"\"").unwrap_or(t);
-            let t = t.strip_prefix(b"'").unwrap_or(t);
-            t.strip_suffix(b"'").unwrap_or(t)
-        })
-        .filter(|t| !t.is_empty())
+    split_fields(line, value_separator)
+}
+
+/// The names of a name row: split at commas, semicolons and tabs when it has any (a name may
+/// hold spaces), else at white space; quoted names keep what their quotes hold.
+fn name_fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let separator = if line.iter().any(|&b| name_separator(b)) {
+        name_separator
+    } else {
+        value_separator
+    };
+    split_fields(line, separator)
 }
 
 /// The roles of the named columns `names`, checked: x, y and z present, each role at most once.
@@ -162,7 +207,7 @@ fn named(names: &[String]) -> Result<Vec<Role>, String> {
 /// Whether `line` is a row of column names: text without control characters (binary data is
 /// not), with a token that is not a number, each such token starting with a letter or `_`.
 fn is_name_row(line: &[u8]) -> bool {
-    let words: Vec<&[u8]> = fields(line)
+    let words: Vec<&[u8]> = name_fields(line)
         .filter(|t| text::parse_f64(t).is_none())
         .collect();
     std::str::from_utf8(line).is_ok_and(|s| !s.chars().any(|c| c.is_control() && c != '\t'))
@@ -201,7 +246,7 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
         // it does when it names x, y and z, else it is a comment.
         let names_text = comment.unwrap_or(trimmed);
         if first && is_name_row(names_text) {
-            let names: Vec<String> = fields(names_text)
+            let names: Vec<String> = name_fields(names_text)
                 .map(|t| String::from_utf8_lossy(t).into_owned())
                 .collect();
             match named(&names) {
@@ -500,6 +545,23 @@ mod tests {
         assert_eq!(c.colors.as_ref().unwrap()[0], [1, 0, 255, 255]);
         assert_eq!(scalar(&c, "gps_time"), [0.0, 0.25]);
         assert_eq!(scalar(&c, "Reflectance"), [0.5, 1.0]);
+    }
+
+    #[test]
+    fn names_keep_their_spaces_inside_quotes_or_between_commas() {
+        for text in [
+            &b"X Y Z \"M3C2 distance\" 'point id'\n1 2 3 0.5 7\n"[..],
+            b"//X,Y,Z,M3C2 distance,point id\n1,2,3,0.5,7\n",
+            b"x;y;z;\"M3C2 distance\";\"point id\"\r\n1;2;3;0.5;7\r\n",
+            b"x\ty\tz\t M3C2 distance \tpoint id\n1\t2\t3\t0.5\t7\n",
+        ] {
+            let c = parse("m3c2.txt", text).unwrap();
+            assert_eq!(c.positions, [Vec3::new(1., 2., 3.)]);
+            assert_eq!(scalar(&c, "M3C2 distance"), [0.5]);
+            assert_eq!(scalar(&c, "point id"), [7.0]);
+        }
+        let fields: Vec<&[u8]> = fields(b"\"a,b\" 'c d' \"\" 'open").collect();
+        assert_eq!(fields, [&b"a,b"[..], b"c d", b"open"]);
     }
 
     #[test]
