@@ -2,7 +2,9 @@
 //! commas, semicolons, tabs or spaces (CRLF line ends too); blank lines are ignored.
 //!
 //! **Named columns** follow PDAL's text reader: a first line of column names (`X,Y,Z,Intensity`,
-//! quoted or not, in any order and any case, also CloudCompare's `//X,Y,Z,R,G,B`) names every
+//! quoted or not, in any order and any case, also CloudCompare's `//X,Y,Z,R,G,B`; a quoted
+//! name keeps its spaces, and so does every name of a row separated by commas, semicolons or
+//! tabs, such as `M3C2 distance`) names every
 //! column, or `--columns x,y,z,intensity` names them for a file without that line. Names are
 //! matched case-insensitively, ignoring `_`, `-` and spaces:
 //!
