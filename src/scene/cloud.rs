@@ -33,6 +33,32 @@ pub struct LoadStats {
     /// Problems that did not stop the load, each naming the file (`scene::load_with` prints
     /// them on stderr).
     pub warnings: Vec<String>,
+    /// For a LAS, LAZ or COPC file: its header's description.
+    pub las: Option<LasSummary>,
+    /// The exact bounds of the points read, in f64 file coordinates, where the loader keeps
+    /// them (LAS, LAZ, COPC).
+    pub file_bounds: Option<[DVec3; 2]>,
+    /// The GPS time the `gps_time` scalar counts from, when the file has GPS times: the
+    /// earliest record's (COPC: the earliest its info VLR records), so the field holds seconds
+    /// after it (f32 cannot hold absolute GPS times to the microsecond).
+    pub gps_time_origin: Option<f64>,
+}
+
+/// What `surfel info` prints of a LAS, LAZ or COPC file's header.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LasSummary {
+    /// The LAS version, such as `1.4`.
+    pub version: String,
+    /// The point data record format (0 to 10).
+    pub point_format: u8,
+    /// The coordinates' scale and offset (file coordinate = scale × stored integer + offset).
+    pub scale: DVec3,
+    pub offset: DVec3,
+    /// The coordinate reference system: the WKT's name and authority code, or the GeoTIFF
+    /// keys' EPSG codes; `None` when the file records none.
+    pub crs: Option<String>,
+    /// How the file was read when not as its name says (a pre-1.0 COPC draft read as LAZ).
+    pub note: Option<String>,
 }
 
 /// The octree levels of a COPC file and the levels a point budget let a load read.

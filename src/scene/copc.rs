@@ -696,20 +696,19 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
         start = end;
     }
     progress.finish();
-    let origin = decoded
-        .world
-        .iter()
-        .fold(Bounds::EMPTY, |mut b, p| {
-            b.add(*p);
-            b
-        })
-        .centre()
-        .unwrap_or(DVec3::ZERO);
+    let bounds = decoded.world.iter().fold(Bounds::EMPTY, |mut b, p| {
+        b.add(*p);
+        b
+    });
+    let origin = bounds.centre().unwrap_or(DVec3::ZERO);
     let eight_bit = decoded.rgb16.iter().flatten().all(|&c| c <= 255);
     let mut cloud = to_cloud(&copc, decoded, origin, eight_bit);
     cloud.stats = LoadStats {
         records: usize::try_from(copc.header.number_of_points()).unwrap_or(usize::MAX),
         levels: Some(levels),
+        las: Some(super::las::summary(&copc.header)),
+        file_bounds: bounds.centre().map(|_| [bounds.lo, bounds.hi]),
+        gps_time_origin: cloud.stats.gps_time_origin,
         ..LoadStats::default()
     };
     cloud.retain_finite();
@@ -718,8 +717,9 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
 
 /// The cloud of decoded points, relative to `origin`; 16-bit colour channels are scaled to 8
 /// bits unless `eight_bit` (files that store 8-bit values in the 16-bit fields). GPS times
-/// are relative to the earliest the info VLR records (to the first decoded point's when it
-/// records no range), so a streamed node's times match the whole file's.
+/// are relative to the earliest the info VLR records (to the earliest decoded point's when it
+/// records no range), so a streamed node's times match the whole file's and a LAS file's
+/// converted to it (`stats.gps_time_origin`).
 /// Non-finite points are kept (the caller drops them).
 pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: bool) -> Cloud {
     let n = decoded.world.len();
@@ -739,10 +739,19 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
         .map(|p| (*p - origin).as_vec3())
         .collect();
     let (earliest, latest) = copc.info.gps_time;
-    let time_origin = if earliest.is_finite() && latest > earliest {
+    let time_origin = if earliest.is_finite() && latest >= earliest {
         earliest
     } else {
-        decoded.gps_time.first().copied().unwrap_or(0.0)
+        let decoded_earliest = decoded
+            .gps_time
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        if decoded_earliest.is_finite() {
+            decoded_earliest
+        } else {
+            0.0
+        }
     };
     let mut cloud = Cloud {
         positions,
@@ -773,6 +782,10 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
             )
             .collect(),
         origin,
+        stats: LoadStats {
+            gps_time_origin: Some(time_origin),
+            ..LoadStats::default()
+        },
         ..Cloud::default()
     };
     cloud.adopt_geometry_fields();

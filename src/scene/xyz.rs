@@ -438,14 +438,26 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
             })
             .collect()
     });
+    let time_origin = roles
+        .iter()
+        .position(|r| *r == Role::Scalar("gps_time".into()))
+        .map(|c| {
+            let earliest = rows.iter().map(|r| r[c]).fold(f64::INFINITY, f64::min);
+            if earliest.is_finite() {
+                earliest
+            } else {
+                0.0
+            }
+        });
     let scalars = roles
         .iter()
         .enumerate()
         .filter_map(|(c, r)| match r {
             Role::Scalar(name) => {
-                // GPS times (~10⁹ s) keep their sub-millisecond steps relative to the first.
+                // GPS times (~10⁹ s) keep their sub-millisecond steps relative to the
+                // earliest (`stats.gps_time_origin`).
                 let base = if name == "gps_time" {
-                    rows.first().map_or(0.0, |r| r[c])
+                    time_origin.unwrap_or(0.0)
                 } else {
                     0.0
                 };
@@ -469,6 +481,7 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
         origin,
         stats: LoadStats {
             records: rows.len(),
+            gps_time_origin: time_origin,
             up_rule: survey
                 .then(|| "survey-sized x, y coordinates (projected, such as UTM): z up".to_owned()),
             ..LoadStats::default()
@@ -546,7 +559,15 @@ mod tests {
         .unwrap();
         assert_eq!(c.colors.as_ref().unwrap()[0], [1, 0, 255, 255]);
         assert_eq!(scalar(&c, "gps_time"), [0.0, 0.25]);
+        assert_eq!(c.stats.gps_time_origin, Some(1e9));
         assert_eq!(scalar(&c, "Reflectance"), [0.5, 1.0]);
+        let c = parse(
+            "t.csv",
+            b"x,y,z,time\n0,0,0,1000000003.5\n1,1,1,1000000001.25\n",
+        )
+        .unwrap();
+        assert_eq!(scalar(&c, "gps_time"), [2.25, 0.0]);
+        assert_eq!(c.stats.gps_time_origin, Some(1_000_000_001.25));
     }
 
     #[test]

@@ -215,7 +215,7 @@ impl View<'_> {
             return_number: byte(2).min(15),
             number_of_returns: byte(3).min(15),
             point_source_id: value(4).clamp(0.0, 65535.0) as u16,
-            gps_time: f64::from(value(5)),
+            gps_time: f64::from(value(5)) + cloud.stats.gps_time_origin.unwrap_or(0.0),
             red: u16::from(r) * 257,
             green: u16::from(g) * 257,
             blue: u16::from(b) * 257,

@@ -405,6 +405,26 @@ fn a_possibly_truncated_obj_loads_with_a_warning() {
     );
 }
 
+#[test]
+fn info_describes_the_las_header() {
+    let las = info("lidar/autzen_trim.las", &[]);
+    for line in [
+        "LAS               version 1.2, point format 3\n",
+        "scale             0.01 0.01 0.01\n",
+        "offset            0 0 0\n",
+        "CRS               NAD_1983_HARN_Lambert_Conformal_Conic\n",
+        "bounds (file)     636001.76 848935.20 406.26 .. 637179.22 849497.90 520.51\n",
+    ] {
+        assert!(las.contains(line), "{line:?} not in {las}");
+    }
+    let copc = info("copc/autzen.copc.laz", &[]);
+    assert!(
+        copc.contains("LAS               version 1.4, point format 7\n"),
+        "{copc}"
+    );
+    assert!(!info("ply/frag_115.ply", &[]).contains("LAS "));
+}
+
 /// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
 fn info(rel: &str, extra: &[&str]) -> String {
     let path = data(rel);

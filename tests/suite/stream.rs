@@ -898,6 +898,13 @@ fn las_and_laz_are_converted_in_blocks_with_every_field() {
         convert::convert(&input, &out, &convert::ConvertOptions::default()).unwrap();
         let (a, b) = (scene::load(&input).unwrap(), scene::load(&out).unwrap());
         assert_eq!(a.len(), b.len());
+        // GPS times count from the same earliest time, in the LAS file and in its COPC.
+        assert_eq!(a.stats.gps_time_origin, b.stats.gps_time_origin, "{name}");
+        assert_eq!(
+            surfel::color::min_max(scalar(&a, "gps_time")).0,
+            0.0,
+            "{name}"
+        );
         let key = |c: &Cloud, i: usize| {
             let w = c.origin + c.positions[i].as_dvec3();
             [w.x, w.y, w.z].map(|v| (v * 100.0).round() as i64)
@@ -915,6 +922,7 @@ fn las_and_laz_are_converted_in_blocks_with_every_field() {
                 "classification",
                 "return_number",
                 "point_source_id",
+                "gps_time",
             ] {
                 assert_eq!(scalar(&a, field)[i], scalar(&b, field)[j], "{name} {field}");
             }
