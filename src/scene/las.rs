@@ -30,7 +30,7 @@ use super::records::{self, Span};
 const OVERLAP: u8 = 12;
 
 /// Reads the header and VLRs of a file of `size` bytes, leaving `read` at the first point record.
-fn read_header<R: Read + Seek>(
+pub(crate) fn read_header<R: Read + Seek>(
     file: &str,
     read: &mut R,
     size: usize,
