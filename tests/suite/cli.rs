@@ -425,6 +425,59 @@ fn info_describes_the_las_header() {
     assert!(!info("ply/frag_115.ply", &[]).contains("LAS "));
 }
 
+#[test]
+fn convert_stopped_by_sigint_removes_its_temporary_files() {
+    let dir = tmp("sigint");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let big = dir.join("big.ply");
+    let bunny = data("stanford/bun_zipper.ply");
+    let o = surfel(&[
+        "sample",
+        bunny.to_str().expect("utf8"),
+        "--points",
+        "4000000",
+        "--out",
+        big.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.join("big.copc.laz");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(["convert", big.to_str().expect("utf8"), "--out"])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run surfel");
+    let names = || -> Vec<String> {
+        std::fs::read_dir(&dir)
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect()
+    };
+    // Wait for the writer's spill file, then interrupt.
+    while !names().iter().any(|n| n.starts_with(".copc-writer-spill.")) {
+        assert!(
+            child.try_wait().expect("wait").is_none(),
+            "convert ended before its spill was seen"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // SAFETY: sends a signal to the child this test started.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let o = child.wait_with_output().expect("wait");
+    assert!(!o.status.success());
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: interrupted; the temporary files are removed and no output is written\n",
+            out.display()
+        )
+    );
+    assert_eq!(names(), ["big.ply"]);
+    std::fs::remove_dir_all(&dir).expect("remove");
+}
+
 /// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
 fn info(rel: &str, extra: &[&str]) -> String {
     let path = data(rel);

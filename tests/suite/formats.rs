@@ -554,3 +554,26 @@ fn a_pre_1_0_copc_draft_is_read_as_laz_with_a_note() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn converting_nir_warns_that_it_is_dropped() {
+    let dir = std::env::temp_dir().join(format!("surfel-nir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = dir.join("nir.las");
+    let note = las::Vlr {
+        user_id: "surfel-test".into(),
+        ..Default::default()
+    };
+    std::fs::write(&input, las_with_vlr(8, 40, false, note)).unwrap();
+    let out = dir.join("nir.copc.laz");
+    let options = surfel::stream::convert::ConvertOptions::default();
+    let stats = surfel::stream::convert::convert(&input, &out, &options).unwrap();
+    assert_eq!(
+        stats.warnings,
+        [format!("{}: point format 8 has NIR (near infrared), which a COPC file (point format 6 or 7) cannot hold; dropped", input.display())]
+    );
+    let back = scene::load(&out).unwrap();
+    assert_eq!(back.len(), 40);
+    assert!(back.scalars.iter().all(|s| s.name != "nir"));
+    std::fs::remove_dir_all(dir).unwrap();
+}
