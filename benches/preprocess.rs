@@ -3,8 +3,9 @@
 //! the dragon sampled to 1 M and 10 M points without normals, with 1 thread and with all
 //! threads; then the GPU estimate (`estimate`) on the first Vulkan device (`SURFEL_DEVICE`
 //! chooses), whole (pipelines, grid frame, upload, passes, read-back and the CPU's finish) and
-//! its submission alone. Prints Markdown tables of points per second (the median of `RUNS`
-//! runs; the tree at 10 M once).
+//! its submission alone; and the orientation of the normals alone (`scene::orient`, every
+//! second normal flipped first) by each rule. Prints Markdown tables of points per second (the
+//! median of `RUNS` runs; the tree at 10 M once).
 //!
 //! `cargo bench --bench preprocess`; `SURFEL_DATA` overrides the data folder.
 
@@ -70,7 +71,7 @@ fn main() {
                 seconds(tree_runs, || {
                     let p = &cloud.positions;
                     let nb = Neighbours::compute_with_tree(p, preprocess::DEFAULT_K);
-                    preprocess::estimate_normals(p, &nb, None, false);
+                    preprocess::estimate_normals(&cloud, &nb, false);
                     preprocess::estimate_radii(p, &nb, RadiusMode::DensitySpacing);
                 })
             });
@@ -82,7 +83,43 @@ fn main() {
             );
         }
     }
+    orientation(&dragon);
     gpu(&dragon);
+}
+
+/// The orientation table: seconds of `orient` alone per rule, on all threads.
+fn orientation(dragon: &Cloud) {
+    use surfel::scene::orient::{self, Graph, Rule, GRAPH_K};
+    println!("\n| points | rule | orientation (s) | points/s |");
+    println!("|---:|---|---:|---:|");
+    for n in [1_000_000, 10_000_000] {
+        let cloud = Cloud {
+            normals: None,
+            radii: None,
+            ..sample::sample_mesh(dragon, n, 1).expect("sampling")
+        };
+        let nb = Neighbours::compute(&cloud.positions, preprocess::DEFAULT_K, false);
+        let mut graph = Graph::new(n);
+        for (i, row) in graph.rows.chunks_mut(GRAPH_K).enumerate() {
+            for (slot, &j) in row.iter_mut().zip(nb.of(i).0) {
+                *slot = j;
+            }
+        }
+        let mut normals = preprocess::estimate_normals(&cloud, &nb, false);
+        for n in normals.iter_mut().step_by(2) {
+            *n = -*n;
+        }
+        for (name, rule) in [
+            ("propagation", Rule::Propagate),
+            ("up, propagated below 60°", Rule::Up(scene::Up::Y)),
+        ] {
+            let s = seconds(RUNS, || {
+                let mut work = normals.clone();
+                orient::orient(&cloud, &mut work, &graph, rule);
+            });
+            println!("| {n} | {name} | {s:.3} | {:.2} M |", n as f64 / s / 1e6);
+        }
+    }
 }
 
 /// The GPU table: median whole and submission throughput over `RUNS` runs.

@@ -4,12 +4,14 @@
 //! uniforms' color mode, value range and axis, and says which one scalar stream the GPU needs.
 //!
 //! Fields: `rgb` (the file's colors, the default when it has them), `none` (the base color),
-//! `elevation` (ramp along the up axis between the cloud's lowest and highest point), `normal`
-//! (the unit normal `n * 0.5 + 0.5` as an sRGB color) and every scalar of the cloud by name
-//! (also as `scalar:NAME`): `intensity` in grey, `classification` in the ASPRS palette,
-//! `return_number` (alias `return`) in the return palette, any other scalar on the ramp. Scalar
-//! ranges are robust: the 2nd to 98th percentile. Attribute colors are unlit, as CloudCompare
-//! and Potree show them: the palette color in the image is the color in the legend.
+//! `elevation` (ramp along the up axis between the cloud's lowest and highest point, the
+//! default without colors), `normal` (the unit normal `n * 0.5 + 0.5` as an sRGB color) and
+//! every scalar of the cloud by name (also as `scalar:NAME`): `intensity` in grey,
+//! `classification` in the ASPRS palette, `return_number` (alias `return`) in the return
+//! palette, any other scalar on the ramp. Scalar ranges are robust: the 2nd to 98th percentile.
+//! `rgb`, `none` and `elevation` are surface colors, lit wherever the frame has normals; the
+//! other attribute colors are unlit, as CloudCompare and Potree show them: the palette color in
+//! the image is the color in the legend.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -36,7 +38,8 @@ pub struct Coloring {
 }
 
 impl Coloring {
-    /// The default: the file's colors when it has them, else the (lit) base color.
+    /// The file's colors when it has them, else the (lit) base color: what the benchmark and
+    /// the evaluation score with, so that lit methods compare shading against `mesh`.
     pub fn default_for(has_colors: bool) -> Self {
         Self {
             mode: if has_colors { COLOR_RGB } else { COLOR_NONE },
@@ -78,21 +81,20 @@ pub fn next_field<'a>(fields: &'a [String], current: &str) -> Option<&'a str> {
 }
 
 /// The field `cloud` is colored by when none is named: its colours, else (as Potree does)
-/// elevation for a cloud without normals to light it, else the lit base colour.
+/// elevation. The choice reads nothing a method adds (estimated normals), so every method
+/// shows a file in the same colors.
 pub fn default_field(cloud: &Cloud) -> &'static str {
     if cloud.colors.is_some() {
         "rgb"
-    } else if cloud.normals.is_none() {
-        "elevation"
     } else {
-        "none"
+        "elevation"
     }
 }
 
 /// Resolves `name` (a field of [`fields`], `scalar:NAME` or `return`) for `cloud`, whose up axis
 /// is `up`. An unknown name is an error listing the fields of this cloud.
 pub fn select(cloud: &Cloud, name: &str, up: Up) -> Result<Coloring, String> {
-    // A mode on its own, lit; attribute modes override `unlit` (and the range).
+    // A mode on its own, lit; palette and scalar modes override `unlit` (and the range).
     let lit = |mode| Coloring {
         mode,
         scalar: None,
@@ -127,7 +129,6 @@ pub fn select(cloud: &Cloud, name: &str, up: Up) -> Result<Coloring, String> {
             let range = if lo <= hi { [lo, hi] } else { [0.0, 1.0] };
             return Ok(Coloring {
                 range,
-                unlit: true,
                 ..lit(COLOR_ELEVATION)
             });
         }
@@ -406,7 +407,7 @@ mod tests {
         assert_eq!(s("Deviation").scalar, Some(3));
         assert_eq!(s("elevation").range, [0.0, 2.0]);
         assert_eq!(s("elevation").axis, Vec3::Z);
-        assert!(s("elevation").unlit);
+        assert!(!s("elevation").unlit);
         let e = select(&c, "bogus", Up::Z).unwrap_err();
         assert_eq!(
             e,
@@ -421,13 +422,14 @@ mod tests {
         // No colors, no `rgb`.
         let plain = cloud(vec![], false);
         assert!(select(&plain, "rgb", Up::Y).is_err());
-        // Without normals to light it, elevation (as Potree); with them, the lit base colour.
+        // Without colors, elevation (as Potree), with normals or without.
         assert_eq!(default_field(&plain), "elevation");
         let lit = Cloud {
             normals: Some(vec![Vec3::Z; plain.len()]),
             ..plain
         };
-        assert_eq!(default_field(&lit), "none");
+        assert_eq!(default_field(&lit), "elevation");
+        assert_eq!(default_field(&c), "rgb");
     }
 
     #[test]

@@ -19,4 +19,5 @@ pub mod rng;
 pub mod scene;
 pub mod stream;
 pub mod streams;
+pub mod suggest;
 pub mod upload;

@@ -1,4 +1,5 @@
-// Shared helpers: the frame block, normal decoding, sRGB encoding and Phong lighting.
+// Shared helpers: the frame block, normal decoding, sRGB encoding, the color ramps and Phong
+// lighting.
 #ifndef SURFEL_COMMON_GLSL
 #define SURFEL_COMMON_GLSL
 #include "shared.glsl"
@@ -46,6 +47,55 @@ vec3 srgb_to_linear(vec3 c) {
 vec3 linear_to_srgb(vec3 c) {
     c = clamp(c, 0.0, 1.0);
     return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
+
+// An sRGB 0xRRGGBB constant in linear space.
+vec3 rgb8(uint c) {
+    return srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0);
+}
+
+// The scalar ramp at t in [0, 1] (clamped; NaN gives the start), interpolated in sRGB.
+vec3 ramp(float t) {
+    const uint stops[5] = uint[](RAMP_0, RAMP_1, RAMP_2, RAMP_3, RAMP_4);
+    float x = isnan(t) ? 0.0 : clamp(t, 0.0, 1.0) * 4.0;
+    uint k = min(uint(x), 3u);
+    vec3 a = vec3((stops[k] >> 16) & 255u, (stops[k] >> 8) & 255u, stops[k] & 255u);
+    uint e = stops[k + 1u];
+    vec3 b = vec3((e >> 16) & 255u, (e >> 8) & 255u, e & 255u);
+    return srgb_to_linear(mix(a, b, x - float(k)) / 255.0);
+}
+
+// Position of `value` in the frame's color range (0 at its start, 1 at its end).
+float ramp_position(float value) {
+    return (value - frame.u.color_range.x) * frame.u.color_range.y;
+}
+
+// The elevation ramp's albedo at local position p (COLOR_ELEVATION).
+vec3 elevation_albedo(vec3 p) {
+    return ramp(ramp_position(dot(p, frame.u.color_axis.xyz)));
+}
+
+// The unit normal n as an sRGB color (COLOR_NORMAL).
+vec3 normal_albedo(vec3 n) {
+    return srgb_to_linear(n * 0.5 + 0.5);
+}
+
+// The albedo of a sample standing for several points (a level of detail's vertex) with its
+// points' mean color `rgba8`, its position p and unit normal n, under the frame's color mode as
+// `stream_albedo` (glsl/common/streams.glsl) colors a point: the modes reading a scalar stream,
+// which a sample does not keep, show the base color.
+vec3 sample_albedo(uint rgba8, vec3 p, vec3 n) {
+    uint mode = frame.u.color_mode;
+    if (mode == COLOR_RGB) {
+        return srgb_to_linear(unpackUnorm4x8(rgba8).rgb);
+    }
+    if (mode == COLOR_ELEVATION) {
+        return elevation_albedo(p);
+    }
+    if (mode == COLOR_NORMAL) {
+        return normal_albedo(n);
+    }
+    return frame.u.base_color.rgb;
 }
 
 // Blinn-Phong term of light `i` at `view_pos` for the unit normal `n`, seen along `v`.

@@ -98,27 +98,6 @@ bool point_kept(uint i, vec3 p) {
     return class_kept(segments[s].classes, local_index(i, s));
 }
 
-// An sRGB 0xRRGGBB constant in linear space.
-vec3 rgb8(uint c) {
-    return srgb_to_linear(vec3((c >> 16) & 255u, (c >> 8) & 255u, c & 255u) / 255.0);
-}
-
-// The scalar ramp at t in [0, 1] (clamped; NaN gives the start), interpolated in sRGB.
-vec3 ramp(float t) {
-    const uint stops[5] = uint[](RAMP_0, RAMP_1, RAMP_2, RAMP_3, RAMP_4);
-    float x = isnan(t) ? 0.0 : clamp(t, 0.0, 1.0) * 4.0;
-    uint k = min(uint(x), 3u);
-    vec3 a = vec3((stops[k] >> 16) & 255u, (stops[k] >> 8) & 255u, stops[k] & 255u);
-    uint e = stops[k + 1u];
-    vec3 b = vec3((e >> 16) & 255u, (e >> 8) & 255u, e & 255u);
-    return srgb_to_linear(mix(a, b, x - float(k)) / 255.0);
-}
-
-// Position of `value` in the frame's color range (0 at its start, 1 at its end).
-float ramp_position(float value) {
-    return (value - frame.u.color_range.x) * frame.u.color_range.y;
-}
-
 // Albedo in linear space, selected by the frame's color mode (src/color.rs): the point's color,
 // the base color, or an attribute through a palette or ramp.
 vec3 stream_albedo(uint i) {
@@ -152,10 +131,10 @@ vec3 stream_albedo(uint i) {
         return rgb8(palette[r >= 1.0 ? min(uint(r), 5u) : 0u]);
     }
     if (mode == COLOR_ELEVATION) {
-        return ramp(ramp_position(dot(stream_position(i), frame.u.color_axis.xyz)));
+        return elevation_albedo(stream_position(i));
     }
     if (mode == COLOR_NORMAL) {
-        return srgb_to_linear(stream_normal(i) * 0.5 + 0.5);
+        return normal_albedo(stream_normal(i));
     }
     return frame.u.base_color.rgb;
 }

@@ -22,6 +22,12 @@ layout(std430, set = 0, binding = BINDING_KNN_SORTED) readonly buffer Sorted {
 layout(std430, set = 0, binding = BINDING_KNN_OUT) writeonly buffer Out {
     vec4 result[];
 };
+// Per input point, its KNN_GRAPH_K nearest neighbours' input indices, nearest first.
+layout(std430, set = 0, binding = BINDING_KNN_GRAPH) writeonly buffer Graph {
+    uint graph[];
+};
+
+const uint NO_NEIGHBOUR = 0xffffffffu;
 
 const float FLT_MAX = 3.402823466e38;
 
@@ -204,6 +210,9 @@ void main() {
     vec4 point = sorted[s];
     vec3 q = point.xyz;
     uint i = floatBitsToUint(point.w);
+    for (uint j = 0u; j < KNN_GRAPH_K; ++j) {
+        graph[i * KNN_GRAPH_K + j] = NO_NEIGHBOUR;
+    }
     if (!finite3(q)) {
         result[i] = vec4(0.0, 0.0, 1.0, -1.0);
         return;
@@ -218,4 +227,7 @@ void main() {
         }
     }
     result[i] = vec4(oriented_normal(q), best_d[K - 1u]);
+    for (uint j = 0u; j < min(found, KNN_GRAPH_K); ++j) {
+        graph[i * KNN_GRAPH_K + j] = floatBitsToUint(sorted[best_s[j]].w);
+    }
 }

@@ -79,19 +79,17 @@ uint lod_level_offset(GpuLodPatch rep, uint level) {
     }
     return first;
 }
-// A vertex's albedo (linear): its points' mean color when the frame shows the cloud's colors,
-// else the base color.
+// A vertex's albedo (linear) under the frame's color mode (`sample_albedo`).
 vec3 lod_albedo(GpuLodVertex v) {
-    return frame.u.color_mode == COLOR_RGB
-        ? srgb_to_linear(unpackUnorm4x8(v.normal_color.y).rgb) : frame.u.base_color.rgb;
+    return sample_albedo(v.normal_color.y, v.sphere.xyz, oct_decode(v.normal_color.x));
 }
 
 // What every draw path emits for one object-texture vertex: a splat of the splatting family
 // (002 5.2), shaded by splat/flat.frag under the same RASTER: an image-aligned square of the
 // splat's projected diameter (eq. 5.1), or a perspective-correct disc (eqs. 5.4-5.5) in a
 // sprite bounding it, at most `max_size` pixels either way; lit once per splat (flat
-// shading), colored by level (thesis Fig. 7.4), by the mean color of its points (when the
-// frame shows the cloud's colors) or with the base color. The thesis projects the vertices
+// shading), colored by level (thesis Fig. 7.4) or as `sample_albedo` colors it (the mean color
+// of its points, its elevation or normal; the base color for scalar modes). The thesis projects the vertices
 // into its pyramid renderer: that is `pyramid-lod` (pyramid/project_lod.vert).
 layout(constant_id = SPLAT_SPEC_RASTER) const uint LOD_RASTER = SPLAT_RASTER_SQUARES;
 

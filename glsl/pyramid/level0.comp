@@ -10,7 +10,10 @@
 layout(local_size_x = PYRAMID_GROUP, local_size_y = PYRAMID_GROUP) in;
 
 // Hybrid scenes (000 5.2): level 0 already holds the rasterized triangles (bound as the level
-// read, the same image level as the output); the point wins only where it is nearer.
+// read, the same image level as the output); the point wins only where it is nearer by more
+// than its depth interval (its radius). Deviation: a point on the triangles' surface (a mesh's
+// vertex no face references) would otherwise win about half its pixels and spread its ellipse
+// over the exact triangles (docs/claims.md).
 layout(constant_id = PYRAMID_SPEC_HYBRID) const bool HYBRID = false;
 
 layout(std430, set = 0, binding = BINDING_VISIBILITY) readonly buffer Visibility {
@@ -36,7 +39,7 @@ void main() {
     n = dot(n, p) > 0.0 ? -n : n;
     float r = stream_radius(i) * pyr.radius_scale;
     float depth = -p.z;
-    if (triangle.depth > 0.0 && triangle.depth <= depth) {
+    if (triangle.depth > 0.0 && triangle.depth <= depth + r) {
         store_out(px, triangle);
         return;
     }

@@ -12,7 +12,8 @@ layout(constant_id = PYRAMID_SPEC_TUBE) const bool TUBE = false;
 
 layout(location = 0) out vec4 v_a;
 layout(location = 1) out vec4 v_b;
-layout(location = 2) out vec4 v_c;
+layout(location = 2) out vec3 v_c;
+layout(location = 3) flat out uint v_primitive;
 
 void main() {
     uint i = uint(gl_VertexIndex);
@@ -26,6 +27,6 @@ void main() {
     }
     v_a = vec4(d, r * 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]) / depth);
     v_b = vec4(depth, r, 0.0, 0.0);
-    float id = float(TUBE ? PRIMITIVE_TUBE : PRIMITIVE_RIBBON);
-    v_c = vec4(COLOR ? stream_albedo(i) : vec3(0.0), id);
+    v_c = COLOR ? stream_albedo(i) : vec3(0.0);
+    v_primitive = TUBE ? PRIMITIVE_TUBE : PRIMITIVE_RIBBON;
 }

@@ -2,10 +2,10 @@
 // Level 0 of the pyramid from the level of detail's selection (000 ch. 7, the thesis' system):
 // the object-texture vertices the selection chose (lod/select.comp), pulled through its list
 // by an indirect draw and projected to one pixel each as project.vert projects points, with
-// their own radius (a coarser level's splat covers its points), normal and mean color (when
-// the frame shows the cloud's colors; other color modes read per-point streams the object
-// texture does not keep, and show the base color). Back-facing samples are culled by normal
-// (`CULL`).
+// their own radius (a coarser level's splat covers its points), normal and albedo
+// (`sample_albedo`: the mean color, elevation or normal; scalar modes read per-point streams
+// the object texture does not keep, and show the base color). Back-facing samples are culled
+// by normal (`CULL`).
 #include "pyramid.glsl"
 
 layout(constant_id = PYRAMID_SPEC_CULL) const bool CULL = true;
@@ -17,7 +17,8 @@ layout(std430, set = 0, binding = BINDING_LOD_LIST) readonly buffer List { uint 
 
 layout(location = 0) out vec4 v_a;
 layout(location = 1) out vec4 v_b;
-layout(location = 2) out vec4 v_c;
+layout(location = 2) out vec3 v_c;
+layout(location = 3) flat out uint v_primitive;
 
 void main() {
     GpuLodVertex v = vertices[list[gl_VertexIndex]];
@@ -38,7 +39,7 @@ void main() {
     float depth = -p.z;
     v_a = vec4(n, r * 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]) / depth);
     v_b = vec4(depth, r, 0.0, 0.0);
-    vec3 albedo = frame.u.color_mode == COLOR_RGB
-        ? srgb_to_linear(unpackUnorm4x8(v.normal_color.y).rgb) : frame.u.base_color.rgb;
-    v_c = vec4(COLOR ? albedo : vec3(0.0), float(PRIMITIVE_POINT));
+    vec3 albedo = sample_albedo(v.normal_color.y, v.sphere.xyz, oct_decode(v.normal_color.x));
+    v_c = COLOR ? albedo : vec3(0.0);
+    v_primitive = PRIMITIVE_POINT;
 }

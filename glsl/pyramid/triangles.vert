@@ -7,7 +7,8 @@
 
 layout(location = 0) out vec4 v_a;
 layout(location = 1) out vec4 v_b;
-layout(location = 2) out vec4 v_c;
+layout(location = 2) out vec3 v_c;
+layout(location = 3) flat out uint v_primitive;
 
 void main() {
     uint i = uint(gl_VertexIndex);
@@ -16,5 +17,6 @@ void main() {
     gl_Position = frame.u.proj * vec4(p, 1.0);
     v_a = vec4(dot(n, p) > 0.0 ? -n : n, 0.0);
     v_b = vec4(-p.z, 0.0, 0.0, 0.0);
-    v_c = vec4(COLOR ? stream_albedo(i) : vec3(0.0), float(PRIMITIVE_TRIANGLE));
+    v_c = COLOR ? stream_albedo(i) : vec3(0.0);
+    v_primitive = PRIMITIVE_TRIANGLE;
 }

@@ -48,7 +48,9 @@ impl Estimation {
             positions: cloud.positions.clone(),
             normals: cloud.normals.clone(),
             radii: cloud.radii.clone(),
-            sensor: cloud.sensor,
+            sensors: cloud.sensors.clone(),
+            up: cloud.up,
+            survey: cloud.survey,
             ..Cloud::default()
         };
         let (sender, receiver) = mpsc::channel();

@@ -93,6 +93,12 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
         }
     };
     println!("normals, radii    {normals}");
+    if cloud.normals.is_none() && a.input.k > 0 {
+        println!(
+            "normal signs      {}",
+            crate::scene::orient::Rule::for_cloud(&cloud).describe()
+        );
+    }
     println!("color by          {}", fields.join(", "));
     if let Some((lo, hi)) = cloud.bounds() {
         let o = cloud.origin;

@@ -20,6 +20,11 @@ pub struct SampleArgs {
 }
 
 pub(super) fn sample(a: SampleArgs) -> Result<()> {
+    use crate::scene::sample::{available_memory, check_memory};
+    if let Some(available) = available_memory() {
+        check_memory(a.points as u64, available)
+            .map_err(|e| anyhow::anyhow!("{}: cannot sample: {e}", a.mesh.display()))?;
+    }
     let mesh = crate::scene::load(&a.mesh)?;
     let cloud = crate::scene::sample::sample_mesh(&mesh, a.points, a.seed)
         .with_context(|| format!("{}: cannot sample", a.mesh.display()))?;

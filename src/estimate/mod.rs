@@ -11,9 +11,11 @@
 //!   (candidates of colliding cells only add work: every distance is measured), verified
 //!   against the block's inner bound, else the 5×5×5 block; the PCA normal by Jacobi
 //!   rotations in single precision; the k-th neighbour's squared distance;
-//! * the result (16 bytes per point) is read back and `scene::preprocess::complete_from`
-//!   turns distances into radii, with the same floor, after searching the points the GPU left
-//!   unresolved (outliers whose 5×5×5 block holds fewer than k verified neighbours) on the CPU.
+//! * the result (16 bytes per point) and the 6 nearest neighbours (24 bytes per point, the
+//!   orientation's graph) are read back and `scene::preprocess::complete_from` turns distances
+//!   into radii, with the same floor, after searching the points the GPU left unresolved
+//!   (outliers whose 5×5×5 block holds fewer than k verified neighbours) on the CPU; then it
+//!   signs the normals by the same walk as the CPU path (`scene::orient`).
 //!
 //! Deviations from the CPU path, measured by `tests/suite/estimate.rs`: single precision (the CPU
 //! accumulates the covariance in double), a neighbourhood counts as flat only with spread in
@@ -29,15 +31,20 @@ use ash::vk;
 use glam::{Vec3, Vec4};
 
 use crate::gpu::layout::{
-    KnnParams, BINDING_KNN_OUT, BINDING_KNN_POSITIONS, BINDING_KNN_SORTED, BINDING_KNN_TABLE,
-    BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GROUP, KNN_MAX_K, KNN_SPEC_K,
+    KnnParams, BINDING_KNN_GRAPH, BINDING_KNN_OUT, BINDING_KNN_POSITIONS, BINDING_KNN_SORTED,
+    BINDING_KNN_TABLE, BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GRAPH_K, KNN_GROUP, KNN_MAX_K,
+    KNN_SPEC_K,
 };
 use crate::gpu::{Binding, Buffer, Context, Pipeline};
 use crate::graph::{Access, Bind, BufferRange, GraphBuilder, Stages};
 use crate::methods::common::sort::{add_sort, compute_pass, SortPipelines};
 use crate::scene::knn::{finite_indices, GridFrame};
+use crate::scene::orient::{Graph, GRAPH_K};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::Cloud;
+
+// The graph rows the GPU writes are those the orientation reads.
+const _: () = assert!(KNN_GRAPH_K as usize == GRAPH_K);
 
 /// Clouds below this size are estimated on the CPU: a GPU submission costs more than it saves.
 pub const MIN_POINTS: usize = 4096;
@@ -113,7 +120,12 @@ impl KnnPipelines {
             )?,
             query: pipeline(
                 "estimate/query.comp",
-                &[BINDING_KNN_TABLE, BINDING_KNN_SORTED, BINDING_KNN_OUT],
+                &[
+                    BINDING_KNN_TABLE,
+                    BINDING_KNN_SORTED,
+                    BINDING_KNN_OUT,
+                    BINDING_KNN_GRAPH,
+                ],
                 &[(KNN_SPEC_K, k as u32)],
             )?,
             sort: SortPipelines::new(ctx)?,
@@ -134,21 +146,23 @@ pub struct GpuTimes {
     pub unresolved: usize,
 }
 
-/// Per point in input order: `xyz` the oriented unit normal, `w` the squared distance of the
-/// k-th neighbour, or `w < 0` where the GPU could not verify one (non-finite points, outliers).
+/// Per point in input order: `xyz` the unit normal (facing the sensor, else away from the
+/// centroid, before [`crate::scene::orient`]), `w` the squared distance of the k-th neighbour,
+/// or `w < 0` where the GPU could not verify one (non-finite points, outliers); and the nearest
+/// neighbours of every resolved point, the orientation's graph.
 pub fn nearest_on_gpu(
     ctx: &Arc<Context>,
     pipelines: &KnnPipelines,
     positions: &[Vec3],
     sensor: Option<Vec3>,
-) -> Result<Vec<Vec4>> {
+) -> Result<(Vec<Vec4>, Graph)> {
     let n = positions.len();
     anyhow::ensure!(
         n <= MAX_POINTS,
         "the GPU estimate takes at most {MAX_POINTS} points, not {n}"
     );
     if n == 0 {
-        return Ok(Vec::new());
+        return Ok((Vec::new(), Graph::default()));
     }
     let count = n as u32;
     let finite = finite_indices(positions);
@@ -179,6 +193,8 @@ pub fn nearest_on_gpu(
     let table = g.buffer("estimate.table", 8 << hash_bits, usage);
     let sorted = g.buffer("estimate.sorted", n64 * 16, usage);
     let out = g.buffer("estimate.out", n64 * 16, usage);
+    let graph_bytes = n64 * 4 * u64::from(KNN_GRAPH_K);
+    let graph = g.buffer("estimate.graph", graph_bytes, usage);
     let read = Access::StorageRead(Stages::Compute);
     let write = Access::StorageWrite(Stages::Compute);
     let groups = count.div_ceil(KNN_GROUP);
@@ -218,6 +234,7 @@ pub fn nearest_on_gpu(
             Bind::buffer(BINDING_KNN_TABLE, table, read),
             Bind::buffer(BINDING_KNN_SORTED, sorted, read),
             Bind::buffer(BINDING_KNN_OUT, out, write),
+            Bind::buffer(BINDING_KNN_GRAPH, graph, write),
         ],
         push,
         groups,
@@ -230,11 +247,31 @@ pub fn nearest_on_gpu(
         size: n64 * 16,
     }];
     g.copy_buffer("estimate.download", out, host_id, &region);
+    let host_graph = Arc::new(Buffer::readback(
+        ctx,
+        "estimate.graph.readback",
+        graph_bytes,
+    )?);
+    let host_graph_id = g.import_buffer("estimate.graph.readback", host_graph.clone());
+    let graph_region = [vk::BufferCopy {
+        src_offset: 0,
+        dst_offset: 0,
+        size: graph_bytes,
+    }];
+    g.copy_buffer(
+        "estimate.graph.download",
+        graph,
+        host_graph_id,
+        &graph_region,
+    );
     g.pass("estimate.host")
         .buffer(host_id, Access::HostRead)
+        .buffer(host_graph_id, Access::HostRead)
         .record(|_| {});
     g.compile(ctx)?.run_once(ctx)?;
-    Ok(bytemuck::pod_collect_to_vec::<u8, Vec4>(host.mapped()?))
+    let result = bytemuck::pod_collect_to_vec::<u8, Vec4>(host.mapped()?);
+    let rows = bytemuck::pod_collect_to_vec::<u8, u32>(host_graph.mapped()?);
+    Ok((result, Graph { rows }))
 }
 
 /// Computes the normals and radii `cloud` lacks on the GPU (see the module documentation);
@@ -262,11 +299,15 @@ pub fn estimate(
     let start = Instant::now();
     let pipelines = KnnPipelines::new(ctx, k)?;
     let prepared = Instant::now();
-    let sensor = cloud.sensor.filter(|s| s.is_finite());
-    let result = nearest_on_gpu(ctx, &pipelines, &cloud.positions, sensor)
+    let sensor = cloud
+        .sensors
+        .first()
+        .map(|s| s.position)
+        .filter(|s| s.is_finite());
+    let (result, graph) = nearest_on_gpu(ctx, &pipelines, &cloud.positions, sensor)
         .context("estimating normals and radii on the GPU")?;
     let ran = Instant::now();
-    let unresolved = preprocess::complete_from(cloud, options, &result);
+    let unresolved = preprocess::complete_from(cloud, options, &result, graph);
     Ok(Some(GpuTimes {
         prepare_s: (prepared - start).as_secs_f64(),
         gpu_s: (ran - prepared).as_secs_f64(),

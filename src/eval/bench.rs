@@ -228,6 +228,9 @@ pub fn run(
     log: bool,
 ) -> Result<BenchOutput> {
     config.check_models()?;
+    if let Some(available) = sample::available_memory() {
+        config.check_memory(available)?;
+    }
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("{}: cannot create", out_dir.display()))?;
     let mut results = Results {

@@ -38,6 +38,13 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use crate::scene::sample::{show_bytes, SAMPLED_POINT_BYTES};
+
+/// Host memory a resampled point takes while its cloud is uploaded: the cloud
+/// ([`SAMPLED_POINT_BYTES`]), the Morton sort's 8-byte keys, the stream order and its inverse
+/// (4 bytes each) and a Phong method's linear normal field (8).
+pub const SAMPLED_UPLOAD_BYTES: u64 = SAMPLED_POINT_BYTES + 8 + 4 + 4 + 8;
+
 /// The sweep `surfel bench --quick` runs (`benches/sweeps/quick.toml`).
 const QUICK_TOML: &str = include_str!("../../benches/sweeps/quick.toml");
 
@@ -62,6 +69,24 @@ pub enum ConfigError {
     InFile {
         path: PathBuf,
         error: Box<ConfigError>,
+    },
+    /// The clouds a sweep resamples would not fit in the host memory available.
+    #[error(
+        "{origin}, {key}: {count} sampled points need {} of memory, {} is available (a sampled \
+         point takes {SAMPLED_UPLOAD_BYTES} bytes while it is uploaded and \
+         {SAMPLED_POINT_BYTES} after, and the sweep keeps every cloud it samples: {kept} points \
+         before these)",
+        show_bytes(*.needed),
+        show_bytes(*.available)
+    )]
+    Memory {
+        origin: SweepOrigin,
+        key: String,
+        count: u64,
+        /// Points of the sweep's earlier resampled clouds, kept while these are made.
+        kept: u64,
+        needed: u64,
+        available: u64,
     },
     /// A model file of the sweep cannot be read.
     #[error(
@@ -241,7 +266,8 @@ impl FromStr for StressKind {
             .ok_or_else(|| {
                 let names: Vec<_> = StressKind::ALL.iter().map(|k| k.as_str()).collect();
                 format!(
-                    "unknown stress kind {s:?} (expected one of {})",
+                    "unknown stress kind {s:?}{} (expected one of {})",
+                    crate::suggest::did_you_mean(s, names.iter().copied()),
                     names.join(", ")
                 )
             })
@@ -731,6 +757,38 @@ impl BenchConfig {
         Ok(())
     }
 
+    /// Refuses a sweep whose resampled clouds (`points` of the models) would not fit in
+    /// `available` bytes of host memory, before anything is loaded: the bench keeps every cloud
+    /// it resamples ([`SAMPLED_POINT_BYTES`] a point) and needs [`SAMPLED_UPLOAD_BYTES`] a
+    /// point of the one it uploads. The models as loaded are not counted. The error names the
+    /// first count that does not fit.
+    pub fn check_memory(&self, available: u64) -> Result<(), ConfigError> {
+        let mut sampled = std::collections::BTreeSet::new();
+        let mut kept = 0u64;
+        for (i, m) in self.models.iter().enumerate() {
+            for (j, &count) in m.points.iter().enumerate() {
+                if !sampled.insert((&m.path, count)) {
+                    continue;
+                }
+                let needed = kept
+                    .saturating_mul(SAMPLED_POINT_BYTES)
+                    .saturating_add(count.saturating_mul(SAMPLED_UPLOAD_BYTES));
+                if needed > available {
+                    return Err(ConfigError::Memory {
+                        origin: self.origin.clone(),
+                        key: format!("models[{i}].points[{j}]"),
+                        count,
+                        kept,
+                        needed,
+                        available,
+                    });
+                }
+                kept = kept.saturating_add(count);
+            }
+        }
+        Ok(())
+    }
+
     /// The tiny sweep for CI (`benches/sweeps/quick.toml`, embedded at build time): the bunny
     /// and two resampled copies, `points` at two sizes and the `mesh` ground truth, 64x64 and
     /// 128x128, 1 warm-up and 3 measured frames, subsample, grazing and magnification stresses.
@@ -1042,6 +1100,34 @@ values = [1.0, 0.1]
     }
 
     #[test]
+    fn resampled_clouds_beyond_the_memory_are_refused_naming_the_count() {
+        let c = BenchConfig::parse_from(
+            "resolutions = [\"8x8\"]\n[[methods]]\nname = \"points\"\n\
+             [[models]]\npath = \"a.obj\"\npoints = [1000, 100000000]\n\
+             [[models]]\npath = \"b.obj\"\npoints = [200000000, 1000000000]\n",
+            SweepOrigin::File(PathBuf::from("big.toml")),
+        )
+        .unwrap();
+        let gib = 1u64 << 30;
+        // The last count: 300,001,000 points kept at 32 bytes and 10^9 uploaded at 56.
+        assert_eq!(SAMPLED_UPLOAD_BYTES, 56);
+        let e = c.check_memory(16 * gib).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "sweep file big.toml, models[1].points[1]: 1000000000 sampled points need 61.1 GiB \
+             of memory, 16.0 GiB is available (a sampled point takes 56 bytes while it is \
+             uploaded and 32 after, and the sweep keeps every cloud it samples: 300001000 \
+             points before these)"
+        );
+        let e = c.check_memory(8 * gib).unwrap_err().to_string();
+        assert!(
+            e.starts_with("sweep file big.toml, models[1].points[0]: 200000000 sampled points"),
+            "{e}"
+        );
+        assert!(c.check_memory(62 * gib).is_ok());
+    }
+
+    #[test]
     fn stress_kinds_round_trip_and_order_severity() {
         for k in StressKind::ALL {
             assert_eq!(k.as_str().parse::<StressKind>().unwrap(), k);
@@ -1050,5 +1136,15 @@ values = [1.0, 0.1]
         assert!(!StressKind::Inside.severity_increases_with_value());
         assert!(StressKind::Magnification.check_value(0.5).is_err());
         assert!(StressKind::Noise.check_value(f64::NAN).is_err());
+        let expected =
+            "(expected one of grazing, magnification, subsample, noise, nonuniform, inside)";
+        assert_eq!(
+            "grazng".parse::<StressKind>().unwrap_err(),
+            format!("unknown stress kind \"grazng\"; did you mean 'grazing'? {expected}")
+        );
+        assert_eq!(
+            "wobble".parse::<StressKind>().unwrap_err(),
+            format!("unknown stress kind \"wobble\" {expected}")
+        );
     }
 }

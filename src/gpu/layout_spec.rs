@@ -285,13 +285,17 @@ pub const CONSTANTS: &[(&str, u32)] = &[
     // point), the cell key and value (input index in the low word) of every point, sorted by
     // the radix sort at its own bindings, the first and end sorted index of every hash bucket
     // (uvec2), the sorted points (xyz, w: the input index's bits) and the result per input
-    // point (xyz: oriented normal, w: squared k-th neighbour distance, < 0 unresolved). One
-    // thread per point in groups of KNN_GROUP; the neighbourhood size is the specialization
-    // constant KNN_SPEC_K (KNN_MAX_K at most: each thread keeps its k best in registers).
+    // point (xyz: oriented normal, w: squared k-th neighbour distance, < 0 unresolved), and
+    // each point's KNN_GRAPH_K nearest neighbours as input indices (0xffffffff past the last;
+    // the orientation's propagation graph, scene::orient). One thread per point in groups of
+    // KNN_GROUP; the neighbourhood size is the specialization constant KNN_SPEC_K (KNN_MAX_K
+    // at most: each thread keeps its k best in registers).
     ("BINDING_KNN_POSITIONS", 56),
     ("BINDING_KNN_TABLE", 57),
     ("BINDING_KNN_SORTED", 58),
     ("BINDING_KNN_OUT", 59),
+    ("BINDING_KNN_GRAPH", 60),
+    ("KNN_GRAPH_K", 6),
     ("KNN_GROUP", 64),
     ("KNN_MAX_K", 32),
     ("KNN_SPEC_K", 0),

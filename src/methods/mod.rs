@@ -21,6 +21,7 @@ use ash::vk;
 use crate::gpu::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::gpu::{Capabilities, Context};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
+use crate::suggest::did_you_mean;
 use crate::upload::{GpuScene, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
@@ -179,7 +180,11 @@ pub static METHODS: &[MethodInfo] = &[
 pub fn find(name: &str) -> Result<&'static MethodInfo> {
     METHODS.iter().find(|m| m.name == name).ok_or_else(|| {
         let names: Vec<_> = METHODS.iter().map(|m| m.name).collect();
-        anyhow::anyhow!("unknown method '{name}' (available: {})", names.join(", "))
+        anyhow::anyhow!(
+            "unknown method '{name}'{} (available: {})",
+            did_you_mean(name, names.iter().copied()),
+            names.join(", ")
+        )
     })
 }
 
@@ -217,8 +222,9 @@ impl MethodConfig {
             let Some(spec) = method.params.iter().find(|p| p.name == k) else {
                 let known: Vec<_> = method.params.iter().map(|p| p.name).collect();
                 bail!(
-                    "method '{}' has no parameter '{k}' (parameters: {})",
+                    "method '{}' has no parameter '{k}'{} (parameters: {})",
                     method.name,
+                    did_you_mean(k, known.iter().copied()),
                     known.join(", ")
                 );
             };
@@ -226,10 +232,18 @@ impl MethodConfig {
                 .parse()
                 .ok()
                 .filter(|x: &f32| x.is_finite())
-                .ok_or_else(|| anyhow::anyhow!("parameter '{k}': expected a number, got '{v}'"))?;
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "{}: {k}={v} is not a number (expected {}..={})",
+                        method.name,
+                        spec.min,
+                        spec.max
+                    )
+                })?;
             if value < spec.min || value > spec.max {
                 bail!(
-                    "parameter '{k}' = {value} is outside {}..={}",
+                    "{}: {k}={v} is out of range ({}..={})",
+                    method.name,
                     spec.min,
                     spec.max
                 );
@@ -340,5 +354,70 @@ impl BuildContext<'_> {
                 Access::StorageRead(Stages::Vertex),
             ),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_error(spec: &str) -> String {
+        format!("{:#}", MethodConfig::parse(spec).expect_err(spec))
+    }
+
+    #[test]
+    fn a_value_outside_its_range_names_the_method_the_parameter_and_the_range() {
+        assert_eq!(
+            parse_error("points:size=100"),
+            "points: size=100 is out of range (1..=64)"
+        );
+        assert_eq!(
+            parse_error("pyramid:radius=0.01"),
+            "pyramid: radius=0.01 is out of range (0.05..=20)"
+        );
+        assert_eq!(
+            parse_error("points:size=big"),
+            "points: size=big is not a number (expected 1..=64)"
+        );
+        assert_eq!(
+            parse_error("points:size=inf"),
+            "points: size=inf is not a number (expected 1..=64)"
+        );
+        let at_limit = MethodConfig::parse("points:size=64").expect("the upper limit");
+        assert_eq!(at_limit.get("size"), 64.0);
+    }
+
+    #[test]
+    fn a_mistyped_method_or_parameter_gets_the_closest_name() {
+        let names: Vec<_> = METHODS.iter().map(|m| m.name).collect();
+        let names = names.join(", ");
+        assert_eq!(
+            parse_error("pyrmid"),
+            format!("unknown method 'pyrmid'; did you mean 'pyramid'? (available: {names})")
+        );
+        assert_eq!(
+            parse_error("pyramid-hybird:cull=0"),
+            format!("unknown method 'pyramid-hybird'; did you mean 'pyramid-hybrid'? (available: {names})")
+        );
+        assert_eq!(
+            parse_error("splat"),
+            format!("unknown method 'splat' (available: {names})")
+        );
+        let pyramid: Vec<_> = pyramid::INFO.params.iter().map(|p| p.name).collect();
+        assert_eq!(
+            parse_error("pyramid:cul=0"),
+            format!(
+                "method 'pyramid' has no parameter 'cul'; did you mean 'cull'? (parameters: {})",
+                pyramid.join(", ")
+            )
+        );
+        assert_eq!(
+            parse_error("points:szie=2"),
+            "method 'points' has no parameter 'szie'; did you mean 'size'? (parameters: size)"
+        );
+        assert_eq!(
+            parse_error("points:width=2"),
+            "method 'points' has no parameter 'width' (parameters: size)"
+        );
     }
 }

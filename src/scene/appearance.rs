@@ -147,9 +147,12 @@ impl Background {
             },
         };
         rgb.map(Background::Color).ok_or_else(|| {
-            "expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, or \
-             transparent"
-                .to_string()
+            let names = ["black", "white", "grey", "gray", "transparent"];
+            format!(
+                "expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, or \
+                 transparent{}",
+                crate::suggest::did_you_mean(t, names)
+            )
         })
     }
 }
@@ -193,6 +196,22 @@ mod tests {
         let e = Edl::parse("-1").unwrap_err();
         assert!(e.contains("strength -1 is outside 0..=100"), "{e}");
         assert!(Edl::parse("NaN").is_err() && Edl::parse("1,2,3").is_err());
+    }
+
+    #[test]
+    fn a_mistyped_background_name_gets_the_closest() {
+        let expected = "expected a color as #rrggbb, r,g,b (each 0-255), black, white or grey, \
+                        or transparent";
+        assert_eq!(
+            Background::parse("whte"),
+            Err(format!("{expected}; did you mean 'white'?"))
+        );
+        assert_eq!(
+            Background::parse("transparnet"),
+            Err(format!("{expected}; did you mean 'transparent'?"))
+        );
+        assert_eq!(Background::parse("pink"), Err(expected.to_owned()));
+        assert_eq!(Background::parse("1,2"), Err(expected.to_owned()));
     }
 
     #[test]

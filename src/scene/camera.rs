@@ -376,23 +376,56 @@ mod tests {
     }
 }
 
-/// A named camera pose relative to the scene's bounding sphere.
+/// A named camera pose relative to the scene's bounding sphere. A scene file writes it as
+/// [`POSE_FORMS`] says; which form a table has is decided from its keys (`PoseFields`), so a
+/// table of neither form is refused with what it lacks or mixes.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, try_from = "PoseFields")]
 pub enum Pose {
     /// `eye`/`target` in the file's coordinates (a LiDAR file's real-world coordinates, f64);
     /// the cloud's local origin is subtracted when the camera is made.
     LookAt { eye: [f64; 3], target: [f64; 3] },
     /// Degrees around the bounding-sphere centre; `distance` scales the framing distance.
-    Orbit {
-        orbit: [f32; 2],
-        #[serde(default = "one")]
-        distance: f32,
-    },
+    Orbit { orbit: [f32; 2], distance: f32 },
 }
 
-fn one() -> f32 {
-    1.0
+/// The forms a scene file's camera takes, for messages.
+pub const POSE_FORMS: &str = "expected `orbit = [AZ, EL]` (degrees; `distance = D` scales the \
+     framing distance, default 1) or `eye = [X, Y, Z]` with `target = [X, Y, Z]`";
+
+/// A camera table's keys, before [`Pose`]'s form is chosen from those present.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PoseFields {
+    orbit: Option<[f32; 2]>,
+    distance: Option<f32>,
+    eye: Option<[f64; 3]>,
+    target: Option<[f64; 3]>,
+}
+
+impl TryFrom<PoseFields> for Pose {
+    type Error = String;
+
+    fn try_from(f: PoseFields) -> Result<Self, String> {
+        let found = match (f.orbit, f.eye, f.target) {
+            (Some(orbit), None, None) => {
+                return Ok(Pose::Orbit {
+                    orbit,
+                    distance: f.distance.unwrap_or(1.0),
+                })
+            }
+            (None, Some(eye), Some(target)) if f.distance.is_none() => {
+                return Ok(Pose::LookAt { eye, target })
+            }
+            (None, Some(_), Some(_)) => "`distance` with `eye` and `target`",
+            (Some(_), _, _) => "`orbit` with `eye` or `target`",
+            (None, Some(_), None) => "`eye` without `target`",
+            (None, None, Some(_)) => "`target` without `eye`",
+            (None, None, None) if f.distance.is_some() => "`distance` without `orbit`",
+            (None, None, None) => "an empty table",
+        };
+        Err(format!("camera: {POSE_FORMS}; found {found}"))
+    }
 }
 
 impl Default for Pose {

@@ -154,13 +154,40 @@ pub struct Cloud {
     /// Offset that was subtracted from the file's coordinates.
     pub origin: DVec3,
     pub stats: LoadStats,
-    /// Sensor (scanner/camera) position in the same local frame as `positions`, when the file
-    /// records it (PCD `VIEWPOINT`); preprocessing orients estimated normals towards it.
-    pub sensor: Option<Vec3>,
+    /// Where the scanner (or camera) of each scan stood, in the same local frame as
+    /// `positions`, when the file records it (an E57 scan's pose, a PCD `VIEWPOINT`): scans in
+    /// point order, each from its first point to the next scan's. Estimated normals face it
+    /// ([`super::orient`]).
+    pub sensors: Vec<Sensor>,
     /// The axis pointing up in the data: the format's convention (+z for LAS, LAZ, COPC, E57
     /// and PCD; +y otherwise), or what the loader read from the data (`stats.up_rule`: an
     /// organized PCD's camera frame, survey-sized text coordinates); cameras orbit about it.
     pub up: Up,
+    /// Survey data (LAS, LAZ, COPC, text in projected coordinates): seen from above, so
+    /// estimated normals face `up` where no scanner position is known.
+    pub survey: bool,
+}
+
+/// A scan's scanner position and the first point of the scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensor {
+    pub first: usize,
+    pub position: Vec3,
+}
+
+/// The scans of `sensors` over the points `keep` (ascending indices of the old points).
+pub(crate) fn remap_sensors(sensors: &[Sensor], keep: &[usize]) -> Vec<Sensor> {
+    let mut out: Vec<Sensor> = Vec::with_capacity(sensors.len());
+    for s in sensors {
+        let first = keep.partition_point(|&k| k < s.first);
+        // A scan left without points gives way to the next one starting at the same point.
+        if let Some(last) = out.last_mut().filter(|l| l.first == first) {
+            *last = Sensor { first, ..*s };
+        } else {
+            out.push(Sensor { first, ..*s });
+        }
+    }
+    out
 }
 
 impl Cloud {
@@ -185,8 +212,9 @@ impl Cloud {
             scalars: self.scalars.clone(),
             faces: None,
             lines: None,
-            sensor: self.sensor,
+            sensors: remap_sensors(&self.sensors, keep),
             up: self.up,
+            survey: self.survey,
             origin: self.origin,
             stats: self.stats.clone(),
         };
@@ -324,6 +352,10 @@ impl Cloud {
                     _ => false,
                 }
             });
+        }
+        if !self.sensors.is_empty() {
+            let kept: Vec<usize> = (0..keep.len()).filter(|&i| keep[i]).collect();
+            self.sensors = remap_sensors(&self.sensors, &kept);
         }
         self.stats.dropped_non_finite += dropped;
         dropped

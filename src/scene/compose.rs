@@ -157,7 +157,8 @@ pub fn append(base: &mut Cloud, mut other: Cloud) -> Result<()> {
     base.stats.records += other.stats.records;
     base.stats.dropped_non_finite += other.stats.dropped_non_finite;
     base.stats.dropped_invalid += other.stats.dropped_invalid;
-    base.sensor = None;
+    // Each input was completed before the merge: its scanners are spent.
+    base.sensors.clear();
     Ok(())
 }
 

@@ -826,6 +826,8 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
             gps_time_origin: Some(time_origin),
             ..LoadStats::default()
         },
+        up: super::Up::Z,
+        survey: true,
         ..Cloud::default()
     };
     cloud.adopt_geometry_fields();

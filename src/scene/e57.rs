@@ -9,16 +9,19 @@
 //! centre becomes [`Cloud::origin`] and is subtracted before the conversion to f32, as for LAS.
 //! Colors are normalized by the scan's color limits (else the color fields' type bounds) to
 //! sRGB bytes (points without a valid color in a file that has colors are white); intensity
-//! becomes the `intensity` scalar, in the file's units (0 where a point has none).
+//! becomes the `intensity` scalar, in the file's units (0 where a point has none). A scan with
+//! a pose, or with spherical coordinates (ranges measured from the scanner), records where its
+//! scanner stood: the pose's translation becomes that scan's [`Sensor`], which estimated
+//! normals face.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
 use e57::{E57Reader, PointCloud, RecordDataType, RecordName, RecordValue};
-use glam::{DQuat, DVec3};
+use glam::{DQuat, DVec3, Vec3};
 
-use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
+use super::cloud::{Bounds, Cloud, LoadStats, Scalar, Sensor};
 use super::error::LoadError;
 use super::guard;
 
@@ -139,6 +142,9 @@ struct Scan {
     intensity_invalid: Option<usize>,
     rotation: DQuat,
     translation: DVec3,
+    /// Where the scanner stood, in the file's frame: the pose's translation when the scan
+    /// has a pose or records ranges (spherical coordinates are measured from the scanner).
+    sensor: Option<DVec3>,
 }
 
 impl Scan {
@@ -188,6 +194,12 @@ impl Scan {
             intensity_invalid: find(RecordName::IsIntensityInvalid),
             rotation,
             translation,
+            sensor: (pc.transform.is_some()
+                || pc
+                    .prototype
+                    .iter()
+                    .any(|r| r.name == RecordName::SphericalRange))
+            .then_some(translation),
         }
     }
 }
@@ -249,6 +261,8 @@ fn decode(pc: &PointCloud, scan: &Scan, values: &[RecordValue]) -> e57::Result<D
 /// One valid point of a scan: its position in the file's frame, and its colour and intensity
 /// when the scan records them.
 pub(crate) struct E57Point {
+    /// The scan (`data3D` entry) it belongs to.
+    pub scan: usize,
     pub world: DVec3,
     pub color: Option<[u8; 4]>,
     pub intensity: Option<f32>,
@@ -284,6 +298,7 @@ fn read_scans<R: Read + Seek>(
                 continue;
             };
             sink(E57Point {
+                scan: index,
                 world,
                 color,
                 intensity,
@@ -344,15 +359,22 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     let file = path.display().to_string();
     let (mut reader, size) = open(path)?;
     let mut points = Points::default();
+    let mut scanners = Vec::new();
     for pc in reader.pointclouds() {
         let scan = Scan::new(&pc);
+        scanners.push(scan.sensor);
         points.any_color |= scan.color.is_some();
         points.any_intensity |= scan.intensity.is_some();
         // The declared count bounds the reservation only as far as the file can hold it.
         let reserve = usize::try_from(pc.records.min(size / 4)).unwrap_or(0);
         points.world.reserve(reserve);
     }
+    // The first point of each scan that has any, and the scan.
+    let mut starts: Vec<(usize, usize)> = Vec::new();
     let mut sink = |p: E57Point| {
+        if starts.last().is_none_or(|&(_, scan)| scan != p.scan) {
+            starts.push((points.world.len(), p.scan));
+        }
         points.world.push(p.world);
         points.colors.push(p.color.unwrap_or(NO_COLOR));
         points.intensity.push(p.intensity.unwrap_or(0.0));
@@ -379,6 +401,18 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
                 name: "intensity".into(),
                 values: points.intensity,
             }]
+        } else {
+            Vec::new()
+        },
+        sensors: if scanners.iter().any(Option::is_some) {
+            starts
+                .iter()
+                .map(|&(first, scan)| Sensor {
+                    first,
+                    // A scan without a scanner position orients its normals by propagation.
+                    position: scanners[scan].map_or(Vec3::NAN, |s| (s - origin).as_vec3()),
+                })
+                .collect()
         } else {
             Vec::new()
         },

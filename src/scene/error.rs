@@ -27,6 +27,9 @@ pub(crate) fn show(text: impl AsRef<[u8]>) -> String {
     shown
 }
 
+/// The extensions of the formats the loaders read, for messages.
+pub const FORMATS: &str = ".ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts, .csv";
+
 /// Where in a file a problem was found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Location {
@@ -64,14 +67,18 @@ pub enum LoadError {
         source: std::io::Error,
     },
     /// The extension does not name a supported format.
-    #[error(
-        "{file}: unsupported file type {extension:?}; expected one of .ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts, .csv"
-    )]
+    #[error("{file}: unsupported file type {extension:?}; expected one of {FORMATS}")]
     UnknownFormat {
         /// The file, as given by the caller.
         file: String,
         /// The extension that was found (empty when there is none).
         extension: String,
+    },
+    /// The path names a directory, not a file.
+    #[error("{file}: is a directory; expected a point-cloud file ({FORMATS})")]
+    Directory {
+        /// The directory, as given by the caller.
+        file: String,
     },
     /// The content does not match the format.
     #[error("{file}: {location}{message}")]

@@ -14,8 +14,10 @@ pub mod input;
 pub mod knn;
 pub mod las;
 pub mod lights;
+pub mod morton;
 pub mod normal_field;
 pub mod obj;
+pub mod orient;
 pub mod pack;
 pub mod pcd;
 pub mod ply;
@@ -30,7 +32,7 @@ pub mod xyz;
 use std::path::Path;
 
 pub use camera::{Camera, Pose, Up};
-pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar};
+pub use cloud::{Cloud, Levels, Lines, LoadStats, Scalar, Sensor};
 pub use error::{LoadError, Location};
 pub use input::{complete, complete_with, load_prepared, Estimator, LoadOptions};
 pub use lights::{Light, LightKind};
@@ -85,6 +87,7 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
         ));
     }
     check_regular(path)?;
+    let survey = matches!(extension.as_str(), "las" | "laz" | "copc.laz");
     let mut cloud = match extension.as_str() {
         "ply" if crate::lines::is_line_model(path) => {
             crate::lines::load(path).map(|m| m.to_cloud())
@@ -104,6 +107,7 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
     if cloud.stats.up_rule.is_none() {
         cloud.up = up;
     }
+    cloud.survey = cloud.survey || survey;
     for warning in &cloud.stats.warnings {
         eprintln!("warning: {warning}");
     }
@@ -133,16 +137,17 @@ pub fn format_up(extension: &str) -> Up {
     }
 }
 
-/// Refuses a device, FIFO or socket before a loader opens it: reading a FIFO waits for a
-/// writer, and `/dev/zero` or `/dev/urandom` never end.
+/// Refuses a directory, device, FIFO or socket before a loader opens it: reading a FIFO waits
+/// for a writer, and `/dev/zero` or `/dev/urandom` never end.
 pub fn check_regular(path: &Path) -> Result<(), LoadError> {
     let file = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(|source| LoadError::Io {
         file: file.clone(),
         source,
     })?;
-    // A folder fails when it is read, with the operating system's reason.
-    if meta.is_file() || meta.is_dir() {
+    if meta.is_dir() {
+        Err(LoadError::Directory { file })
+    } else if meta.is_file() {
         Ok(())
     } else {
         Err(LoadError::whole(

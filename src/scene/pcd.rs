@@ -4,7 +4,7 @@
 //! field (F4 or U4, bytes b, g, r, a in little-endian order) colors; every other numeric field is
 //! kept as a named scalar (`name_i` for element `i` of a field with `COUNT` > 1; `_` padding
 //! fields are skipped). Points with a non-finite coordinate are dropped and counted. The
-//! `VIEWPOINT` translation becomes [`Cloud::sensor`].
+//! `VIEWPOINT` translation becomes the cloud's one scan position ([`Cloud::sensors`]).
 //!
 //! **Up axis.** An organized cloud (`HEIGHT` > 1: a depth or RGB-D camera's image) is in the
 //! camera's frame, x right, y down, z forward, so its up axis is -y. The `VIEWPOINT` rotation
@@ -22,7 +22,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::camera::Up;
-use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
+use super::cloud::{Bounds, Cloud, LoadStats, Scalar, Sensor};
 use super::error::{show, LoadError};
 use super::text::{self, Lines};
 
@@ -440,7 +440,14 @@ impl Builder {
                 .map(|n| n.into_iter().map(Vec3::from).collect()),
             colors: self.colors,
             scalars: self.scalars,
-            sensor: header.viewpoint.map(|v| (v - origin).as_vec3()),
+            sensors: header
+                .viewpoint
+                .map(|v| Sensor {
+                    first: 0,
+                    position: (v - origin).as_vec3(),
+                })
+                .into_iter()
+                .collect(),
             origin,
             stats: LoadStats {
                 records: header.points,
@@ -721,7 +728,13 @@ mod tests {
         assert_eq!(c.colors.as_ref().unwrap()[0], [255, 0, 0, 255]);
         assert_eq!(c.colors.as_ref().unwrap()[1], [0, 0, 255, 255]);
         assert_eq!(c.scalars[0].values, vec![0.5, 2.0]);
-        assert_eq!(c.sensor, Some(Vec3::new(1.0, 2.0, 3.0)));
+        assert_eq!(
+            c.sensors,
+            vec![Sensor {
+                first: 0,
+                position: Vec3::new(1.0, 2.0, 3.0)
+            }]
+        );
     }
 
     #[test]

@@ -2,12 +2,10 @@
 //! search per point on a uniform grid ([`super::knn`], rayon-parallel, in cell order), shared by
 //!
 //! * **normals** by PCA: the eigenvector of the smallest eigenvalue of the covariance of the
-//!   point and its k neighbours. Orientation: towards [`Cloud::sensor`] when the file recorded
-//!   one, otherwise away from the cloud's centroid. The centroid rule is right for roughly
-//!   convex, closed objects and wrong in concavities (e.g. the inside of a bowl, or between the
-//!   dragon's coils), where normals can point inwards; a consistent propagation over a
-//!   neighbourhood graph would be needed there. Degenerate neighbourhoods (duplicates, a single
-//!   point) fall back to the sensor direction, then the outward direction, then +Z — never NaN.
+//!   point and its k neighbours, then oriented consistently by [`super::orient`] (towards the
+//!   scanner, up for survey data, else by propagation over the nearest [`GRAPH_K`] neighbours).
+//!   Degenerate neighbourhoods (duplicates, a single point) fall back to the sensor direction,
+//!   then the outward direction, then +Z — never NaN — before the orientation.
 //! * **radii**: with `r_k` the distance to the k-th nearest neighbour, either `r_k` itself
 //!   ([`RadiusMode::KthNeighbour`]) or the spacing implied by the local density
 //!   `rho = k / (pi r_k^2)`, `spacing = 1 / sqrt(rho) = r_k sqrt(pi / k)`
@@ -30,6 +28,7 @@ use rayon::prelude::*;
 
 use super::cloud::Cloud;
 use super::knn::Grid;
+use super::orient::{self, Graph, Rule, GRAPH_K};
 use super::progress::Progress;
 
 /// Default neighbourhood size.
@@ -408,16 +407,21 @@ pub fn centroid(positions: &[Vec3]) -> Vec3 {
     }
 }
 
-/// Estimates a unit normal per point from its neighbourhood (see the module documentation for
-/// the orientation rule and the fallbacks). Never returns NaN.
-pub fn estimate_normals(
-    positions: &[Vec3],
-    neighbours: &Neighbours,
-    sensor: Option<Vec3>,
-    progress: bool,
-) -> Vec<Vec3> {
+/// The scanner the first estimate faces before [`orient`] re-signs it: the first scan's.
+fn first_sensor(cloud: &Cloud) -> Option<Vec3> {
+    cloud
+        .sensors
+        .first()
+        .map(|s| s.position)
+        .filter(|s| s.is_finite())
+}
+
+/// Estimates a unit normal per point of `cloud` from its neighbourhood, oriented by the cloud's
+/// [`Rule`] (see the module documentation for the fallbacks). Never returns NaN.
+pub fn estimate_normals(cloud: &Cloud, neighbours: &Neighbours, progress: bool) -> Vec<Vec3> {
+    let positions = &cloud.positions;
     let centre = centroid(positions);
-    let sensor = sensor.filter(|s| s.is_finite());
+    let sensor = first_sensor(cloud);
     let bar = Progress::new(
         "normals",
         positions.len(),
@@ -438,6 +442,17 @@ pub fn estimate_normals(
             bar.advance(out.len());
         });
     bar.finish();
+    let mut graph = Graph::new(positions.len());
+    graph
+        .rows
+        .par_chunks_mut(GRAPH_K)
+        .enumerate()
+        .for_each(|(i, row)| {
+            for (slot, &j) in row.iter_mut().zip(neighbours.of(i).0) {
+                *slot = j;
+            }
+        });
+    orient::orient(cloud, &mut normals, &graph, Rule::for_cloud(cloud));
     normals
 }
 
@@ -528,10 +543,10 @@ pub fn preprocess_with(
     let n = positions.len();
     let grid = Grid::build(positions, k);
     let centre = centroid(positions);
-    let sensor = cloud.sensor.filter(|s| s.is_finite());
+    let sensor = first_sensor(cloud);
     let label = if want_normals { "normals" } else { "radii" };
     let bar = Progress::new(label, n, options.progress && n >= PROGRESS_MIN_POINTS);
-    let mut found = vec![(Vec3::Z, 0f32); grid.len()];
+    let mut found = vec![(Vec3::Z, 0f32, [orient::NONE; GRAPH_K]); grid.len()];
     grid.for_each(
         k,
         &mut found,
@@ -541,6 +556,9 @@ pub fn preprocess_with(
             if want_normals {
                 let pca = pca_normal(p, near.iter().map(|e| grid.position(e.1)));
                 out[0].0 = oriented_normal(pca, p, sensor, centre);
+                for (slot, e) in out[0].2.iter_mut().zip(near) {
+                    *slot = grid.input_index(e.1);
+                }
             }
             out[0].1 = radius_of(near.last().map(|e| e.0), near.len(), options.radius);
         },
@@ -553,12 +571,17 @@ pub fn preprocess_with(
     // Non-finite points keep +Z and get the radius floor, as without neighbours.
     let mut normals = vec![Vec3::Z; n];
     let mut radii = vec![0f32; n];
-    for (s, (normal, radius)) in found.into_iter().enumerate() {
+    let mut graph = Graph::new(if want_normals { n } else { 0 });
+    for (s, (normal, radius, row)) in found.into_iter().enumerate() {
         let i = grid.input_index(s as u32) as usize;
         normals[i] = normal;
         radii[i] = radius;
+        if want_normals {
+            graph.rows[i * GRAPH_K..(i + 1) * GRAPH_K].copy_from_slice(&row);
+        }
     }
     if want_normals {
+        orient::orient(cloud, &mut normals, &graph, Rule::for_cloud(cloud));
         cloud.normals = Some(normals);
     }
     if want_radii {
@@ -570,13 +593,15 @@ pub fn preprocess_with(
 /// Completes `cloud` from an estimate made elsewhere (the GPU path): per point in input order,
 /// `xyz` its oriented unit normal and `w` the squared distance to its k-th nearest neighbour,
 /// or `w < 0` for a point the estimate left unresolved, which is searched here exactly (a k-d
-/// tree over the finite points). Writes what the cloud lacks, as [`preprocess`] does: the same
-/// radii rule and floor, non-finite points +Z and the floor. Returns the number of points
-/// searched here.
+/// tree over the finite points); `graph` holds each resolved point's nearest neighbours.
+/// Writes what the cloud lacks, as [`preprocess`] does: the same orientation, the same radii
+/// rule and floor, non-finite points +Z and the floor. Returns the number of points searched
+/// here.
 pub fn complete_from(
     cloud: &mut Cloud,
     options: &PreprocessOptions,
     estimate: &[glam::Vec4],
+    mut graph: Graph,
 ) -> usize {
     let (want_normals, want_radii) = (cloud.normals.is_none(), cloud.radii.is_none());
     if !want_normals && !want_radii {
@@ -600,8 +625,8 @@ pub fn complete_from(
     if !unresolved.is_empty() {
         let tree = FiniteTree::new(positions);
         let centre = centroid(positions);
-        let sensor = cloud.sensor.filter(|s| s.is_finite());
-        let exact: Vec<(Vec3, f32)> = unresolved
+        let sensor = first_sensor(cloud);
+        let exact: Vec<(Vec3, f32, [u32; GRAPH_K])> = unresolved
             .par_iter()
             .map_init(Vec::new, |found, &i| {
                 tree.nearest(positions, i as usize, k, found);
@@ -609,15 +634,22 @@ pub fn complete_from(
                 let near = found.iter().map(|&(j, _)| positions[j as usize]);
                 let normal = oriented_normal(pca_normal(p, near), p, sensor, centre);
                 let far2 = found.last().map(|e| e.1);
-                (normal, radius_of(far2, found.len(), options.radius))
+                let mut row = [orient::NONE; GRAPH_K];
+                for (slot, &(j, _)) in row.iter_mut().zip(found.iter()) {
+                    *slot = j;
+                }
+                (normal, radius_of(far2, found.len(), options.radius), row)
             })
             .collect();
-        for (&i, (normal, radius)) in unresolved.iter().zip(exact) {
-            normals[i as usize] = normal;
-            radii[i as usize] = radius;
+        for (&i, (normal, radius, row)) in unresolved.iter().zip(exact) {
+            let i = i as usize;
+            normals[i] = normal;
+            radii[i] = radius;
+            graph.rows[i * GRAPH_K..(i + 1) * GRAPH_K].copy_from_slice(&row);
         }
     }
     if want_normals {
+        orient::orient(cloud, &mut normals, &graph, Rule::for_cloud(cloud));
         cloud.normals = Some(normals);
     }
     if want_radii {
@@ -628,7 +660,7 @@ pub fn complete_from(
 }
 
 const CACHE_MAGIC: &[u8; 8] = b"SURFELPC";
-const CACHE_VERSION: u32 = 1;
+const CACHE_VERSION: u32 = 2;
 const CACHE_HEADER: usize = 8 + 4 + 4 + 4 + 8 + 8 + 8 + 4;
 
 /// The cache file for `input`: `<input>.surfel-cache` beside it.
@@ -835,8 +867,13 @@ mod tests {
         let points: Vec<Vec3> = grid(20, 0.1).into_iter().map(|p| tilt * p).collect();
         let nb = Neighbours::compute(&points, 10, false);
         let expected = tilt * Vec3::Z;
-        let towards = estimate_normals(&points, &nb, Some(Vec3::new(1.0, 1.0, 5.0)), false);
-        let away = estimate_normals(&points, &nb, Some(Vec3::new(1.0, 1.0, -5.0)), false);
+        let seen_from = |position: Vec3| Cloud {
+            positions: points.clone(),
+            sensors: vec![crate::scene::Sensor { first: 0, position }],
+            ..Cloud::default()
+        };
+        let towards = estimate_normals(&seen_from(Vec3::new(1.0, 1.0, 5.0)), &nb, false);
+        let away = estimate_normals(&seen_from(Vec3::new(1.0, 1.0, -5.0)), &nb, false);
         for (a, b) in towards.iter().zip(&away) {
             assert!((*a - expected).length() < 1e-4, "{a}");
             assert!((*b + expected).length() < 1e-4, "{b}");
@@ -851,7 +888,11 @@ mod tests {
             })
             .collect();
         let nb = Neighbours::compute(&sphere, 10, false);
-        let normals = estimate_normals(&sphere, &nb, None, false);
+        let bare = Cloud {
+            positions: sphere.clone(),
+            ..Cloud::default()
+        };
+        let normals = estimate_normals(&bare, &nb, false);
         for (p, n) in sphere.iter().zip(&normals) {
             assert!(p.dot(*n) > 0.95);
         }

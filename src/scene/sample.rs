@@ -79,6 +79,47 @@ impl AliasTable {
 /// Radius factor over the equal-area disc radius (see the module documentation).
 pub const SPLAT_RADIUS_FACTOR: f32 = 2.0;
 
+/// Host memory a point of [`sample_mesh`]'s cloud takes: position and normal (12 bytes each),
+/// radius and color (4 each; the color counted whether or not the mesh has colors).
+pub const SAMPLED_POINT_BYTES: u64 = 32;
+
+/// The host memory available now: `MemAvailable` of `/proc/meminfo` in bytes, `None` where it
+/// cannot be read.
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find_map(|l| l.strip_prefix("MemAvailable:"))?;
+    let kib: u64 = line.trim().strip_suffix("kB")?.trim().parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// `bytes` for a message: MiB below a GiB, GiB below a TiB, else TiB, one decimal.
+pub fn show_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    let (mib, gib) = (1024.0 * 1024.0, 1024.0 * 1024.0 * 1024.0);
+    if b < gib {
+        format!("{:.1} MiB", b / mib)
+    } else if b < 1024.0 * gib {
+        format!("{:.1} GiB", b / gib)
+    } else {
+        format!("{:.1} TiB", b / (1024.0 * gib))
+    }
+}
+
+/// Refuses to sample `count` points when their cloud ([`SAMPLED_POINT_BYTES`] a point) needs
+/// more than `available` bytes: the message says how much it needs.
+pub fn check_memory(count: u64, available: u64) -> Result<(), String> {
+    let needed = count.saturating_mul(SAMPLED_POINT_BYTES);
+    if needed > available {
+        return Err(format!(
+            "{count} sampled points need {} of memory ({SAMPLED_POINT_BYTES} bytes each), {} is \
+             available",
+            show_bytes(needed),
+            show_bytes(available)
+        ));
+    }
+    Ok(())
+}
+
 /// Why a mesh cannot be sampled.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SampleError {
@@ -188,7 +229,7 @@ pub fn sample_mesh(mesh: &Cloud, n_points: usize, seed: u64) -> Result<Cloud, Sa
         colors: out_colors,
         radii: Some(vec![radius; n_points]),
         origin: mesh.origin,
-        sensor: mesh.sensor,
+        sensors: Vec::new(),
         stats: LoadStats {
             records: n_points,
             ..LoadStats::default()
@@ -264,5 +305,28 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("vertex 70"));
+    }
+
+    #[test]
+    fn a_count_beyond_the_memory_is_refused_with_what_it_needs() {
+        let gib = 1 << 30;
+        assert_eq!(check_memory(1_000_000_000, 30 * gib), Ok(()));
+        assert_eq!(
+            check_memory(1_000_000_000, 16 * gib),
+            Err(
+                "1000000000 sampled points need 29.8 GiB of memory (32 bytes each), 16.0 GiB \
+                 is available"
+                    .to_owned()
+            )
+        );
+        assert_eq!(
+            check_memory(u64::MAX, 512 << 20),
+            Err(format!(
+                "{} sampled points need 16777216.0 TiB of memory (32 bytes each), 512.0 MiB is \
+                 available",
+                u64::MAX
+            ))
+        );
+        assert!(available_memory().is_some_and(|m| m > 0));
     }
 }

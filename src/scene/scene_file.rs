@@ -97,14 +97,29 @@ impl SceneFile {
         Ok(file)
     }
 
-    /// Parses `text`; `path` names the format and appears in errors.
+    /// Parses `text`; `path` names the format and appears in errors, with the line where the
+    /// parser found the problem: `FILE: line N: invalid scene file: MESSAGE`.
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let invalid = |line: Option<usize>, message: &str| {
+            let at = line.map_or(String::new(), |n| format!("line {n}: "));
+            anyhow::anyhow!("{}: {at}invalid scene file: {message}", path.display())
+        };
         let file: Self = match ext {
-            "toml" => toml::from_str(text)
-                .with_context(|| format!("{}: invalid scene file", path.display()))?,
-            "json" => serde_json::from_str(text)
-                .with_context(|| format!("{}: invalid scene file", path.display()))?,
+            "toml" => toml::from_str(text).map_err(|e| {
+                let bytes = text.as_bytes();
+                let line = e.span().map(|span| {
+                    let before = &bytes[..span.start.min(bytes.len())];
+                    before.iter().filter(|&&b| b == b'\n').count() + 1
+                });
+                invalid(line, e.message().trim_end())
+            })?,
+            "json" => serde_json::from_str(text).map_err(|e| {
+                let message = e.to_string();
+                let at = format!(" at line {} column {}", e.line(), e.column());
+                let message = message.strip_suffix(&at).unwrap_or(&message);
+                invalid((e.line() > 0).then_some(e.line()), message)
+            })?,
             _ => bail!("{}: scene files must end in .toml or .json", path.display()),
         };
         file.check()
@@ -297,6 +312,70 @@ mod tests {
         assert!(SceneFile::parse("{}", Path::new("s.yaml")).is_err());
         let e = SceneFile::parse("up = \"w\"\n", Path::new("up.toml")).unwrap_err();
         assert!(format!("{e:#}").contains("`w`"), "{e:#}");
+    }
+
+    #[test]
+    fn a_camera_of_neither_form_is_refused_with_the_forms_and_the_line() {
+        use crate::scene::camera::POSE_FORMS;
+        let error = |text: &str, name: &str| {
+            format!("{:#}", SceneFile::parse(text, Path::new(name)).unwrap_err())
+        };
+        for (text, line, found) in [
+            (
+                "up = \"z\"\n[camera]\neye = [0, 0, 5]\n",
+                2,
+                "`eye` without `target`",
+            ),
+            (
+                "[camera]\ntarget = [0, 0, 5]\n",
+                1,
+                "`target` without `eye`",
+            ),
+            (
+                "[camera]\norbit = [30, 15]\neye = [0, 0, 5]\ntarget = [0, 0, 0]\n",
+                1,
+                "`orbit` with `eye` or `target`",
+            ),
+            (
+                "[camera]\neye = [0, 0, 5]\ntarget = [0, 0, 0]\ndistance = 2\n",
+                1,
+                "`distance` with `eye` and `target`",
+            ),
+            ("[camera]\ndistance = 2\n", 1, "`distance` without `orbit`"),
+            ("camera = {}\n", 1, "an empty table"),
+        ] {
+            assert_eq!(
+                error(text, "s.toml"),
+                format!(
+                    "s.toml: line {line}: invalid scene file: camera: {POSE_FORMS}; found {found}"
+                ),
+                "{text}"
+            );
+        }
+        assert_eq!(
+            error(
+                "{\n  \"camera\": {\"orbit\": [30, 15], \"eye\": [0, 0, 1]},\n  \"up\": \"z\"\n}",
+                "s.json"
+            ),
+            format!(
+                "s.json: line 2: invalid scene file: camera: {POSE_FORMS}; found `orbit` with \
+                 `eye` or `target`"
+            )
+        );
+        assert_eq!(
+            error("[camera]\norbt = [30, 15]\n", "s.toml"),
+            "s.toml: line 2: invalid scene file: unknown field `orbt`, expected one of `orbit`, \
+             `distance`, `eye`, `target`"
+        );
+        assert_eq!(
+            error("[camera]\norbit = [30]\n", "s.toml"),
+            "s.toml: line 2: invalid scene file: invalid length 1, expected an array of length 2"
+        );
+        assert_eq!(
+            POSE_FORMS,
+            "expected `orbit = [AZ, EL]` (degrees; `distance = D` scales the framing distance, \
+             default 1) or `eye = [X, Y, Z]` with `target = [X, Y, Z]`"
+        );
     }
 
     #[test]

@@ -40,7 +40,8 @@
 //! **Up axis.** Text clouds are +y up (the convention of the mesh formats) unless their
 //! coordinates are survey-sized: x and y both reach [`SURVEY_MAGNITUDE`] (10⁴) in absolute
 //! value, or either reaches [`RECENTRE_MAGNITUDE`] (10⁵, which also re-centres the cloud), as
-//! projected coordinates such as UTM eastings and northings do. Those are +z up.
+//! projected coordinates such as UTM eastings and northings do. Those are +z up, and survey
+//! data ([`Cloud::survey`]: estimated normals face up where no scanner position is known).
 
 use std::path::Path;
 
@@ -487,6 +488,7 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
             ..LoadStats::default()
         },
         up: if survey { Up::Z } else { Up::Y },
+        survey,
         ..Cloud::default()
     };
     cloud.retain_finite();
@@ -627,10 +629,12 @@ mod tests {
         ] {
             let c = parse("utm.xyz", text).unwrap();
             assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Z, Some(rule)));
+            assert!(c.survey);
         }
         for text in [&b"9999 9999 0\n0 0 1\n"[..], b"10000 5 1000000\n0 0 1\n"] {
             let c = parse("local.xyz", text).unwrap();
             assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Y, None));
+            assert!(!c.survey);
         }
     }
 

@@ -308,7 +308,12 @@ fn bad_arguments_are_explained() {
     let o = surfel(&["render", b, "--method", "nope"]);
     assert!(stderr(&o).contains("unknown method 'nope'") && stderr(&o).contains("points"));
     let o = surfel(&["render", b, "--method", "points:size=500"]);
-    assert!(stderr(&o).contains("outside"), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).lines().last(),
+        Some("error: points: size=500 is out of range (1..=64)"),
+        "{}",
+        stderr(&o)
+    );
     let o = surfel(&["render", b, "--size", "0x10"]);
     assert!(stderr(&o).contains("each edge"), "{}", stderr(&o));
     let o = surfel(&["render", b, "--orbit", "1,x"]);
@@ -777,7 +782,39 @@ fn text_columns_by_name_or_by_flag() {
 }
 
 #[test]
-fn a_directory_as_input_reports_the_os_error_once() {
+fn a_directory_as_input_is_named_a_directory() {
+    let dir = tmp("directory-inputs");
+    let formats = ".ply, .obj, .pcd, .las, .laz, .copc.laz, .e57, .xyz, .txt, .pts, .csv";
+    for name in ["scans", "model.ply", "model.laz", "model.copc.laz"] {
+        let model = dir.join(name);
+        std::fs::create_dir_all(&model).expect("directory");
+        let model = model.to_str().expect("utf8");
+        let png = dir.join("out.png");
+        for args in [
+            vec!["info", model, "--no-device"],
+            vec!["render", model, "-o", png.to_str().expect("utf8")],
+            vec![
+                "convert",
+                model,
+                "--out",
+                dir.join("out.copc.laz").to_str().expect("utf8"),
+            ],
+        ] {
+            let o = surfel(&args);
+            assert_eq!(o.status.code(), Some(1), "{args:?}");
+            assert_eq!(
+                stderr(&o).lines().last().map(str::to_owned),
+                Some(format!(
+                    "error: {model}: is a directory; expected a point-cloud file ({formats})"
+                )),
+                "{args:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_directory_as_scene_or_cache_reports_the_os_error_once() {
     let dir = tmp("directories");
     std::fs::create_dir_all(&dir).expect("temp dir");
     let os_error = std::fs::read(&dir).expect_err("directory").to_string();
@@ -790,19 +827,7 @@ fn a_directory_as_input_reports_the_os_error_once() {
         path.to_str().expect("utf8").to_owned()
     };
     let mut cases = Vec::new();
-    for ext in ["ply", "obj", "pcd", "las", "laz", "xyz"] {
-        let model = subdir(&format!("model.{ext}"));
-        cases.push((
-            vec!["info".into(), model.clone(), "--no-device".into()],
-            format!("{model}: cannot read file"),
-        ));
-    }
     let (cloud, png) = (cloud.to_str().expect("utf8"), png.to_str().expect("utf8"));
-    let model = subdir("render.laz");
-    cases.push((
-        vec!["render".into(), model.clone(), "-o".into(), png.into()],
-        format!("{model}: cannot read file"),
-    ));
     let scene = subdir("scene.json");
     cases.push((
         vec![
@@ -1353,4 +1378,117 @@ fn normals_and_radii_are_estimated_only_for_the_methods_that_read_them() {
     let o = surfel(&["info", las, "--no-device", "--k", "0"]);
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(s.contains("normals, radii    none (--k 0)\n"), "{s}");
+}
+
+/// The default docs/cli.md gives for `--FLAG`: the first `(default …)` after the flag's first
+/// mention, up to `)` or `;`, without backticks and thousands separators.
+fn documented_default(docs: &str, flag: &str) -> String {
+    let mention = format!("`--{flag}");
+    let at = docs
+        .find(&mention)
+        .unwrap_or_else(|| panic!("{mention} in docs/cli.md"));
+    let after = &docs[at..];
+    let start = after
+        .find("(default ")
+        .filter(|&i| i < 120)
+        .unwrap_or_else(|| panic!("a default after {mention} in docs/cli.md"))
+        + "(default ".len();
+    let value = &after[start..];
+    let end = value.find([')', ';']).expect("end of the default");
+    value[..end].replace(['`', ','], "")
+}
+
+#[test]
+fn documented_defaults_agree_with_the_help() {
+    use clap::CommandFactory;
+    let docs = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/cli.md"))
+        .expect("docs/cli.md");
+    let cli = surfel::cli::Cli::command();
+    for flag in ["error-px", "point-budget", "gpu-budget", "camera-file"] {
+        let documented = documented_default(&docs, flag);
+        let mut subcommands = 0;
+        for sub in cli.get_subcommands() {
+            let Some(arg) = sub.get_arguments().find(|a| a.get_long() == Some(flag)) else {
+                continue;
+            };
+            subcommands += 1;
+            let defaults: Vec<_> = arg
+                .get_default_values()
+                .iter()
+                .map(|v| v.to_string_lossy().into_owned())
+                .collect();
+            assert_eq!(
+                defaults.as_slice(),
+                std::slice::from_ref(&documented),
+                "surfel {} --{flag}: the help's default against docs/cli.md's",
+                sub.get_name()
+            );
+            let help = surfel(&[sub.get_name(), "--help"]);
+            let help = String::from_utf8_lossy(&help.stdout).into_owned();
+            let entry = &help[help.find(&format!("--{flag}")).expect("flag in --help")..];
+            let entry = &entry[..entry.find("\n  -").unwrap_or(entry.len())];
+            assert!(
+                entry.contains(&format!("[default: {documented}]")),
+                "surfel {} --help: {entry}",
+                sub.get_name()
+            );
+        }
+        assert!(subcommands > 0, "--{flag} is an option of some subcommand");
+    }
+}
+
+#[test]
+fn sample_counts_beyond_the_memory_are_refused_before_anything_is_allocated() {
+    let dir = tmp("huge-samples");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mesh = dir.join("triangle.obj");
+    std::fs::write(&mesh, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("write mesh");
+    let mesh = mesh.to_str().expect("utf8");
+    let o = surfel(&[
+        "sample",
+        mesh,
+        "--points",
+        "1000000000000000",
+        "--out",
+        dir.join("huge.ply").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    let line = e.lines().last().expect("a message");
+    let head = format!(
+        "error: {mesh}: cannot sample: 1000000000000000 sampled points need 29103.8 TiB of \
+         memory (32 bytes each), "
+    );
+    assert!(
+        line.starts_with(&head) && line.ends_with(" is available"),
+        "{e}"
+    );
+    assert!(!dir.join("huge.ply").exists());
+
+    let sweep = dir.join("huge.toml");
+    std::fs::write(
+        &sweep,
+        "resolutions = [\"8x8\"]\n[[methods]]\nname = \"points\"\n\
+         [[models]]\npath = \"triangle.obj\"\npoints = [1000, 1000000000000000]\n",
+    )
+    .expect("write sweep");
+    let out = dir.join("bench-out");
+    let o = surfel(&[
+        "bench",
+        sweep.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    let line = e.lines().last().expect("a message");
+    let head = format!(
+        "error: sweep file {}, models[0].points[1]: 1000000000000000 sampled points need \
+         50931.7 TiB of memory, ",
+        sweep.display()
+    );
+    let tail = " is available (a sampled point takes 56 bytes while it is uploaded and 32 \
+                after, and the sweep keeps every cloud it samples: 1000 points before these)";
+    assert!(line.starts_with(&head) && line.ends_with(tail), "{e}");
+    assert!(!out.join("results.json").exists());
 }

@@ -364,8 +364,8 @@ fn pcd_with_utm_coordinates_is_recentred() {
     }
     assert_eq!(world(&c, 0), DVec3::from(points[0].map(f64::from)));
     assert_eq!(
-        c.sensor,
-        Some((DVec3::new(512_050.0, 5_412_200.0, 1_230.0) - c.origin).as_vec3())
+        c.sensors.iter().map(|s| s.position).collect::<Vec<_>>(),
+        [(DVec3::new(512_050.0, 5_412_200.0, 1_230.0) - c.origin).as_vec3()]
     );
     // Neighbouring points 0.125 m apart in x stay distinct and exact in local coordinates.
     assert_eq!(c.positions[1].x - c.positions[0].x, 0.125);

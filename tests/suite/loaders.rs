@@ -160,7 +160,13 @@ fn pcd_compressed_with_nans() {
         let colors = c.colors.as_ref().unwrap();
         assert!(colors.iter().all(|c| c[3] == 255));
         assert!(colors.iter().any(|c| c[0] > 100));
-        assert_eq!(c.sensor, Some(Vec3::ZERO));
+        assert_eq!(
+            c.sensors,
+            [surfel::scene::Sensor {
+                first: 0,
+                position: Vec3::ZERO
+            }]
+        );
         assert_eq!(c.up, scene::Up::NegY);
         assert_bounds(&c, lo, hi, 1e-4);
     }

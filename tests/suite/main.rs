@@ -25,6 +25,7 @@ mod lines;
 mod loaders;
 mod lod;
 mod malformed;
+mod orient;
 mod post;
 mod preprocess;
 mod pyramid;

@@ -41,7 +41,7 @@ fn grid_estimation_matches_the_tree_reference() {
         for i in 0..cloud.len() {
             assert_eq!(grid.of(i).1, tree.of(i).1, "{rel}: point {i}'s distances");
         }
-        let normals = preprocess::estimate_normals(&cloud.positions, &tree, cloud.sensor, false);
+        let normals = preprocess::estimate_normals(&cloud, &tree, false);
         let radii = preprocess::estimate_radii(&cloud.positions, &tree, RadiusMode::DensitySpacing);
         preprocess::preprocess(
             &mut cloud,
