@@ -1,6 +1,7 @@
 //! `surfel convert`: any input written as a COPC file for streaming.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use clap::Args;
@@ -23,6 +24,30 @@ pub struct ConvertArgs {
     pub columns: Option<Vec<String>>,
 }
 
+/// Set by SIGINT or SIGTERM: the conversion stops and removes its temporary files.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn request_stop(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+/// Makes the first SIGINT (Ctrl-C) or SIGTERM set [`STOP`]; a second one ends the process at
+/// once (the handler resets itself).
+fn stop_on_signals() {
+    #[cfg(unix)]
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        // SAFETY: the handler only stores to an atomic, which is async-signal-safe; the action
+        // is fully initialised before it is installed.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = request_stop as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            action.sa_flags = libc::SA_RESETHAND;
+            libc::sigemptyset(&mut action.sa_mask);
+            libc::sigaction(signal, &action, std::ptr::null_mut());
+        }
+    }
+}
+
 pub(super) fn convert(a: ConvertArgs) -> Result<()> {
     let options = ConvertOptions {
         node_points: a.node_points,
@@ -30,8 +55,13 @@ pub(super) fn convert(a: ConvertArgs) -> Result<()> {
             budget: None,
             columns: a.columns,
         },
+        stop: Some(&STOP),
     };
+    stop_on_signals();
     let stats = convert::convert(&a.input, &a.out, &options)?;
+    for warning in &stats.warnings {
+        eprintln!("warning: {warning}");
+    }
     let rate = |s: f64| stats.points as f64 / s.max(1e-9) / 1e6;
     eprintln!(
         "{} points -> {} ({:.1} MB): loaded in {:.2} s ({:.2} M points/s), written in {:.2} s ({:.2} M points/s)",

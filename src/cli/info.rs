@@ -4,10 +4,12 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use glam::DVec3;
 
 use super::{context, parse_up, InputArgs};
 use crate::color;
 use crate::scene::camera::Up;
+use crate::scene::cloud::LasSummary;
 use crate::scene::load_prepared;
 
 #[derive(Args, Debug)]
@@ -67,6 +69,11 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
             println!("  {:<22} {min} .. {max} ({lo} .. {hi})", s.name);
         }
     }
+    if let Some(origin) = cloud.stats.gps_time_origin {
+        println!(
+            "gps_time origin   {origin:.6} s (the earliest; gps_time counts seconds after it)"
+        );
+    }
     let mut fields = color::fields(&cloud);
     let normals = match (&cloud.normals, &cloud.radii, a.input.k) {
         (Some(_), Some(_), _) => "from the file".to_owned(),
@@ -98,9 +105,15 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
         println!("origin            {:.3} {:.3} {:.3}", o.x, o.y, o.z);
         println!("bounds (local)    {lo:.6} .. {hi:.6}");
     }
+    if let Some(las) = &cloud.stats.las {
+        print_las(las, cloud.stats.file_bounds);
+    }
     let (up, source) = match a.up {
         Some(up) => (up, "--up"),
-        None => (cloud.up, "format default"),
+        None => (
+            cloud.up,
+            cloud.stats.up_rule.as_deref().unwrap_or("format default"),
+        ),
     };
     println!("up axis           {} ({source})", up.name());
     let n = cloud.len() as u64;
@@ -135,4 +148,30 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
         println!("{}", ctx.caps);
     }
     Ok(())
+}
+
+/// The LAS header's lines of `surfel info`: version, point format, scale, offset, CRS and the
+/// file-coordinate bounds (`bounds`), with as many decimals as the scale has.
+fn print_las(las: &LasSummary, bounds: Option<[DVec3; 2]>) {
+    let [s, o] = [las.scale, las.offset];
+    println!(
+        "LAS               version {}, point format {}",
+        las.version, las.point_format
+    );
+    println!("scale             {} {} {}", s.x, s.y, s.z);
+    println!("offset            {} {} {}", o.x, o.y, o.z);
+    println!("CRS               {}", las.crs.as_deref().unwrap_or("none"));
+    if let Some([lo, hi]) = bounds {
+        let finest = s.min_element();
+        let decimals = if finest > 0.0 && finest.is_finite() {
+            (-finest.log10()).ceil().clamp(0.0, 9.0) as usize
+        } else {
+            3
+        };
+        let p = |v: DVec3| format!("{:.decimals$} {:.decimals$} {:.decimals$}", v.x, v.y, v.z);
+        println!("bounds (file)     {} .. {}", p(lo), p(hi));
+    }
+    if let Some(note) = &las.note {
+        println!("note              {note}");
+    }
 }

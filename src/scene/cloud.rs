@@ -13,7 +13,7 @@ pub struct Scalar {
 }
 
 /// What a loader had to do to the file's records, reported by `surfel info`.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadStats {
     /// Records in the file (header count for PLY/PCD/LAS).
     pub records: usize,
@@ -27,6 +27,38 @@ pub struct LoadStats {
     pub levels: Option<Levels>,
     /// For a text file without column names: the columns as their count made them.
     pub guessed_columns: Option<String>,
+    /// Why the loader chose [`Cloud::up`] from the data, when it did; `None` leaves the
+    /// format's convention ([`super::format_up`]).
+    pub up_rule: Option<String>,
+    /// Problems that did not stop the load, each naming the file (`scene::load_with` prints
+    /// them on stderr).
+    pub warnings: Vec<String>,
+    /// For a LAS, LAZ or COPC file: its header's description.
+    pub las: Option<LasSummary>,
+    /// The exact bounds of the points read, in f64 file coordinates, where the loader keeps
+    /// them (LAS, LAZ, COPC).
+    pub file_bounds: Option<[DVec3; 2]>,
+    /// The GPS time the `gps_time` scalar counts from, when the file has GPS times: the
+    /// earliest record's (COPC: the earliest its info VLR records), so the field holds seconds
+    /// after it (f32 cannot hold absolute GPS times to the microsecond).
+    pub gps_time_origin: Option<f64>,
+}
+
+/// What `surfel info` prints of a LAS, LAZ or COPC file's header.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LasSummary {
+    /// The LAS version, such as `1.4`.
+    pub version: String,
+    /// The point data record format (0 to 10).
+    pub point_format: u8,
+    /// The coordinates' scale and offset (file coordinate = scale × stored integer + offset).
+    pub scale: DVec3,
+    pub offset: DVec3,
+    /// The coordinate reference system: the WKT's name and authority code, or the GeoTIFF
+    /// keys' EPSG codes; `None` when the file records none.
+    pub crs: Option<String>,
+    /// How the file was read when not as its name says (a pre-1.0 COPC draft read as LAZ).
+    pub note: Option<String>,
 }
 
 /// The octree levels of a COPC file and the levels a point budget let a load read.
@@ -127,8 +159,9 @@ pub struct Cloud {
     /// point order, each from its first point to the next scan's. Estimated normals face it
     /// ([`super::orient`]).
     pub sensors: Vec<Sensor>,
-    /// The axis pointing up in the data: set by `scene::load` from the format (+z for LAS, LAZ,
-    /// COPC, E57 and PCD; +y otherwise); cameras orbit about it.
+    /// The axis pointing up in the data: the format's convention (+z for LAS, LAZ, COPC, E57
+    /// and PCD; +y otherwise), or what the loader read from the data (`stats.up_rule`: an
+    /// organized PCD's camera frame, survey-sized text coordinates); cameras orbit about it.
     pub up: Up,
     /// Survey data (LAS, LAZ, COPC, text in projected coordinates): seen from above, so
     /// estimated normals face `up` where no scanner position is known.

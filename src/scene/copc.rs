@@ -629,10 +629,22 @@ impl CopcFile {
     }
 }
 
+/// The user id of the info VLR that pre-1.0 drafts of COPC wrote where COPC 1.0 writes `copc`.
+pub const DRAFT_USER_ID: &str = "entwine";
+
+/// What `surfel info` notes about a pre-1.0 COPC draft.
+pub const DRAFT_NOTE: &str =
+    "not COPC 1.0: a pre-1.0 COPC draft (VLR user id \"entwine\"), read as plain LAZ";
+
 /// Loads a COPC file, reading only the octree levels that fit `budget` points when one is given.
+/// A pre-1.0 draft (a VLR with user id [`DRAFT_USER_ID`] and no COPC info VLR) is read whole as
+/// the LAZ file it also is, with [`DRAFT_NOTE`] in its `stats.las`.
 pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
     let read = FileSource::open(path).map_err(source_error)?;
-    let copc = CopcFile::open(&read)?;
+    let copc = match CopcFile::open(&read) {
+        Ok(copc) => copc,
+        Err(e) => return load_draft(path, budget).unwrap_or(Err(e)),
+    };
     let file = &copc.file;
     let nodes = hierarchy(&copc, &read)?;
     let declared: u64 = nodes.iter().map(|n| n.points).sum();
@@ -696,30 +708,58 @@ pub fn load(path: &Path, budget: Option<u64>) -> Result<Cloud, LoadError> {
         start = end;
     }
     progress.finish();
-    let origin = decoded
-        .world
-        .iter()
-        .fold(Bounds::EMPTY, |mut b, p| {
-            b.add(*p);
-            b
-        })
-        .centre()
-        .unwrap_or(DVec3::ZERO);
+    let bounds = decoded.world.iter().fold(Bounds::EMPTY, |mut b, p| {
+        b.add(*p);
+        b
+    });
+    let origin = bounds.centre().unwrap_or(DVec3::ZERO);
     let eight_bit = decoded.rgb16.iter().flatten().all(|&c| c <= 255);
     let mut cloud = to_cloud(&copc, decoded, origin, eight_bit);
     cloud.stats = LoadStats {
         records: usize::try_from(copc.header.number_of_points()).unwrap_or(usize::MAX),
         levels: Some(levels),
+        las: Some(super::las::summary(&copc.header)),
+        file_bounds: bounds.centre().map(|_| [bounds.lo, bounds.hi]),
+        gps_time_origin: cloud.stats.gps_time_origin,
         ..LoadStats::default()
     };
     cloud.retain_finite();
     Ok(cloud)
 }
 
+/// `path` read as LAZ when it is a pre-1.0 COPC draft (see [`load`]); `None` for any other file.
+fn load_draft(path: &Path, budget: Option<u64>) -> Option<Result<Cloud, LoadError>> {
+    let file = path.display().to_string();
+    let size = usize::try_from(std::fs::metadata(path).ok()?.len()).ok()?;
+    let mut read = std::io::BufReader::new(std::fs::File::open(path).ok()?);
+    let header = super::las::read_header(&file, &mut read, size).ok()?;
+    let vlrs = header.vlrs();
+    let draft = vlrs
+        .iter()
+        .any(|v| v.user_id.trim_end_matches('\0') == DRAFT_USER_ID)
+        && !vlrs.iter().any(|v| v.is_copc_info());
+    if !draft {
+        return None;
+    }
+    if budget.is_some() {
+        return Some(Err(LoadError::whole(
+            &file,
+            "a pre-1.0 COPC draft (VLR user id \"entwine\") has no COPC 1.0 octree to read by levels; read it whole, without --level-budget",
+        )));
+    }
+    Some(super::las::load(path).map(|mut cloud| {
+        if let Some(las) = &mut cloud.stats.las {
+            las.note = Some(DRAFT_NOTE.to_owned());
+        }
+        cloud
+    }))
+}
+
 /// The cloud of decoded points, relative to `origin`; 16-bit colour channels are scaled to 8
 /// bits unless `eight_bit` (files that store 8-bit values in the 16-bit fields). GPS times
-/// are relative to the earliest the info VLR records (to the first decoded point's when it
-/// records no range), so a streamed node's times match the whole file's.
+/// are relative to the earliest the info VLR records (to the earliest decoded point's when it
+/// records no range), so a streamed node's times match the whole file's and a LAS file's
+/// converted to it (`stats.gps_time_origin`).
 /// Non-finite points are kept (the caller drops them).
 pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: bool) -> Cloud {
     let n = decoded.world.len();
@@ -739,10 +779,19 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
         .map(|p| (*p - origin).as_vec3())
         .collect();
     let (earliest, latest) = copc.info.gps_time;
-    let time_origin = if earliest.is_finite() && latest > earliest {
+    let time_origin = if earliest.is_finite() && latest >= earliest {
         earliest
     } else {
-        decoded.gps_time.first().copied().unwrap_or(0.0)
+        let decoded_earliest = decoded
+            .gps_time
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        if decoded_earliest.is_finite() {
+            decoded_earliest
+        } else {
+            0.0
+        }
     };
     let mut cloud = Cloud {
         positions,
@@ -773,6 +822,10 @@ pub fn to_cloud(copc: &CopcFile, decoded: Decoded, origin: DVec3, eight_bit: boo
             )
             .collect(),
         origin,
+        stats: LoadStats {
+            gps_time_origin: Some(time_origin),
+            ..LoadStats::default()
+        },
         up: super::Up::Z,
         survey: true,
         ..Cloud::default()

@@ -8,7 +8,8 @@
 //! stored in the 16-bit fields, as many writers do, are detected and used as is; true 16-bit
 //! values are shifted down). Intensity, classification (12, "overlap", reads as 1,
 //! "unclassified", as in the crate), return number, number of returns, point source id, GPS
-//! time (in seconds after the first record's: f32 cannot hold absolute GPS times) and, in
+//! time (in seconds after the file's earliest, which is `stats.gps_time_origin`: f32 cannot
+//! hold absolute GPS times; the times are kept in f64 until the earliest is known) and, in
 //! formats 8 and 10, NIR become scalars, and so does every field an extra-bytes VLR (LASF_Spec
 //! record 4, LAS 1.4 R15 §2.5.8) describes, by its name, with its scale and offset.
 
@@ -19,7 +20,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
+use super::cloud::{Bounds, Cloud, LasSummary, LoadStats, Scalar};
 use super::error::{show, LoadError};
 use super::guard;
 use super::progress::Progress;
@@ -29,7 +30,7 @@ use super::records::{self, Span};
 const OVERLAP: u8 = 12;
 
 /// Reads the header and VLRs of a file of `size` bytes, leaving `read` at the first point record.
-fn read_header<R: Read + Seek>(
+pub(crate) fn read_header<R: Read + Seek>(
     file: &str,
     read: &mut R,
     size: usize,
@@ -267,17 +268,16 @@ enum Decode {
     Bits { at: usize, shift: u8, mask: u8 },
     /// The classification code at byte `at` under `mask`; overlap reads as unclassified.
     Class { at: usize, mask: u8 },
-    /// The f64 GPS time at byte `at`, in seconds after the first record's (f32 cannot hold
-    /// absolute GPS times; relative ones keep about a millisecond over a day).
-    Time { at: usize },
+    /// The GPS time's column (the f64 time is at `Layout::time_at`): decoded as 0, then
+    /// filled by [`finish`] from the f64 times once the earliest is known.
+    Time,
 }
 
 impl Decode {
     /// Decodes the field of every record of `stride` bytes in `records` into `out`, one field
     /// at a time over a block that stays in cache (the common fields without a per-record
     /// dispatch).
-    /// `time_origin` is the first record's GPS time.
-    fn fill(self, records: &[u8], stride: usize, out: &mut [f32], time_origin: f64) {
+    fn fill(self, records: &[u8], stride: usize, out: &mut [f32]) {
         let rows = records.chunks_exact(stride).zip(out);
         match self {
             Decode::Value {
@@ -291,11 +291,11 @@ impl Decode {
             Decode::Bits { at, shift, mask } => {
                 rows.for_each(|(r, o)| *o = f32::from((r[at] >> shift) & mask));
             }
-            d => rows.for_each(|(r, o)| *o = d.read(r, time_origin)),
+            d => rows.for_each(|(r, o)| *o = d.read(r)),
         }
     }
 
-    fn read(self, r: &[u8], time_origin: f64) -> f32 {
+    fn read(self, r: &[u8]) -> f32 {
         match self {
             Decode::Value {
                 at,
@@ -308,7 +308,7 @@ impl Decode {
                 let code = r[at] & mask;
                 f32::from(if code == OVERLAP { 1 } else { code })
             }
-            Decode::Time { at } => (Kind::F64.read(&r[at..]) - time_origin) as f32,
+            Decode::Time => 0.0,
         }
     }
 }
@@ -324,7 +324,7 @@ pub(crate) struct ExtraField {
 impl ExtraField {
     /// The field's value in `extra`, the bytes after a record's standard fields.
     pub(crate) fn read(&self, extra: &[u8]) -> f32 {
-        self.decode.read(extra, 0.0)
+        self.decode.read(extra)
     }
 }
 
@@ -518,7 +518,7 @@ impl Layout {
             },
         ];
         if format.has_gps_time {
-            decoders.push(Decode::Time { at: base });
+            decoders.push(Decode::Time);
         }
         if format.has_nir {
             decoders.push(Decode::Value {
@@ -575,7 +575,10 @@ impl Layout {
                 .iter()
                 .map(|_| records::filled(0.0, n))
                 .collect(),
-            time_origin: 0.0,
+            times: match self.time_at {
+                Some(_) => records::filled(0.0, n),
+                None => Vec::new(),
+            },
             bounds: Bounds::EMPTY,
             sixteen_bit: false,
         }
@@ -593,8 +596,8 @@ struct Columns {
     colors: Option<Vec<[u8; 4]>>,
     /// One column per field of `Layout::fields`.
     scalars: Vec<Vec<f32>>,
-    /// The first record's GPS time (GPS times are kept relative to it).
-    time_origin: f64,
+    /// The GPS time of every record when the format has one.
+    times: Vec<f64>,
     /// Bounds of the (scaled) points decoded so far.
     bounds: Bounds,
     /// Whether a color channel above 255 was seen (true 16-bit colors).
@@ -618,10 +621,16 @@ impl Columns {
         let per_task = records::task_records(stride);
         let rows = first..first + bytes.len() / stride;
         let shift = self.sixteen_bit;
-        if let (0, Some(at), Some(r)) = (first, layout.time_at, bytes.get(..stride)) {
-            self.time_origin = Kind::F64.read(&r[at..]);
+        if let Some(at) = layout.time_at {
+            self.times[rows.clone()]
+                .par_chunks_mut(per_task)
+                .zip(bytes.par_chunks(per_task * stride))
+                .for_each(|(times, b)| {
+                    for (t, r) in times.iter_mut().zip(b.chunks_exact(stride)) {
+                        *t = Kind::F64.read(&r[at..]);
+                    }
+                });
         }
-        let time_origin = self.time_origin;
         // Per task, its slice of every scalar column.
         let mut columns: Vec<Vec<&mut [f32]>> = Vec::new();
         for column in &mut self.scalars {
@@ -643,7 +652,7 @@ impl Columns {
                     bounds.add(layout.world(*xyz));
                 }
                 for ((_, decode), column) in layout.fields.iter().zip(columns.iter_mut()) {
-                    decode.fill(b, stride, column, time_origin);
+                    decode.fill(b, stride, column);
                 }
                 let max_channel = layout.color_at.map_or(0, |at| {
                     b.chunks_exact(stride)
@@ -705,22 +714,38 @@ impl Columns {
             positions,
             self.colors.filter(|c| !c.is_empty()),
             scalars,
-            origin,
+            (origin, self.bounds),
             declared,
+            layout.time_at.map(|_| self.times),
         )
     }
 }
 
 /// The cloud of a decoded LAS/LAZ file (both decoders): the named scalar columns, `declared`
 /// header records, non-finite points dropped. A name used twice (an extra-bytes field named
-/// like a standard one) gets its column index appended.
+/// like a standard one) gets its column index appended. The `gps_time` column becomes
+/// `times` in seconds after the earliest (`stats.gps_time_origin`).
 fn finish(
     positions: Vec<Vec3>,
     colors: Option<Vec<[u8; 4]>>,
-    columns: Vec<(String, Vec<f32>)>,
-    origin: DVec3,
+    mut columns: Vec<(String, Vec<f32>)>,
+    (origin, bounds): (DVec3, Bounds),
     declared: u64,
+    times: Option<Vec<f64>>,
 ) -> Cloud {
+    let earliest = times.as_ref().map(|times| {
+        let earliest = times.par_iter().copied().reduce(|| f64::INFINITY, f64::min);
+        if earliest.is_finite() {
+            earliest
+        } else {
+            0.0
+        }
+    });
+    if let (Some(times), Some(earliest)) = (times, earliest) {
+        if let Some((_, column)) = columns.iter_mut().find(|(name, _)| name == "gps_time") {
+            *column = times.par_iter().map(|t| (t - earliest) as f32).collect();
+        }
+    }
     let mut scalars: Vec<Scalar> = Vec::with_capacity(columns.len());
     for (k, (name, values)) in columns.into_iter().enumerate() {
         let name = if scalars.iter().any(|s| s.name == name) {
@@ -737,6 +762,8 @@ fn finish(
         origin,
         stats: LoadStats {
             records: usize::try_from(declared).unwrap_or(usize::MAX),
+            file_bounds: bounds.centre().map(|_| [bounds.lo, bounds.hi]),
+            gps_time_origin: earliest,
             ..LoadStats::default()
         },
         ..Cloud::default()
@@ -751,16 +778,19 @@ pub fn parse(file: &str, data: Vec<u8>) -> Result<Cloud, LoadError> {
     let size = data.len();
     let mut cursor = Cursor::new(data);
     let header = read_header(file, &mut cursor, size)?;
-    if header.point_format().is_compressed {
-        return guard::deep_stack(|| read_compressed(file, cursor, &header, size));
-    }
-    let at = cursor.position() as usize;
-    let layout = Layout::new(file, &header, at, size)?;
-    let data = cursor.into_inner();
-    let mut columns = layout.columns();
-    let end = at + layout.span.count * layout.span.stride;
-    columns.decode_block(&layout, 0, &data[at..end]);
-    Ok(columns.finish(&layout, header.number_of_points()))
+    let mut cloud = if header.point_format().is_compressed {
+        guard::deep_stack(|| read_compressed(file, cursor, &header, size))?
+    } else {
+        let at = cursor.position() as usize;
+        let layout = Layout::new(file, &header, at, size)?;
+        let data = cursor.into_inner();
+        let mut columns = layout.columns();
+        let end = at + layout.span.count * layout.span.stride;
+        columns.decode_block(&layout, 0, &data[at..end]);
+        columns.finish(&layout, header.number_of_points())
+    };
+    cloud.stats.las = Some(summary(&header));
+    Ok(cloud)
 }
 
 /// Opens `path` and reads its checked header: the file's name, the reader (at the first point
@@ -821,22 +851,129 @@ pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     load_in_blocks(path, records::BLOCK_BYTES)
 }
 
+/// What `surfel info` reports of a LAS, LAZ or COPC file's `header`.
+pub(crate) fn summary(header: &las::Header) -> LasSummary {
+    let t = header.transforms();
+    LasSummary {
+        version: header.version().to_string(),
+        point_format: header.point_format().to_u8().unwrap_or_default(),
+        scale: DVec3::new(t.x.scale, t.y.scale, t.z.scale),
+        offset: DVec3::new(t.x.offset, t.y.offset, t.z.offset),
+        crs: crs(header.vlrs().iter().chain(header.evlrs())),
+        note: None,
+    }
+}
+
+/// The coordinate reference system among `vlrs`: the OGC WKT's name and authority code
+/// (`LASF_Projection` record 2112), else the EPSG codes of the GeoTIFF keys (record 34735:
+/// projected 3072, geographic 2048, vertical 4096); `None` without either.
+pub(crate) fn crs<'a>(vlrs: impl Iterator<Item = &'a las::Vlr> + Clone) -> Option<String> {
+    let projection = |id: u16| {
+        vlrs.clone()
+            .find(|v| v.user_id.trim_end_matches('\0') == "LASF_Projection" && v.record_id == id)
+    };
+    if let Some(wkt) = projection(2112) {
+        let text = String::from_utf8_lossy(&wkt.data);
+        return Some(wkt_summary(text.trim_end_matches('\0').trim()));
+    }
+    let keys: Vec<u16> = projection(34735)?
+        .data
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    let count = usize::from(*keys.get(3)?);
+    let codes: Vec<String> = keys[4..]
+        .chunks_exact(4)
+        .take(count)
+        .filter(|k| k[1] == 0)
+        .filter_map(|k| {
+            let what = match k[0] {
+                3072 => "projected",
+                2048 => "geographic",
+                4096 => "vertical",
+                _ => return None,
+            };
+            Some(match k[3] {
+                32767 => format!("{what} user-defined"),
+                code => format!("{what} EPSG:{code}"),
+            })
+        })
+        .collect();
+    Some(if codes.is_empty() {
+        "GeoTIFF keys without an EPSG code".to_owned()
+    } else {
+        format!("{} (GeoTIFF keys)", codes.join(", "))
+    })
+}
+
+/// A WKT's name (its first quoted text) and top-level authority code (`AUTHORITY["EPSG","32633"]`
+/// in WKT 1, `ID["EPSG",32633]` in WKT 2), e.g. `WGS 84 / UTM zone 33N (EPSG:32633)`.
+fn wkt_summary(wkt: &str) -> String {
+    let Some(name) = wkt.split('"').nth(1) else {
+        return format!("WKT without a name: \"{}\"", show(wkt));
+    };
+    let mut depth = 0usize;
+    let mut quoted = false;
+    let mut code = None;
+    for (i, c) in wkt.char_indices() {
+        match c {
+            '"' => quoted = !quoted,
+            '[' | '(' if !quoted => {
+                depth += 1;
+                let keyword = wkt[..i]
+                    .rsplit(|c: char| c == ',' || c == '[' || c == '(' || c.is_whitespace())
+                    .next()
+                    .unwrap_or_default();
+                if depth == 2 && matches!(keyword, "AUTHORITY" | "ID") {
+                    let args = &wkt[i + 1..];
+                    let args = &args[..args.find([']', ')']).unwrap_or(args.len())];
+                    let mut parts = args.split(',').map(|p| p.trim().trim_matches('"'));
+                    if let (Some(authority), Some(number)) = (parts.next(), parts.next()) {
+                        code = Some(format!("{authority}:{number}"));
+                    }
+                }
+            }
+            ']' | ')' if !quoted => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    match code {
+        Some(code) => format!("{name} ({code})"),
+        None => name.to_owned(),
+    }
+}
+
 /// [`load`], reading records in blocks of about `block_bytes`.
 fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     let (file, mut read, size, header) = open_file(path)?;
-    if header.point_format().is_compressed {
-        return guard::deep_stack(|| read_compressed(&file, read, &header, size));
-    }
+    let mut cloud = if header.point_format().is_compressed {
+        guard::deep_stack(|| read_compressed(&file, read, &header, size))?
+    } else {
+        read_blocks(&file, &mut read, size, &header, block_bytes)?
+    };
+    cloud.stats.las = Some(summary(&header));
+    Ok(cloud)
+}
+
+/// The uncompressed records of `header`'s file of `size` bytes, `read` at the first of
+/// them, decoded in blocks of about `block_bytes`.
+fn read_blocks(
+    file: &str,
+    read: &mut BufReader<File>,
+    size: usize,
+    header: &las::Header,
+    block_bytes: usize,
+) -> Result<Cloud, LoadError> {
     let at = read
         .stream_position()
-        .map_err(|source| io_error(&file, source))?;
-    let layout = Layout::new(&file, &header, at as usize, size)?;
+        .map_err(|source| io_error(file, source))?;
+    let layout = Layout::new(file, header, at as usize, size)?;
     let mut columns = layout.columns();
     let bytes = layout.span.count * layout.span.stride;
     let progress = Progress::new("loading", bytes, bytes >= records::PROGRESS_MIN_BYTES);
     records::for_each_block(
-        &file,
-        &mut read,
+        file,
+        read,
         layout.span,
         block_bytes,
         &progress,
@@ -1131,7 +1268,7 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .map(|_| Vec::with_capacity(capacity))
         .collect();
     let mut index = 0u64;
-    let mut time_origin = None;
+    let mut times = Vec::new();
     let mut data = las::PointDataBuilder::new()
         .for_header(reader.header())
         .build();
@@ -1162,14 +1299,12 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
             if let Some(c) = point.color {
                 rgb16.push([c.red, c.green, c.blue]);
             }
-            let time = point.gps_time.unwrap_or(0.0);
-            let origin = *time_origin.get_or_insert(time);
+            if let Some(time) = point.gps_time {
+                times.push(time);
+            }
             let standard = standard_values(&point);
-            let optional = [
-                format.has_gps_time.then_some((time - origin) as f32),
-                point.nir.map(f32::from),
-            ];
-            let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes, 0.0));
+            let optional = [format.has_gps_time.then_some(0.0), point.nir.map(f32::from)];
+            let extras = extra.iter().map(|f| f.decode.read(&point.extra_bytes));
             let values = standard
                 .into_iter()
                 .chain(optional.into_iter().flatten())
@@ -1202,7 +1337,15 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
         .chain(extra.into_iter().map(|f| f.name))
         .zip(columns)
         .collect();
-    Ok(finish(positions, colors, named, origin, declared))
+    let times = format.has_gps_time.then_some(times);
+    Ok(finish(
+        positions,
+        colors,
+        named,
+        (origin, bounds),
+        declared,
+        times,
+    ))
 }
 
 #[cfg(test)]
@@ -1300,8 +1443,10 @@ mod tests {
     /// The parallel decoder, in memory and streamed in blocks of several sizes, against the
     /// `las` crate's point reader.
     fn assert_matches_crate(name: &str, bytes: Vec<u8>) {
-        let reference =
+        let mut reference =
             read_with_crate(name, Cursor::new(bytes.clone()), bytes.len(), false).unwrap();
+        let mut read = Cursor::new(&bytes);
+        reference.stats.las = Some(summary(&read_header(name, &mut read, bytes.len()).unwrap()));
         assert_eq!(
             parse(name, bytes.clone()).unwrap(),
             reference,
@@ -1396,6 +1541,81 @@ mod tests {
             b.extend([0xee, 0xee, i as u8, (-(i as i8)) as u8]);
             b
         })
+    }
+
+    #[test]
+    fn gps_times_are_seconds_after_the_earliest() {
+        let times = [
+            1_234_567_890.5,
+            1_234_567_884.25,
+            1_234_567_891.125,
+            1_234_567_886.0,
+        ];
+        for compressed in [false, true] {
+            let mut builder = Builder::from((1, 2));
+            builder.point_format = Format::new(1).unwrap();
+            builder.point_format.is_compressed = compressed;
+            let mut writer =
+                Writer::new(Cursor::new(Vec::new()), builder.into_header().unwrap()).unwrap();
+            for (i, &t) in times.iter().enumerate() {
+                let point = Point {
+                    x: i as f64,
+                    gps_time: Some(t),
+                    ..Default::default()
+                };
+                writer.write_point(point).unwrap();
+            }
+            let bytes = writer.into_inner().unwrap().into_inner();
+            let c = parse("t.las", bytes).unwrap();
+            assert_eq!(c.stats.gps_time_origin, Some(1_234_567_884.25));
+            let column = &c.scalars.iter().find(|s| s.name == "gps_time").unwrap();
+            assert_eq!(
+                column.values,
+                [6.25, 0.0, 6.875, 1.75],
+                "compressed: {compressed}"
+            );
+        }
+    }
+
+    #[test]
+    fn crs_from_wkt_or_geotiff_keys() {
+        let vlr = |record_id: u16, data: Vec<u8>| las::Vlr {
+            user_id: "LASF_Projection".into(),
+            record_id,
+            description: String::new(),
+            data,
+        };
+        let wkt2 = br#"PROJCRS["WGS 84 / UTM zone 33N",BASEGEOGCRS["WGS 84",ID["EPSG",4326]],CONVERSION["UTM zone 33N",ID["EPSG",16033]],ID["EPSG",32633]]"#;
+        let wkt1 = br#"PROJCS["NAD83 / Conus Albers",GEOGCS["NAD83",AUTHORITY["EPSG","4269"]],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AUTHORITY["EPSG","5070"]]"#;
+        let keys: Vec<u8> = [
+            1u16, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32633, 4096, 0, 1, 5703,
+        ]
+        .iter()
+        .flat_map(|k| k.to_le_bytes())
+        .collect();
+        let mut with_nul = wkt2.to_vec();
+        with_nul.push(0);
+        for (vlrs, expected) in [
+            (
+                vec![vlr(34735, keys.clone()), vlr(2112, with_nul)],
+                Some("WGS 84 / UTM zone 33N (EPSG:32633)"),
+            ),
+            (
+                vec![vlr(2112, wkt1.to_vec())],
+                Some("NAD83 / Conus Albers (EPSG:5070)"),
+            ),
+            (
+                vec![vlr(34735, keys)],
+                Some("projected EPSG:32633, vertical EPSG:5703 (GeoTIFF keys)"),
+            ),
+            (
+                vec![vlr(2112, b"LOCAL_CS[\"site\"]".to_vec())],
+                Some("site"),
+            ),
+            (vec![], None),
+        ] {
+            assert_eq!(crs(vlrs.iter()).as_deref(), expected);
+        }
     }
 
     #[test]

@@ -41,7 +41,8 @@ pub use lights::{Light, LightKind};
 /// `ply`, `obj`, `pcd`, `las`, `laz`, `copc.laz`, `e57`, `xyz`, `txt`, `pts`, `csv`. Points with a
 /// non-finite coordinate are dropped and counted in `stats.dropped_non_finite`. The cloud's `up`
 /// is the format's convention: +z for the survey formats (LAS, LAZ, COPC, E57, PCD), +y for the
-/// others.
+/// others; unless the loader reads it from the data (`stats.up_rule`): an organized PCD is in
+/// a camera's frame ([`pcd`]), text with survey-sized x and y coordinates is z-up ([`xyz`]).
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     load_with(path, &ReadOptions::default())
 }
@@ -103,8 +104,13 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
             extension,
         }),
     }?;
-    cloud.up = up;
-    cloud.survey = survey;
+    if cloud.stats.up_rule.is_none() {
+        cloud.up = up;
+    }
+    cloud.survey = cloud.survey || survey;
+    for warning in &cloud.stats.warnings {
+        eprintln!("warning: {warning}");
+    }
     Ok(cloud)
 }
 

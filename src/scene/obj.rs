@@ -5,9 +5,17 @@
 //! normals it is used with. Positions that faces use without a normal get the area-weighted
 //! average of their faces' normals; positions no face uses get +Z. Material libraries
 //! (`mtllib`) are not opened, so a missing `.mtl` is not an error. Unknown commands are ignored.
+//! A file without vertices (empty, or only comments) is a mesh of 0 points, as PDAL and trimesh
+//! read it.
+//!
+//! **Truncation.** A face with fewer than 3 corners (what a file cut inside its last face
+//! leaves) is an error naming its line. A file whose last line is a record (`v`, `vn`, `vt`,
+//! `f`) without a line end loads with a warning (`stats.warnings`) that it may be cut short:
+//! a number cut after one of its digits still reads as a number.
 //!
 //! [`load_polygons`] keeps the polygons as they are (not triangulated), each with the diffuse
-//! colour (`Kd`) of its material, for the line conversion (`lines`).
+//! colour (`Kd`) of its material, for the line conversion (`lines`); a file without vertices
+//! is an error there.
 
 use std::path::Path;
 
@@ -25,15 +33,19 @@ struct Joined<'a> {
     text: std::borrow::Cow<'a, [u8]>,
     /// The 1-based file line each joined line starts on; empty when nothing was joined.
     lines: Vec<usize>,
+    /// Whether the file's last line has no line end.
+    unterminated: bool,
 }
 
 impl<'a> Joined<'a> {
     fn new(data: &'a [u8]) -> Self {
+        let unterminated = !data.is_empty() && !data.ends_with(b"\n");
         let continued = |line: &[u8]| line.strip_suffix(b"\r").unwrap_or(line).ends_with(b"\\");
         if !data.split(|&b| b == b'\n').any(continued) {
             return Joined {
                 text: data.into(),
                 lines: Vec::new(),
+                unterminated,
             };
         }
         let mut text = Vec::with_capacity(data.len());
@@ -55,6 +67,7 @@ impl<'a> Joined<'a> {
         Joined {
             text: text.into(),
             lines,
+            unterminated,
         }
     }
 
@@ -63,21 +76,52 @@ impl<'a> Joined<'a> {
         self.lines.get(index).copied().unwrap_or(index + 1)
     }
 
-    /// The text parsed by the `obj` crate; an empty file, or one without vertices, is an error
-    /// (as it is for every other format).
+    /// The text parsed by the `obj` crate, with the faces' corner counts checked (see the
+    /// module docs on truncation).
     fn parse(&self, file: &str) -> Result<obj::ObjData, LoadError> {
         let parsed = guard::third_party(|| {
             obj::ObjData::load_buf_with_config(&self.text[..], obj::LoadConfig { strict: false })
         })
         .map_err(|e| LoadError::whole(file, e))?
         .map_err(|e| map_error(file, self, e))?;
-        if parsed.position.is_empty() {
-            return Err(LoadError::whole(
-                file,
-                "no vertices; expected \"v x y z\" lines",
-            ));
+        for (index, line) in self.text.split(|&b| b == b'\n').enumerate() {
+            let mut words = line
+                .split(u8::is_ascii_whitespace)
+                .filter(|w| !w.is_empty());
+            if words.next() == Some(b"f") {
+                let corners = words.count();
+                if corners < 3 {
+                    return Err(LoadError::at_line(
+                        file,
+                        self.line(index),
+                        format!(
+                            "a face with {corners} corners; expected at least 3 (is the file cut short?)"
+                        ),
+                    ));
+                }
+            }
         }
         Ok(parsed)
+    }
+
+    /// The warning for text whose last line is a record without a line end, if it is one.
+    fn cut_short(&self, file: &str) -> Option<String> {
+        if !self.unterminated {
+            return None;
+        }
+        let text = self.text.strip_suffix(b"\n").unwrap_or(&self.text);
+        let index = text.iter().filter(|&&b| b == b'\n').count();
+        let last = text.split(|&b| b == b'\n').next_back()?;
+        let command = last
+            .split(u8::is_ascii_whitespace)
+            .find(|w| !w.is_empty())?;
+        [&b"v"[..], b"vn", b"vt", b"f"].contains(&command).then(|| {
+            format!(
+                "{file}: line {}: the file ends inside a \"{}\" record, without a line end; it may be cut short",
+                self.line(index),
+                show(command)
+            )
+        })
     }
 }
 
@@ -288,6 +332,7 @@ pub fn parse(file: &str, data: &[u8]) -> Result<Cloud, LoadError> {
         faces: Some(faces),
         stats: LoadStats {
             records: n,
+            warnings: data.cut_short(file).into_iter().collect(),
             ..LoadStats::default()
         },
         ..Cloud::default()
@@ -338,6 +383,12 @@ fn polygons_of(
     material: &dyn Fn(&str) -> Option<[f32; 3]>,
 ) -> Result<PolygonMesh, LoadError> {
     let n = parsed.position.len();
+    if n == 0 {
+        return Err(LoadError::whole(
+            file,
+            "no vertices; expected \"v x y z\" lines",
+        ));
+    }
     if n > u32::MAX as usize {
         return Err(LoadError::whole(
             file,
@@ -359,15 +410,6 @@ fn polygons_of(
         });
         for poly in &group.polys {
             let face_index = mesh.polygons.len();
-            if poly.0.len() < 3 {
-                return Err(LoadError::whole(
-                    file,
-                    format!(
-                        "face {face_index}: expected at least 3 corners, found {}",
-                        poly.0.len()
-                    ),
-                ));
-            }
             let mut corners = Vec::with_capacity(poly.0.len());
             for tuple in &poly.0 {
                 let p = tuple.0;
@@ -466,5 +508,47 @@ mod tests {
             err.starts_with("m.obj: line 2: face index 2 is out of range"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn files_without_vertices_are_empty_meshes() {
+        for text in [&b""[..], b"# exported\n", b"mtllib a.mtl\no empty\n"] {
+            let c = parse("e.obj", text).unwrap();
+            assert_eq!((c.len(), c.stats.records), (0, 0));
+            assert_eq!(c.faces.as_deref(), Some(&[][..]));
+        }
+        let err = parse_polygons("e.obj", b"", &|_| None).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "e.obj: no vertices; expected \"v x y z\" lines"
+        );
+    }
+
+    #[test]
+    fn truncated_files_are_errors_or_warnings() {
+        let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+        for (cut, corners) in [("f 1 2", 2), ("f 4", 1), ("f", 0)] {
+            let text = format!("{quad}f 1 2 3\n{cut}");
+            let err = parse("t.obj", text.as_bytes()).unwrap_err().to_string();
+            assert_eq!(
+                err,
+                format!("t.obj: line 6: a face with {corners} corners; expected at least 3 (is the file cut short?)")
+            );
+        }
+        let c = parse("t.obj", format!("{quad}f 1 2 3\nf 1 3 4").as_bytes()).unwrap();
+        assert_eq!(c.faces.as_ref().map(Vec::len), Some(2));
+        assert_eq!(
+            c.stats.warnings,
+            ["t.obj: line 6: the file ends inside a \"f\" record, without a line end; it may be cut short"]
+        );
+        let c = parse("t.obj", b"v 0 0 0\nv 1 0 0\\\n\nv 0 1 0.2").unwrap();
+        assert_eq!(
+            c.stats.warnings,
+            ["t.obj: line 4: the file ends inside a \"v\" record, without a line end; it may be cut short"]
+        );
+        for whole in [format!("{quad}f 1 2 3 4\n"), format!("{quad}# end")] {
+            let c = parse("w.obj", whole.as_bytes()).unwrap();
+            assert!(c.stats.warnings.is_empty(), "{whole}");
+        }
     }
 }

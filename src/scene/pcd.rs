@@ -6,6 +6,12 @@
 //! fields are skipped). Points with a non-finite coordinate are dropped and counted. The
 //! `VIEWPOINT` translation becomes the cloud's one scan position ([`Cloud::sensors`]).
 //!
+//! **Up axis.** An organized cloud (`HEIGHT` > 1: a depth or RGB-D camera's image) is in the
+//! camera's frame, x right, y down, z forward, so its up axis is -y. The `VIEWPOINT` rotation
+//! is not applied to it: PCL's own sample scans record a rotation (180° about x) their points,
+//! all in front of the camera (z > 0), do not follow. An unorganized cloud (`HEIGHT` 1) keeps
+//! the survey formats' +z.
+//!
 //! Coordinates are kept in f64 while reading. When the finite points reach a magnitude of
 //! [`RECENTRE_MAGNITUDE`] (projected coordinates such as UTM, ~5 × 10⁶ m), the f64 centre of
 //! their bounding box becomes [`Cloud::origin`] and is subtracted before the conversion to f32,
@@ -15,6 +21,7 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 
+use super::camera::Up;
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar, Sensor};
 use super::error::{show, LoadError};
 use super::text::{self, Lines};
@@ -155,6 +162,8 @@ struct Header {
     fields: Vec<Field>,
     points: usize,
     viewpoint: Option<DVec3>,
+    /// `WIDTH` and `HEIGHT` when the header gives both.
+    image: Option<(usize, usize)>,
     data: Data,
     body: usize,
     lines: usize,
@@ -308,6 +317,7 @@ fn parse_header(file: &str, bytes: &[u8]) -> Result<Header, LoadError> {
         fields,
         points,
         viewpoint,
+        image: width.zip(height),
         data,
         body: lines.offset(),
         lines: lines.line(),
@@ -445,6 +455,12 @@ impl Builder {
             },
             ..Cloud::default()
         };
+        if let Some((width, height)) = header.image.filter(|&(_, h)| h > 1) {
+            cloud.up = Up::NegY;
+            cloud.stats.up_rule = Some(format!(
+                "organized PCD {width}x{height}: a camera's frame, y down"
+            ));
+        }
         cloud.retain_finite();
         cloud
     }
@@ -719,5 +735,22 @@ mod tests {
                 position: Vec3::new(1.0, 2.0, 3.0)
             }]
         );
+    }
+
+    #[test]
+    fn organized_clouds_are_in_a_camera_frame_with_y_down() {
+        let header = |w: usize, h: usize, viewpoint: &str| {
+            format!("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {w}\nHEIGHT {h}\n{viewpoint}POINTS 4\nDATA ascii\n0 0 1\n1 0 1\n0 1 1\n1 1 2\n")
+        };
+        for viewpoint in ["", "VIEWPOINT 0 0 0 0 1 0 0\n"] {
+            let c = parse("o.pcd", header(2, 2, viewpoint).as_bytes()).unwrap();
+            assert_eq!(c.up, Up::NegY);
+            assert_eq!(
+                c.stats.up_rule.as_deref(),
+                Some("organized PCD 2x2: a camera's frame, y down")
+            );
+        }
+        let c = parse("u.pcd", header(4, 1, "").as_bytes()).unwrap();
+        assert_eq!(c.stats.up_rule, None);
     }
 }

@@ -2,7 +2,9 @@
 //! commas, semicolons, tabs or spaces (CRLF line ends too); blank lines are ignored.
 //!
 //! **Named columns** follow PDAL's text reader: a first line of column names (`X,Y,Z,Intensity`,
-//! quoted or not, in any order and any case, also CloudCompare's `//X,Y,Z,R,G,B`) names every
+//! quoted or not, in any order and any case, also CloudCompare's `//X,Y,Z,R,G,B`; a quoted
+//! name keeps its spaces, and so does every name of a row separated by commas, semicolons or
+//! tabs, such as `M3C2 distance`) names every
 //! column, or `--columns x,y,z,intensity` names them for a file without that line. Names are
 //! matched case-insensitively, ignoring `_`, `-` and spaces:
 //!
@@ -34,15 +36,25 @@
 //!
 //! Values are read as f64; the position's f64 centre is subtracted when the coordinates are
 //! large (UTM, ~5 × 10⁶ m), as for the binary formats, so centimetres survive the f32 cloud.
+//!
+//! **Up axis.** Text clouds are +y up (the convention of the mesh formats) unless their
+//! coordinates are survey-sized: x and y both reach [`SURVEY_MAGNITUDE`] (10⁴) in absolute
+//! value, or either reaches [`RECENTRE_MAGNITUDE`] (10⁵, which also re-centres the cloud), as
+//! projected coordinates such as UTM eastings and northings do. Those are +z up, and survey
+//! data ([`Cloud::survey`]: estimated normals face up where no scanner position is known).
 
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
 
+use super::camera::Up;
 use super::cloud::{Bounds, Cloud, LoadStats, Scalar};
 use super::error::{show, LoadError};
 use super::pcd::RECENTRE_MAGNITUDE;
 use super::text::{self, Lines};
+
+/// Coordinates this large in both x and y make a text cloud z-up (see the module docs).
+pub const SURVEY_MAGNITUDE: f64 = 1e4;
 
 /// More columns than this on a line is refused (a 10 MB line of one-byte values would
 /// otherwise make millions of scalar attributes).
@@ -101,18 +113,63 @@ fn role(name: &str) -> Role {
     }
 }
 
-/// The tokens of a line: split at commas, semicolons and white space, each without the quotes
-/// a spreadsheet puts around names and values.
+/// Whether `b` separates the values of a row: a comma, semicolon or white space.
+fn value_separator(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | b'\r' | 0x0c | b',' | b';')
+}
+
+/// Whether `b` separates the names of a name row that has commas, semicolons or tabs, where
+/// a space belongs to a name (`M3C2 distance`, as CloudCompare writes it).
+fn name_separator(b: u8) -> bool {
+    matches!(b, b'\t' | b',' | b';')
+}
+
+/// The non-empty tokens of `line` between `separator`s, white space around them trimmed. A
+/// token opening with a quote (`"` or `'`, as spreadsheets write names and values) runs to the
+/// matching quote, separators included, and is returned without its quotes.
+fn split_fields(line: &[u8], separator: fn(u8) -> bool) -> impl Iterator<Item = &[u8]> {
+    let mut rest = line;
+    std::iter::from_fn(move || loop {
+        let start = rest
+            .iter()
+            .position(|&b| !separator(b) && !b.is_ascii_whitespace())?;
+        rest = &rest[start..];
+        let quote = rest[0];
+        let token = if quote == b'"' || quote == b'\'' {
+            let end = rest[1..].iter().position(|&b| b == quote);
+            let token = &rest[1..end.map_or(rest.len(), |e| e + 1)];
+            rest = &rest[end.map_or(rest.len(), |e| e + 2)..];
+            token
+        } else {
+            let end = rest
+                .iter()
+                .position(|&b| separator(b))
+                .unwrap_or(rest.len());
+            let token = rest[..end].trim_ascii_end();
+            rest = &rest[end..];
+            token
+        };
+        if !token.is_empty() {
+            return Some(token);
+        }
+    })
+}
+
+/// The values of a row: split at commas, semicolons and white space (quotes as
+/// [`split_fields`] reads them).
 fn fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
-    line.split(|&b| matches!(b, b' ' | b'\t' | b'\r' | 0x0c | b',' | b';'))
-        .filter(|t| !t.is_empty())
-        .map(|t| {
-            let t = t.strip_prefix(b"\"").unwrap_or(t);
-            let t = t.strip_suffix(b"\"").unwrap_or(t);
-            let t = t.strip_prefix(b"'").unwrap_or(t);
-            t.strip_suffix(b"'").unwrap_or(t)
-        })
-        .filter(|t| !t.is_empty())
+    split_fields(line, value_separator)
+}
+
+/// The names of a name row: split at commas, semicolons and tabs when it has any (a name may
+/// hold spaces), else at white space; quoted names keep what their quotes hold.
+fn name_fields(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let separator = if line.iter().any(|&b| name_separator(b)) {
+        name_separator
+    } else {
+        value_separator
+    };
+    split_fields(line, separator)
 }
 
 /// The roles of the named columns `names`, checked: x, y and z present, each role at most once.
@@ -153,7 +210,7 @@ fn named(names: &[String]) -> Result<Vec<Role>, String> {
 /// Whether `line` is a row of column names: text without control characters (binary data is
 /// not), with a token that is not a number, each such token starting with a letter or `_`.
 fn is_name_row(line: &[u8]) -> bool {
-    let words: Vec<&[u8]> = fields(line)
+    let words: Vec<&[u8]> = name_fields(line)
         .filter(|t| text::parse_f64(t).is_none())
         .collect();
     std::str::from_utf8(line).is_ok_and(|s| !s.chars().any(|c| c.is_control() && c != '\t'))
@@ -192,7 +249,7 @@ pub fn parse(file: &str, data: &[u8], columns: Option<&[String]>) -> Result<Clou
         // it does when it names x, y and z, else it is a comment.
         let names_text = comment.unwrap_or(trimmed);
         if first && is_name_row(names_text) {
-            let names: Vec<String> = fields(names_text)
+            let names: Vec<String> = name_fields(names_text)
                 .map(|t| String::from_utf8_lossy(t).into_owned())
                 .collect();
             match named(&names) {
@@ -382,14 +439,26 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
             })
             .collect()
     });
+    let time_origin = roles
+        .iter()
+        .position(|r| *r == Role::Scalar("gps_time".into()))
+        .map(|c| {
+            let earliest = rows.iter().map(|r| r[c]).fold(f64::INFINITY, f64::min);
+            if earliest.is_finite() {
+                earliest
+            } else {
+                0.0
+            }
+        });
     let scalars = roles
         .iter()
         .enumerate()
         .filter_map(|(c, r)| match r {
             Role::Scalar(name) => {
-                // GPS times (~10⁹ s) keep their sub-millisecond steps relative to the first.
+                // GPS times (~10⁹ s) keep their sub-millisecond steps relative to the
+                // earliest (`stats.gps_time_origin`).
                 let base = if name == "gps_time" {
-                    rows.first().map_or(0.0, |r| r[c])
+                    time_origin.unwrap_or(0.0)
                 } else {
                     0.0
                 };
@@ -401,6 +470,10 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
             _ => None,
         })
         .collect();
+    let magnitude = bounds.lo.abs().max(bounds.hi.abs());
+    let survey = bounds.centre().is_some()
+        && ((magnitude.x >= SURVEY_MAGNITUDE && magnitude.y >= SURVEY_MAGNITUDE)
+            || magnitude.x.max(magnitude.y) >= RECENTRE_MAGNITUDE);
     let mut cloud = Cloud {
         positions: rows.iter().map(|r| (world(r) - origin).as_vec3()).collect(),
         normals,
@@ -409,8 +482,13 @@ fn build(values: &[f64], roles: &[Role]) -> Cloud {
         origin,
         stats: LoadStats {
             records: rows.len(),
+            gps_time_origin: time_origin,
+            up_rule: survey
+                .then(|| "survey-sized x, y coordinates (projected, such as UTM): z up".to_owned()),
             ..LoadStats::default()
         },
+        up: if survey { Up::Z } else { Up::Y },
+        survey,
         ..Cloud::default()
     };
     cloud.retain_finite();
@@ -483,7 +561,32 @@ mod tests {
         .unwrap();
         assert_eq!(c.colors.as_ref().unwrap()[0], [1, 0, 255, 255]);
         assert_eq!(scalar(&c, "gps_time"), [0.0, 0.25]);
+        assert_eq!(c.stats.gps_time_origin, Some(1e9));
         assert_eq!(scalar(&c, "Reflectance"), [0.5, 1.0]);
+        let c = parse(
+            "t.csv",
+            b"x,y,z,time\n0,0,0,1000000003.5\n1,1,1,1000000001.25\n",
+        )
+        .unwrap();
+        assert_eq!(scalar(&c, "gps_time"), [2.25, 0.0]);
+        assert_eq!(c.stats.gps_time_origin, Some(1_000_000_001.25));
+    }
+
+    #[test]
+    fn names_keep_their_spaces_inside_quotes_or_between_commas() {
+        for text in [
+            &b"X Y Z \"M3C2 distance\" 'point id'\n1 2 3 0.5 7\n"[..],
+            b"//X,Y,Z,M3C2 distance,point id\n1,2,3,0.5,7\n",
+            b"x;y;z;\"M3C2 distance\";\"point id\"\r\n1;2;3;0.5;7\r\n",
+            b"x\ty\tz\t M3C2 distance \tpoint id\n1\t2\t3\t0.5\t7\n",
+        ] {
+            let c = parse("m3c2.txt", text).unwrap();
+            assert_eq!(c.positions, [Vec3::new(1., 2., 3.)]);
+            assert_eq!(scalar(&c, "M3C2 distance"), [0.5]);
+            assert_eq!(scalar(&c, "point id"), [7.0]);
+        }
+        let fields: Vec<&[u8]> = fields(b"\"a,b\" 'c d' \"\" 'open").collect();
+        assert_eq!(fields, [&b"a,b"[..], b"c d", b"open"]);
     }
 
     #[test]
@@ -514,6 +617,25 @@ mod tests {
                 .max_element()
                 < 1e-3
         );
+    }
+
+    #[test]
+    fn survey_sized_coordinates_are_z_up() {
+        let rule = "survey-sized x, y coordinates (projected, such as UTM): z up";
+        for text in [
+            &b"500000.01 4320000.01 100.01\n500004.36 4320004.36 104.36\n"[..],
+            b"-10000 10000 0\n0 0 5\n",
+            b"100000 5 0\n0 0 5\n",
+        ] {
+            let c = parse("utm.xyz", text).unwrap();
+            assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Z, Some(rule)));
+            assert!(c.survey);
+        }
+        for text in [&b"9999 9999 0\n0 0 1\n"[..], b"10000 5 1000000\n0 0 1\n"] {
+            let c = parse("local.xyz", text).unwrap();
+            assert_eq!((c.up, c.stats.up_rule.as_deref()), (Up::Y, None));
+            assert!(!c.survey);
+        }
     }
 
     #[test]

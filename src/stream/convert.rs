@@ -14,10 +14,18 @@
 //! as extra bytes (LAS 1.4 R15 §2.6, f32 each) the normals (`NormalX/Y/Z`), the splat radii
 //! (`radius`) and every other scalar field. Coordinates are quantized at the finest decimal scale
 //! that keeps the cloud's largest extent within 2^30 steps, so they keep their f32 precision.
+//! NIR and waveforms (LAS point formats 4, 5, 8, 9, 10), which the writer cannot store, are
+//! dropped with a warning ([`ConvertStats::warnings`]).
+//!
+//! A conversion whose [`ConvertOptions::stop`] flag is set (by the command line's SIGINT and
+//! SIGTERM handler) ends with an error; like a failed one, it leaves no temporary file (shuffle
+//! buckets, the writer's spill and unfinished output) behind. The output gets the mode a new
+//! file gets (0666 less the umask), not the writer's private 0600.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::DVec3;
@@ -59,6 +67,8 @@ pub struct ConvertOptions {
     pub node_points: u32,
     /// How the input is read.
     pub read: ReadOptions,
+    /// Stops the conversion when set (from a signal handler: a store is all it does).
+    pub stop: Option<&'static AtomicBool>,
 }
 
 impl Default for ConvertOptions {
@@ -66,6 +76,7 @@ impl Default for ConvertOptions {
         Self {
             node_points: DEFAULT_NODE_POINTS,
             read: ReadOptions::default(),
+            stop: None,
         }
     }
 }
@@ -80,6 +91,8 @@ pub struct ConvertStats {
     pub write_seconds: f64,
     /// Bytes of the output.
     pub bytes: u64,
+    /// What the output lacks that the input has, each naming the input.
+    pub warnings: Vec<String>,
 }
 
 /// What a cloud's records carry beyond positions, colours and the standard fields: the f32
@@ -215,7 +228,7 @@ impl View<'_> {
             return_number: byte(2).min(15),
             number_of_returns: byte(3).min(15),
             point_source_id: value(4).clamp(0.0, 65535.0) as u16,
-            gps_time: f64::from(value(5)),
+            gps_time: f64::from(value(5)) + cloud.stats.gps_time_origin.unwrap_or(0.0),
             red: u16::from(r) * 257,
             green: u16::from(g) * 257,
             blue: u16::from(b) * 257,
@@ -281,19 +294,71 @@ fn shuffled(n: usize) -> Vec<u32> {
     order
 }
 
-/// Never cancels; the writer polls it.
-struct Continue;
+/// A conversion's stop flag ([`ConvertOptions::stop`]); the writer polls it, and so does
+/// every record pushed into a [`Shuffler`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Stop(Option<&'static AtomicBool>);
 
-impl CancelCheck for Continue {
+impl Stop {
+    fn requested(self) -> bool {
+        self.0.is_some_and(|flag| flag.load(Ordering::Relaxed))
+    }
+}
+
+impl CancelCheck for Stop {
     fn check(&self) -> copc_core::Result<()> {
-        Ok(())
+        if self.requested() {
+            Err(copc_core::Error::Cancelled)
+        } else {
+            Ok(())
+        }
     }
 }
 
 /// Converts `input` (any format [`crate::scene::load_with`] reads) into the COPC file `out`.
 /// A binary PLY is streamed in blocks (memory bounded whatever its size); other formats are
-/// loaded whole.
+/// loaded whole. A stopped conversion fails with "interrupted"; a stopped or failed one leaves
+/// neither temporary files nor an output.
 pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<ConvertStats> {
+    let stop = Stop(options.stop);
+    let result = convert_until(input, out, options, stop);
+    if stop.requested() {
+        bail!(
+            "{}: interrupted; the temporary files are removed and no output is written",
+            out.display()
+        );
+    }
+    let stats = result?;
+    set_new_file_mode(out)?;
+    Ok(stats)
+}
+
+/// Gives `out` the mode a newly created file gets, 0666 less the umask (the writer renames its
+/// private temporary file, mode 0600, into place).
+fn set_new_file_mode(out: &Path) -> Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // SAFETY: `umask` only swaps the process's file-creation mask; the old one is put back
+        // at once.
+        let mask = unsafe {
+            let mask = libc::umask(0o022);
+            libc::umask(mask);
+            mask
+        };
+        std::fs::set_permissions(out, std::fs::Permissions::from_mode(0o666 & !mask))
+            .with_context(|| format!("{}: cannot set the mode", out.display()))?;
+    }
+    Ok(())
+}
+
+/// [`convert`] until `stop` is requested.
+fn convert_until(
+    input: &Path,
+    out: &Path,
+    options: &ConvertOptions,
+    stop: Stop,
+) -> Result<ConvertStats> {
     if !out
         .file_name()
         .and_then(|n| n.to_str())
@@ -314,15 +379,15 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
     let start = Instant::now();
     let extension = crate::scene::format_extension(input);
     if extension == "ply" && !crate::lines::is_line_model(input) {
-        if let Some(stats) = convert_streamed(input, out, options.node_points, start)? {
+        if let Some(stats) = convert_streamed(input, out, options.node_points, start, stop)? {
             return Ok(stats);
         }
     }
     if extension == "e57" {
-        return convert_e57(input, out, options.node_points, start);
+        return convert_e57(input, out, options.node_points, start, stop);
     }
     if matches!(extension.as_str(), "las" | "laz" | "copc.laz") {
-        if let Some(stats) = convert_las(input, out, options.node_points, start)? {
+        if let Some(stats) = convert_las(input, out, options.node_points, start, stop)? {
             return Ok(stats);
         }
     }
@@ -332,12 +397,13 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
     }
     let load_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    write_with(&cloud, out, options.node_points)?;
+    write_until(&cloud, out, options.node_points, stop)?;
     Ok(ConvertStats {
         points: cloud.len() as u64,
         load_seconds,
         write_seconds: start.elapsed().as_secs_f64(),
         bytes: output_bytes(out)?,
+        warnings: Vec::new(),
     })
 }
 
@@ -362,6 +428,11 @@ pub fn write(cloud: &Cloud, out: &Path) -> Result<()> {
 
 /// [`write`] with `node_points` points per node.
 pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
+    write_until(cloud, out, node_points, Stop::default())
+}
+
+/// [`write_with`] until `stop` is requested.
+fn write_until(cloud: &Cloud, out: &Path, node_points: u32, stop: Stop) -> Result<()> {
     let fields = Fields::of(cloud);
     let view = fields.view(cloud, intensity_scale(cloud))?;
     let extent = cloud
@@ -379,21 +450,17 @@ pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
         }
         Ok(view.record(i as usize))
     });
-    let result = write_records(out, fields.layout()?, records, extent, node_points);
+    let scale = decimal_scale(extent);
+    let result = write_scaled(
+        out,
+        fields.layout()?,
+        records,
+        (scale, scale, scale),
+        node_points,
+        stop,
+    );
     progress.finish();
     result
-}
-
-/// Hands `records` to the writer with a decimal scale for `extent`.
-fn write_records(
-    out: &Path,
-    layout: StreamingLayout,
-    records: impl Iterator<Item = copc_core::Result<LasPointRecord>>,
-    extent: f64,
-    node_points: u32,
-) -> Result<()> {
-    let scale = decimal_scale(extent);
-    write_scaled(out, layout, records, (scale, scale, scale), node_points)
 }
 
 /// Hands `records` to the writer, coordinates quantized at `scale`.
@@ -403,6 +470,7 @@ fn write_scaled(
     records: impl Iterator<Item = copc_core::Result<LasPointRecord>>,
     (sx, sy, sz): (f64, f64, f64),
     node_points: u32,
+    stop: Stop,
 ) -> Result<()> {
     let mut metadata = CopcWriteMetadata::default();
     metadata.scale = Some((sx, sy, sz));
@@ -414,7 +482,7 @@ fn write_scaled(
         &CopcWriterParams::new(node_points),
         &metadata,
         &spill_dir(out),
-        &Continue,
+        &stop,
     )
     .map_err(|e| anyhow::anyhow!("{}: cannot write COPC: {e}", out.display()))
 }
@@ -432,10 +500,11 @@ struct Shuffler {
     layout: StreamingLayout,
     buf: Vec<u8>,
     rng: SplitMix64,
+    stop: Stop,
 }
 
 impl Shuffler {
-    fn new(dir: &Path, points: usize, layout: StreamingLayout) -> Result<Self> {
+    fn new(dir: &Path, points: usize, layout: StreamingLayout, stop: Stop) -> Result<Self> {
         let n = points.div_ceil(BUCKET_POINTS).clamp(1, 4096);
         let mut paths = Vec::with_capacity(n);
         let mut files = Vec::with_capacity(n);
@@ -453,10 +522,14 @@ impl Shuffler {
             buf: vec![0; layout.record_width()],
             layout,
             rng: SplitMix64::new(0x5eed_c0bc),
+            stop,
         })
     }
 
     fn push(&mut self, record: &LasPointRecord) -> Result<()> {
+        if self.stop.requested() {
+            bail!("interrupted");
+        }
         let k = (self.rng.next_u64() % self.files.len() as u64) as usize;
         copc_core::serialize_le(record, &self.layout, &mut self.buf)?;
         self.files[k]
@@ -561,6 +634,7 @@ fn convert_streamed(
     out: &Path,
     node_points: u32,
     start: Instant,
+    stop: Stop,
 ) -> Result<Option<ConvertStats>> {
     let mut fields: Option<Fields> = None;
     let mut scale: Option<f32> = None;
@@ -577,7 +651,7 @@ fn convert_streamed(
         let result = (|| -> Result<()> {
             let fields = fields.get_or_insert_with(|| Fields::of(&chunk));
             if shuffler.is_none() {
-                shuffler = Some(Shuffler::new(&dir, total, fields.layout()?)?);
+                shuffler = Some(Shuffler::new(&dir, total, fields.layout()?, stop)?);
             }
             let shuffler = shuffler.as_mut().expect("created above");
             let scale = *scale.get_or_insert_with(|| intensity_scale(&chunk));
@@ -621,13 +695,14 @@ fn convert_streamed(
 }
 
 /// Streams a LAS or LAZ file's records (every LAS field as it is, extra bytes included; NIR and
-/// waveform data, which the writer cannot keep, dropped) into the writer through a
-/// [`Shuffler`], at the input's scale; `None` for a file only the loader reads.
+/// waveform data, which the writer cannot keep, dropped with a warning) into the writer
+/// through a [`Shuffler`], at the input's scale; `None` for a file only the loader reads.
 fn convert_las(
     input: &Path,
     out: &Path,
     node_points: u32,
     start: Instant,
+    stop: Stop,
 ) -> Result<Option<ConvertStats>> {
     let file = input.display().to_string();
     let dir = spill_dir(out);
@@ -641,7 +716,7 @@ fn convert_las(
         layout.has_nir = false;
         layout.has_waveform = false;
         let declared = usize::try_from(header.number_of_points()).unwrap_or(usize::MAX);
-        let mut shuffler = Shuffler::new(&dir, declared, layout.clone())?;
+        let mut shuffler = Shuffler::new(&dir, declared, layout.clone(), stop)?;
         let mut data = las::PointDataBuilder::new().for_header(&header).build();
         let mut points = 0usize;
         loop {
@@ -668,7 +743,7 @@ fn convert_las(
         bail!("{file}: no points to convert");
     }
     let t = header.transforms();
-    write_shuffled(
+    let mut stats = write_shuffled(
         out,
         shuffler,
         layout,
@@ -676,14 +751,32 @@ fn convert_las(
         (t.x.scale, t.y.scale, t.z.scale),
         node_points,
         start,
-    )
-    .map(Some)
+    )?;
+    let format = header.point_format();
+    for (dropped, what) in [
+        (format.has_nir, "NIR (near infrared)"),
+        (format.has_waveform, "waveform data"),
+    ] {
+        if dropped {
+            stats.warnings.push(format!(
+                "{file}: point format {} has {what}, which a COPC file (point format 6 or 7) cannot hold; dropped",
+                format.to_u8().unwrap_or_default()
+            ));
+        }
+    }
+    Ok(Some(stats))
 }
 
 /// Streams an E57 file's points (every scan, in the file's frame; colour and intensity when
 /// scans record them) into the writer through a [`Shuffler`]. A first pass finds whether the
 /// intensities are fractions of 1 (then scaled to 16 bits, as [`intensity_scale`] does).
-fn convert_e57(input: &Path, out: &Path, node_points: u32, start: Instant) -> Result<ConvertStats> {
+fn convert_e57(
+    input: &Path,
+    out: &Path,
+    node_points: u32,
+    start: Instant,
+    stop: Stop,
+) -> Result<ConvertStats> {
     use crate::scene::e57::{for_each_point, E57Point};
     let (mut fractions, mut any_fraction) = (true, false);
     let (mut declared, mut colors) = (0u64, false);
@@ -714,7 +807,7 @@ fn convert_e57(input: &Path, out: &Path, node_points: u32, start: Instant) -> Re
     }
     .layout()?;
     let n = usize::try_from(declared).unwrap_or(usize::MAX);
-    let mut shuffler = Shuffler::new(&spill_dir(out), n, layout.clone())?;
+    let mut shuffler = Shuffler::new(&spill_dir(out), n, layout.clone(), stop)?;
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     let mut points = 0usize;
     let file = input.display().to_string();
@@ -769,13 +862,14 @@ fn write_shuffled(
     let load_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
+    let stop = shuffler.stop;
     let records = shuffler.finish()?.enumerate().map(|(done, r)| {
         if done % 65536 == 0 {
             progress.advance(65536.min(points - done));
         }
         r
     });
-    let result = write_scaled(out, layout, records, scale, node_points);
+    let result = write_scaled(out, layout, records, scale, node_points, stop);
     progress.finish();
     result?;
     Ok(ConvertStats {
@@ -783,5 +877,6 @@ fn write_shuffled(
         load_seconds,
         write_seconds: start.elapsed().as_secs_f64(),
         bytes: output_bytes(out)?,
+        warnings: Vec::new(),
     })
 }

@@ -362,6 +362,127 @@ fn info_prints_the_up_axis_of_the_format_or_the_override() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("up axis           -x"));
 }
 
+#[test]
+fn info_prints_the_up_axis_the_data_chose() {
+    let o = surfel(&[
+        "info",
+        data("pcd/milk_cartoon_all_small_clorox.pcd")
+            .to_str()
+            .expect("utf8"),
+        "--no-device",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout)
+            .contains("up axis           -y (organized PCD 640x480: a camera's frame, y down)\n"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let utm = tmp("utm.xyz");
+    std::fs::write(
+        &utm,
+        "500000.01 4320000.01 100.01\n500004.36 4320004.36 104.36\n500002 4320001 103\n",
+    )
+    .expect("write");
+    let o = surfel(&["info", utm.to_str().expect("utf8"), "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(
+            "up axis           z (survey-sized x, y coordinates (projected, such as UTM): z up)\n"
+        ),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+}
+
+#[test]
+fn a_possibly_truncated_obj_loads_with_a_warning() {
+    let obj = tmp("cut.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3").expect("write");
+    let o = surfel(&["info", obj.to_str().expect("utf8"), "--no-device"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "warning: {}: line 4: the file ends inside a \"f\" record, without a line end; it may be cut short\n",
+            obj.display()
+        )
+    );
+}
+
+#[test]
+fn info_describes_the_las_header() {
+    let las = info("lidar/autzen_trim.las", &[]);
+    for line in [
+        "LAS               version 1.2, point format 3\n",
+        "scale             0.01 0.01 0.01\n",
+        "offset            0 0 0\n",
+        "CRS               NAD_1983_HARN_Lambert_Conformal_Conic\n",
+        "bounds (file)     636001.76 848935.20 406.26 .. 637179.22 849497.90 520.51\n",
+    ] {
+        assert!(las.contains(line), "{line:?} not in {las}");
+    }
+    let copc = info("copc/autzen.copc.laz", &[]);
+    assert!(
+        copc.contains("LAS               version 1.4, point format 7\n"),
+        "{copc}"
+    );
+    assert!(!info("ply/frag_115.ply", &[]).contains("LAS "));
+}
+
+#[test]
+fn convert_stopped_by_sigint_removes_its_temporary_files() {
+    let dir = tmp("sigint");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let big = dir.join("big.ply");
+    let bunny = data("stanford/bun_zipper.ply");
+    let o = surfel(&[
+        "sample",
+        bunny.to_str().expect("utf8"),
+        "--points",
+        "4000000",
+        "--out",
+        big.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.join("big.copc.laz");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(["convert", big.to_str().expect("utf8"), "--out"])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run surfel");
+    let names = || -> Vec<String> {
+        std::fs::read_dir(&dir)
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect()
+    };
+    // Wait for the writer's spill file, then interrupt.
+    while !names().iter().any(|n| n.starts_with(".copc-writer-spill.")) {
+        assert!(
+            child.try_wait().expect("wait").is_none(),
+            "convert ended before its spill was seen"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // SAFETY: sends a signal to the child this test started.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let o = child.wait_with_output().expect("wait");
+    assert!(!o.status.success());
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: interrupted; the temporary files are removed and no output is written\n",
+            out.display()
+        )
+    );
+    assert_eq!(names(), ["big.ply"]);
+    std::fs::remove_dir_all(&dir).expect("remove");
+}
+
 /// `surfel info FILE --no-device EXTRA..` on a shared data file; its standard output.
 fn info(rel: &str, extra: &[&str]) -> String {
     let path = data(rel);

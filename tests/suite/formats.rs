@@ -492,3 +492,88 @@ fn e57_reads_every_scan_with_its_pose_and_recentres() {
     assert_eq!(c.scalars[0].name, "intensity");
     assert_eq!(c.scalars[0].values, [1_000.0, 3_000.0, 0.0]);
 }
+
+/// A LAS 1.4 file of `n` points in point `format` (LAZ-compressed when `compressed`) with the
+/// VLR `extra`, written by the `las` crate.
+fn las_with_vlr(format: u8, n: usize, compressed: bool, extra: las::Vlr) -> Vec<u8> {
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(format).unwrap();
+    builder.point_format.is_compressed = compressed;
+    builder.vlrs.push(extra);
+    let header = builder.into_header().unwrap();
+    let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+    for i in 0..n {
+        let format = *writer.header().point_format();
+        writer
+            .write_point(las::Point {
+                x: i as f64,
+                y: (i * 7 % 5) as f64,
+                z: 1.0,
+                gps_time: Some(1e9 + i as f64),
+                color: format.has_color.then(|| las::Color::new(100, 200, 300)),
+                nir: format.has_nir.then_some(4000 + i as u16),
+                ..Default::default()
+            })
+            .unwrap();
+    }
+    writer.into_inner().unwrap().into_inner()
+}
+
+#[test]
+fn a_pre_1_0_copc_draft_is_read_as_laz_with_a_note() {
+    let entwine = las::Vlr {
+        user_id: scene::copc::DRAFT_USER_ID.into(),
+        record_id: 1,
+        description: "COPC draft info".into(),
+        data: vec![0; 160],
+    };
+    let dir = std::env::temp_dir().join(format!("surfel-draft-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("draft.copc.laz");
+    std::fs::write(&path, las_with_vlr(6, 50, true, entwine)).unwrap();
+    let c = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.len(), 50);
+    let las = c.stats.las.as_ref().expect("LAS header");
+    assert_eq!(las.note.as_deref(), Some(scene::copc::DRAFT_NOTE));
+    assert_eq!((las.version.as_str(), las.point_format), ("1.4", 6));
+    let e = scene::load_with_budget(&path, Some(10)).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!("{}: a pre-1.0 COPC draft (VLR user id \"entwine\") has no COPC 1.0 octree to read by levels; read it whole, without --level-budget", path.display())
+    );
+    // Without the draft's VLR the file is no COPC file at all.
+    let other = las::Vlr {
+        user_id: "someone".into(),
+        ..Default::default()
+    };
+    std::fs::write(&path, las_with_vlr(6, 50, true, other)).unwrap();
+    let e = scene::load(&path).unwrap_err().to_string();
+    assert!(
+        e.ends_with("not a COPC file: expected a COPC info VLR (user id \"copc\", record 1)"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn converting_nir_warns_that_it_is_dropped() {
+    let dir = std::env::temp_dir().join(format!("surfel-nir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = dir.join("nir.las");
+    let note = las::Vlr {
+        user_id: "surfel-test".into(),
+        ..Default::default()
+    };
+    std::fs::write(&input, las_with_vlr(8, 40, false, note)).unwrap();
+    let out = dir.join("nir.copc.laz");
+    let options = surfel::stream::convert::ConvertOptions::default();
+    let stats = surfel::stream::convert::convert(&input, &out, &options).unwrap();
+    assert_eq!(
+        stats.warnings,
+        [format!("{}: point format 8 has NIR (near infrared), which a COPC file (point format 6 or 7) cannot hold; dropped", input.display())]
+    );
+    let back = scene::load(&out).unwrap();
+    assert_eq!(back.len(), 40);
+    assert!(back.scalars.iter().all(|s| s.name != "nir"));
+    std::fs::remove_dir_all(dir).unwrap();
+}

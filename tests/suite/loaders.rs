@@ -167,6 +167,7 @@ fn pcd_compressed_with_nans() {
                 position: Vec3::ZERO
             }]
         );
+        assert_eq!(c.up, scene::Up::NegY);
         assert_bounds(&c, lo, hi, 1e-4);
     }
 }

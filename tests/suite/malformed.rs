@@ -292,10 +292,41 @@ fn empty_files() {
         ("empty.xyz", "no points; expected lines of x y z values"),
         ("empty.las", "invalid LAS header"),
         ("empty.laz", "invalid LAS header"),
-        ("empty.obj", "no vertices; expected \"v x y z\" lines"),
     ] {
         assert_contains(&error(name, b""), &[expected]);
     }
+    // An OBJ without vertices is a mesh of 0 points, as PDAL and trimesh read it.
+    for (name, text) in [
+        ("empty.obj", &b""[..]),
+        ("comments.obj", b"# Blender export\n"),
+        ("material.obj", b"mtllib m.mtl\no nothing\n"),
+    ] {
+        let c = load(name, text).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((c.len(), c.faces.as_ref().map(Vec::len)), (0, Some(0)));
+    }
+}
+
+#[test]
+fn truncated_obj_names_the_line_or_warns() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2";
+    let path = file("cut.obj", obj.as_bytes());
+    assert_eq!(
+        scene::load(&path).unwrap_err().to_string(),
+        format!(
+            "{}: line 5: a face with 2 corners; expected at least 3 (is the file cut short?)",
+            path.display()
+        )
+    );
+    let c = load("cut_vertex.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0.25").unwrap();
+    assert_eq!(c.len(), 3);
+    assert_eq!(c.stats.warnings.len(), 1);
+    assert!(
+        c.stats.warnings[0].ends_with(
+            "cut_vertex.obj: line 3: the file ends inside a \"v\" record, without a line end; it may be cut short"
+        ),
+        "{:?}",
+        c.stats.warnings
+    );
 }
 
 #[test]

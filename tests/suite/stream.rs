@@ -959,6 +959,16 @@ fn a_binary_ply_is_converted_in_blocks_through_the_external_shuffle() {
     )
     .unwrap();
     assert_eq!(stats.points, 30_000);
+    // The output has the mode of a new file: 0666 less the umask.
+    // SAFETY: swaps the file-creation mask and puts it back at once.
+    let umask = unsafe {
+        let mask = libc::umask(0o022);
+        libc::umask(mask);
+        mask
+    };
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o666 & !umask);
     let leftovers: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -1017,6 +1027,13 @@ fn las_and_laz_are_converted_in_blocks_with_every_field() {
         convert::convert(&input, &out, &convert::ConvertOptions::default()).unwrap();
         let (a, b) = (scene::load(&input).unwrap(), scene::load(&out).unwrap());
         assert_eq!(a.len(), b.len());
+        // GPS times count from the same earliest time, in the LAS file and in its COPC.
+        assert_eq!(a.stats.gps_time_origin, b.stats.gps_time_origin, "{name}");
+        assert_eq!(
+            surfel::color::min_max(scalar(&a, "gps_time")).0,
+            0.0,
+            "{name}"
+        );
         let key = |c: &Cloud, i: usize| {
             let w = c.origin + c.positions[i].as_dvec3();
             [w.x, w.y, w.z].map(|v| (v * 100.0).round() as i64)
@@ -1034,6 +1051,7 @@ fn las_and_laz_are_converted_in_blocks_with_every_field() {
                 "classification",
                 "return_number",
                 "point_source_id",
+                "gps_time",
             ] {
                 assert_eq!(scalar(&a, field)[i], scalar(&b, field)[j], "{name} {field}");
             }
@@ -1118,4 +1136,36 @@ fn a_server_that_stops_answering_is_timed_out_and_retried() {
     let streamed = gpu::stream(&slow.url, &options, &[&gpu::framing], 128);
     assert!(streamed.messages.is_empty(), "{:?}", streamed.messages);
     assert!(streamed.stats.drawn_points > 30_000);
+}
+
+#[test]
+fn a_stopped_conversion_leaves_no_files() {
+    static STOPPED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
+    let dir = scratch("stopped");
+    std::fs::create_dir_all(&dir).unwrap();
+    let ply = dir.join("survey.ply");
+    scene::ply::save(&ply, &survey(5_000)).unwrap();
+    let out = dir.join("survey.copc.laz");
+    for input in [
+        ply.clone(),
+        PathBuf::from("../shared/data/lidar/autzen_trim.laz"),
+    ] {
+        let options = convert::ConvertOptions {
+            stop: Some(&STOPPED),
+            ..convert::ConvertOptions::default()
+        };
+        let m = convert::convert(&input, &out, &options).unwrap_err();
+        assert_eq!(
+            m.to_string(),
+            format!(
+                "{}: interrupted; the temporary files are removed and no output is written",
+                out.display()
+            )
+        );
+        let files: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(files, ["survey.ply"], "{}", input.display());
+    }
 }
