@@ -19,6 +19,19 @@ fn records(stdout: &str, key: &str) -> Vec<Value> {
         .collect()
 }
 
+/// The `count` records of a tour: covered pixels and kept points.
+fn counts(stdout: &str) -> Vec<(u64, u64)> {
+    records(stdout, "count")
+        .iter()
+        .map(|c| {
+            (
+                c["covered_pixels"].as_u64().expect("pixels"),
+                c["kept_points"].as_u64().expect("kept"),
+            )
+        })
+        .collect()
+}
+
 /// Writes an ASCII PLY of `points` (x, y, z as written) with a `classification` column when
 /// `classes` is given.
 fn write_ply(path: &Path, points: &[[f64; 3]], classes: Option<&[u8]>) {
@@ -296,15 +309,7 @@ fn filtering_classes_and_clipping_boxes_change_the_projected_count_as_the_cpu_pr
             "cam.toml",
         ],
     );
-    let counts: Vec<(u64, u64)> = records(&stdout, "count")
-        .iter()
-        .map(|c| {
-            (
-                c["covered_pixels"].as_u64().expect("pixels"),
-                c["kept_points"].as_u64().expect("kept"),
-            )
-        })
-        .collect();
+    let counts = counts(&stdout);
     let expected = [
         400,
         hide2,
@@ -447,15 +452,7 @@ fn a_scripted_click_on_a_legend_line_toggles_its_class() {
         "{stdout}"
     );
     assert_eq!(records(&stdout, "pick").len(), rows - 4, "{stdout}");
-    let counts: Vec<(u64, u64)> = records(&stdout, "count")
-        .iter()
-        .map(|c| {
-            (
-                c["covered_pixels"].as_u64().expect("pixels"),
-                c["kept_points"].as_u64().expect("kept"),
-            )
-        })
-        .collect();
+    let counts = counts(&stdout);
     assert_eq!(counts, [(400, 400), (0, 0)], "{stdout}");
 }
 
