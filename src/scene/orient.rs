@@ -137,8 +137,8 @@ fn prior(rule: Rule, sensors: &[Sensor], centre: Vec3, i: usize, p: Vec3, n: Vec
 }
 
 /// Orients `normals` (unit, any sign) of `cloud`'s points by `rule` over `graph`. Anchors are
-/// oriented in parallel; the walk runs over the points in Morton order, so that neighbours
-/// are near in memory.
+/// oriented in parallel; the walk runs over the points still to orient and the anchors beside
+/// them only, in Morton order, so that neighbours are near in memory.
 pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) -> Report {
     let positions = &cloud.positions;
     let n = positions.len();
@@ -171,21 +171,40 @@ pub fn orient(cloud: &Cloud, normals: &mut [Vec3], graph: &Graph, rule: Rule) ->
             ..Report::default()
         };
     }
-    let order = morton_order(positions);
-    let mut rank = vec![0u32; n];
+    // The walk needs the points still to orient and the anchors next to them, in Morton order.
+    let mut needed: Vec<bool> = anchors.iter().map(|a| !a).collect();
+    for i in 0..n {
+        for j in graph.row(i).filter(|&j| j < n) {
+            if anchors[i] != anchors[j] {
+                needed[i] = true;
+                needed[j] = true;
+            }
+        }
+    }
+    let subset: Vec<u32> = (0..n as u32)
+        .into_par_iter()
+        .filter(|&i| needed[i as usize])
+        .collect();
+    let near: Vec<Vec3> = subset.par_iter().map(|&i| positions[i as usize]).collect();
+    let order: Vec<u32> = morton_order(&near)
+        .into_par_iter()
+        .map(|s| subset[s as usize])
+        .collect();
+    let mut rank = vec![NONE; n];
     for (s, &i) in order.iter().enumerate() {
         rank[i as usize] = s as u32;
     }
-    let mut rows = vec![NONE; n * GRAPH_K];
+    let mut rows = vec![NONE; order.len() * GRAPH_K];
     rows.par_chunks_mut(GRAPH_K)
         .zip(&order)
         .for_each(|(row, &i)| {
             let i = i as usize;
-            for (slot, &j) in row
-                .iter_mut()
-                .zip(&graph.rows[i * GRAPH_K..(i + 1) * GRAPH_K])
-            {
-                *slot = rank.get(j as usize).copied().unwrap_or(NONE);
+            let kept = graph.rows[i * GRAPH_K..(i + 1) * GRAPH_K]
+                .iter()
+                .filter_map(|&j| rank.get(j as usize).copied())
+                .filter(|&r| r != NONE);
+            for (slot, r) in row.iter_mut().zip(kept) {
+                *slot = r;
             }
         });
     let mut sorted: Vec<Vec3> = order.par_iter().map(|&i| normals[i as usize]).collect();
