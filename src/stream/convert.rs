@@ -333,6 +333,19 @@ pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<Con
     Ok(stats)
 }
 
+/// Converts every file of `inputs` into the one COPC file `out` (one input: [`convert`]).
+pub fn convert_many(
+    inputs: &[PathBuf],
+    out: &Path,
+    options: &ConvertOptions,
+) -> Result<ConvertStats> {
+    match inputs {
+        [] => bail!("no input files to convert"),
+        [input] => convert(input, out, options),
+        _ => bail!("merging {} inputs into one COPC file is not supported", inputs.len()),
+    }
+}
+
 /// Gives `out` the mode a newly created file gets, 0666 less the umask (the writer renames its
 /// private temporary file, mode 0600, into place).
 fn set_new_file_mode(out: &Path) -> Result<()> {
