@@ -64,14 +64,16 @@ pub(super) fn convert(a: ConvertArgs) -> Result<()> {
     }
     let rate = |s: f64| stats.points as f64 / s.max(1e-9) / 1e6;
     eprintln!(
-        "{} points -> {} ({:.1} MB): loaded in {:.2} s ({:.2} M points/s), written in {:.2} s ({:.2} M points/s)",
+        "{} points -> {} ({:.1} MB, {:.1} bytes per point, {} nodes): read in {:.2} s, octree built in {:.2} s, compressed and written in {:.2} s; {:.2} M points/s in all",
         stats.points,
         a.out.display(),
         stats.bytes as f64 / 1e6,
+        stats.bytes as f64 / stats.points.max(1) as f64,
+        stats.nodes,
         stats.load_seconds,
-        rate(stats.load_seconds),
-        stats.write_seconds,
-        rate(stats.write_seconds),
+        stats.build_seconds,
+        stats.write_seconds - stats.build_seconds,
+        rate(stats.load_seconds + stats.write_seconds),
     );
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! The in-memory point cloud every loader produces and every method consumes.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::camera::Up;
@@ -225,8 +225,9 @@ impl Cloud {
     }
 
     /// Moves scalar fields that hold geometry into place: three normal components (named
-    /// `NormalX`/`nx`/`normal_x` and so on, in any case) become `normals`, a field named
-    /// `radius` becomes `radii`. LAS and COPC files carry them as extra bytes.
+    /// `NormalX`/`nx`/`normal_x` and so on, in any case), or the two 16-bit octahedral
+    /// coordinates `surfel convert` writes, become `normals`, a field named `radius` becomes
+    /// `radii`. LAS and COPC files carry them as extra bytes.
     pub fn adopt_geometry_fields(&mut self) {
         let find = |scalars: &[Scalar], names: &[&str]| {
             scalars.iter().position(|s| {
@@ -239,6 +240,26 @@ impl Cloud {
             ["normaly", "normal_y", "ny"],
             ["normalz", "normal_z", "nz"],
         ];
+        let oct = super::octahedral::NORMAL_OCT;
+        if self.normals.is_none() && oct.iter().all(|n| find(&self.scalars, &[n]).is_some()) {
+            let mut take = |name: &str| {
+                let at = find(&self.scalars, &[name]).expect("checked above");
+                self.scalars.remove(at).values
+            };
+            let (u, v) = (take(oct[0]), take(oct[1]));
+            self.normals = Some(
+                u.iter()
+                    .zip(&v)
+                    .map(|(&u, &v)| {
+                        let e = Vec2::new(
+                            super::octahedral::from_unorm16(u),
+                            super::octahedral::from_unorm16(v),
+                        );
+                        super::octahedral::from_octahedral(e)
+                    })
+                    .collect(),
+            );
+        }
         if self.normals.is_none() && axes.iter().all(|a| find(&self.scalars, a).is_some()) {
             let mut take = |names: &[&str]| {
                 let at = find(&self.scalars, names).expect("checked above");

@@ -332,28 +332,6 @@ fn open(path: &Path) -> Result<(E57Reader<BufReader<File>>, u64), LoadError> {
     Ok((reader, size))
 }
 
-/// Streams an E57 file's valid points to `point` without holding them: `begin` learns first
-/// the records declared and whether any scan has colours and intensities. Returns the points
-/// without a valid position.
-pub(crate) fn for_each_point(
-    path: &Path,
-    begin: &mut dyn FnMut(u64, bool, bool) -> Result<(), LoadError>,
-    point: &mut dyn FnMut(E57Point) -> Result<(), LoadError>,
-) -> Result<usize, LoadError> {
-    let file = path.display().to_string();
-    let (mut reader, _) = open(path)?;
-    let scans: Vec<Scan> = reader.pointclouds().iter().map(Scan::new).collect();
-    let records = reader.pointclouds().iter().map(|pc| pc.records).sum();
-    begin(
-        records,
-        scans.iter().any(|s| s.color.is_some()),
-        scans.iter().any(|s| s.intensity.is_some()),
-    )?;
-    let (_, invalid) = guard::third_party(|| read_scans(&file, &mut reader, point))
-        .map_err(|e| LoadError::whole(&file, e))??;
-    Ok(invalid)
-}
-
 /// Loads an E57 file.
 pub fn load(path: &Path) -> Result<Cloud, LoadError> {
     let file = path.display().to_string();

@@ -17,6 +17,7 @@ pub mod lights;
 pub mod morton;
 pub mod normal_field;
 pub mod obj;
+pub mod octahedral;
 pub mod orient;
 pub mod pack;
 pub mod pcd;

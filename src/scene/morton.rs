@@ -15,11 +15,17 @@ fn spread3(v: u64) -> u64 {
     x
 }
 
+/// 63-bit Morton code of the grid cell `(x, y, z)` (21 bits each): x in the lowest bit of each
+/// triple, then y, then z.
+pub fn interleave(x: u32, y: u32, z: u32) -> u64 {
+    spread3(u64::from(x)) | (spread3(u64::from(y)) << 1) | (spread3(u64::from(z)) << 2)
+}
+
 /// 63-bit Morton code of `p` on a 2^21 grid over the box `lo..lo + 1/scale`.
 pub fn morton(p: Vec3, lo: Vec3, scale: Vec3) -> u64 {
     let max = ((1u32 << 21) - 1) as f32;
     let q = ((p - lo) * scale * max).clamp(Vec3::ZERO, Vec3::splat(max));
-    spread3(q.x as u64) | (spread3(q.y as u64) << 1) | (spread3(q.z as u64) << 2)
+    interleave(q.x as u32, q.y as u32, q.z as u32)
 }
 
 /// Indices of `positions` sorted by Morton code over their bounding box, ties by index. The

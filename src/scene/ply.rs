@@ -1201,65 +1201,6 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Cloud, LoadError> {
     Ok(finish(cloud, element.count))
 }
 
-/// Streams the vertices of a binary PLY whose vertex records have a fixed size, in blocks of
-/// about `block_bytes`, each as a cloud handed to `chunk` with the vertex count (positions relative to one origin for the whole file,
-/// found by a first pass over the positions when the coordinates are large; faces and other
-/// elements are not read). Returns the number of vertices, or `None` for a file this cannot
-/// stream (ASCII, or lists in the vertex element): load it whole instead.
-pub(crate) fn for_each_chunk(
-    path: &Path,
-    block_bytes: usize,
-    mut chunk: impl FnMut(usize, Cloud) + Send,
-) -> Result<Option<usize>, LoadError> {
-    let file = path.display().to_string();
-    let io_error = |source| LoadError::Io {
-        file: file.clone(),
-        source,
-    };
-    let mut f = File::open(path).map_err(io_error)?;
-    let len = f.metadata().map_err(io_error)?.len();
-    let data = read_header_bytes(&mut f).map_err(io_error)?;
-    let header = parse_header(&file, &data, usize::try_from(len).unwrap_or(usize::MAX))?;
-    let v = vertex_element(&file, &header)?;
-    let element = &header.elements[v];
-    let before: Option<usize> = header.elements[..v]
-        .iter()
-        .map(|e| Some(e.fixed_record_size()? * e.count))
-        .sum();
-    let (Encoding::Binary { big }, Some(before), Some(stride)) =
-        (header.encoding, before, element.fixed_record_size())
-    else {
-        return Ok(None);
-    };
-    let spec = VertexSpec::new(&file, element)?;
-    let layout = VertexLayout::new(element, &spec, big, stride);
-    let span = records::Span {
-        at: header.body + before,
-        count: element.count,
-        stride: layout.stride,
-    };
-    let bytes = span.count * span.stride;
-    let start = SeekFrom::Start(span.at as u64);
-    let quiet = Progress::new("bounds", 0, false);
-    let mut bounds = Bounds::EMPTY;
-    f.seek(start).map_err(io_error)?;
-    records::for_each_block(&file, &mut f, span, block_bytes, &quiet, |_, block| {
-        let mut columns = Columns::new(&spec, block.len() / layout.stride);
-        bounds = bounds.union(layout.decode_block(&mut columns, 0, block, DVec3::ZERO, true));
-    })?;
-    let origin = local_origin(&bounds);
-    let progress = Progress::new("reading", bytes, bytes >= records::PROGRESS_MIN_BYTES);
-    f.seek(start).map_err(io_error)?;
-    records::for_each_block(&file, &mut f, span, block_bytes, &progress, |_, block| {
-        let mut columns = Columns::new(&spec, block.len() / layout.stride);
-        layout.decode_block(&mut columns, 0, block, origin, false);
-        let mut cloud = Cloud::default();
-        columns.store(spec.clone(), origin, &mut cloud);
-        chunk(span.count, cloud);
-    })?;
-    Ok(Some(element.count))
-}
-
 /// Writes `cloud` as binary little-endian PLY: positions (float, or double when the cloud has
 /// a non-zero origin, so large coordinates survive), and normals, colors (with alpha) and
 /// radii when present, and the faces. Scalars are not written.

@@ -1,71 +1,45 @@
-//! `surfel convert`: any input the loaders read, written as a COPC file by the `copc-writer`
-//! crate (octree build, LAZ chunk compression, hierarchy pages).
+//! `surfel convert`: inputs written as one COPC file by [`super::copc_write`].
 //!
-//! Points reach the writer as LAS 1.4 records in a pseudo-random order (the writer's coarse
-//! levels are the first points it meets per octant, see [`shuffled`]); the writer spills them to
-//! a temporary file beside the output and builds the octree from that spill, its own memory
-//! bounded whatever the cloud's size. A binary PLY (what `surfel sample` writes), LAS and LAZ are
-//! streamed in blocks through an external shuffle ([`Shuffler`]: random buckets on disk, each shuffled in
-//! memory), so conversion memory stays bounded too; other formats are loaded whole by their
-//! loader (with its checks), about 30 bytes per point.
+//! LAS, LAZ and COPC inputs are read as raw records and re-encoded as point format 6 or 7
+//! ([`super::records::Source`]): several of them merge into one file, read in parallel, each
+//! into its own part of one buffer. Every other format is loaded whole by its loader (with its
+//! checks) and its columns encoded ([`super::records::encode_cloud`]: normals in two 16-bit
+//! octahedral coordinates, radii in 16 bits with a scale and offset).
 //!
-//! Kept: positions (f64: the cloud's origin plus its f32 offsets), colour (8-bit values stored
-//! as 16-bit, times 257), intensity, classification, returns, point source id, GPS time, and
-//! as extra bytes (LAS 1.4 R15 §2.6, f32 each) the normals (`NormalX/Y/Z`), the splat radii
-//! (`radius`) and every other scalar field. Coordinates are quantized at the finest decimal scale
-//! that keeps the cloud's largest extent within 2^30 steps, so they keep their f32 precision.
-//! NIR and waveforms (LAS point formats 4, 5, 8, 9, 10), which the writer cannot store, are
-//! dropped with a warning ([`ConvertStats::warnings`]).
+//! Merging follows one rule: the output has colours if any input has (black for the others),
+//! the inputs' scale and offset when they all share them (else the finest scale of any input
+//! and the lowest corner of all), their extra bytes when they all describe the same ones (else
+//! none, with a warning), and their CRS, which must be the same for all (else an error naming
+//! two files that differ). NIR and waveforms (point formats 4, 5, 8, 9, 10), which a COPC file
+//! cannot hold, are dropped with a warning ([`ConvertStats::warnings`]).
 //!
 //! A conversion whose [`ConvertOptions::stop`] flag is set (by the command line's SIGINT and
-//! SIGTERM handler) ends with an error; like a failed one, it leaves no temporary file (shuffle
-//! buckets, the writer's spill and unfinished output) behind. The output gets the mode a new
-//! file gets (0666 less the umask), not the writer's private 0600.
+//! SIGTERM handler) ends with an error; like a failed one, it leaves no partial output behind.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use glam::DVec3;
-
 use anyhow::{bail, Context as _, Result};
-use copc_core::{CancelCheck, LasPointRecord, StreamingLayout};
-use copc_writer::{CopcWriteMetadata, CopcWriterParams};
+use glam::DVec3;
+use rayon::prelude::*;
 
-use crate::rng::SplitMix64;
-use crate::scene::progress::Progress;
+use super::copc_write::{self, Layout};
+use super::records::{self, Source};
 use crate::scene::{Cloud, ReadOptions};
 
 /// Points per COPC node the writer aims for (the value PDAL and Untwine use).
 pub const DEFAULT_NODE_POINTS: u32 = 100_000;
 
-/// Conversions of at least this many points show a progress bar (on a terminal).
-const PROGRESS_MIN_POINTS: usize = 1_000_000;
-
-/// The names of the standard LAS fields among a cloud's scalars (as the loaders name them).
-const STANDARD: [&str; 6] = [
-    "intensity",
-    "classification",
-    "return_number",
-    "number_of_returns",
-    "point_source_id",
-    "gps_time",
-];
-
-/// Extra-bytes names of the normal's components (the names PDAL writes).
-pub const NORMAL_NAMES: [&str; 3] = ["NormalX", "NormalY", "NormalZ"];
-
-/// Extra-bytes name of the splat radius.
-pub const RADIUS_NAME: &str = "radius";
+/// Points per block read from a LAS or LAZ file.
+const BLOCK_POINTS: u64 = 65_536;
 
 /// How [`convert`] writes.
 #[derive(Clone, Debug)]
 pub struct ConvertOptions {
     /// Target points per octree node.
     pub node_points: u32,
-    /// How the input is read.
+    /// How inputs other than LAS, LAZ and COPC are read.
     pub read: ReadOptions,
     /// Stops the conversion when set (from a signal handler: a store is all it does).
     pub stop: Option<&'static AtomicBool>,
@@ -85,293 +59,50 @@ impl Default for ConvertOptions {
 #[derive(Clone, Debug)]
 pub struct ConvertStats {
     pub points: u64,
-    /// Seconds loading the input.
+    /// Octree nodes written.
+    pub nodes: usize,
+    /// Seconds reading the inputs.
     pub load_seconds: f64,
     /// Seconds building and writing the COPC file.
     pub write_seconds: f64,
+    /// Of [`Self::write_seconds`], those sorting the points and building the octree.
+    pub build_seconds: f64,
     /// Bytes of the output.
     pub bytes: u64,
-    /// What the output lacks that the input has, each naming the input.
+    /// What the output lacks that an input has, each naming the input.
     pub warnings: Vec<String>,
 }
 
-/// What a cloud's records carry beyond positions, colours and the standard fields: the f32
-/// extra-bytes fields, in order (decided from the whole cloud, or a streamed input's first
-/// chunk).
-#[derive(Clone, Debug, PartialEq)]
-struct Fields {
-    colors: bool,
-    normals: bool,
-    radii: bool,
-    /// Scalar fields that are not standard LAS fields.
-    scalars: Vec<String>,
-}
-
-/// One cloud's columns in the order of [`Fields`].
-struct View<'a> {
-    cloud: &'a Cloud,
-    /// Multiplies intensities (65,535 for a cloud whose intensities are fractions of 1).
-    intensity_scale: f32,
-    standard: [Option<&'a [f32]>; 6],
-    scalars: Vec<&'a [f32]>,
-    extra_bytes: usize,
-}
-
-impl Fields {
-    fn of(cloud: &Cloud) -> Self {
-        Self {
-            colors: cloud.colors.is_some(),
-            normals: cloud.normals.is_some(),
-            radii: cloud.radii.is_some(),
-            scalars: cloud
-                .scalars
-                .iter()
-                .filter(|s| !STANDARD.contains(&s.name.as_str()))
-                .map(|s| s.name.clone())
-                .collect(),
-        }
-    }
-
-    fn names(&self) -> Vec<&str> {
-        let mut names = Vec::new();
-        if self.normals {
-            names.extend(NORMAL_NAMES);
-        }
-        if self.radii {
-            names.push(RADIUS_NAME);
-        }
-        names.extend(self.scalars.iter().map(String::as_str));
-        names
-    }
-
-    /// The writer's record layout: point format 7 with colours, else 6, and one f32 extra
-    /// field per name.
-    fn layout(&self) -> Result<StreamingLayout> {
-        let names = self.names();
-        let extra_bytes = u16::try_from(4 * names.len())
-            .ok()
-            .filter(|&b| b < u16::MAX - 64)
-            .with_context(|| format!("{} extra fields: too many for a LAS record", names.len()))?;
-        Ok(StreamingLayout {
-            point_format: if self.colors { 7 } else { 6 },
-            has_gps: true,
-            has_color: self.colors,
-            has_nir: false,
-            has_waveform: false,
-            extra_bytes,
-            extra_bytes_descriptors: if names.is_empty() {
-                Vec::new()
-            } else {
-                vec![las::Vlr {
-                    user_id: "LASF_Spec".into(),
-                    record_id: 4,
-                    description: "surfel extra fields".into(),
-                    data: names.iter().flat_map(|n| descriptor(n)).collect(),
-                }]
-            },
-        })
-    }
-
-    /// `cloud`'s columns; fails when it lacks one of the fields (a streamed chunk unlike the
-    /// first).
-    fn view<'a>(&self, cloud: &'a Cloud, intensity_scale: f32) -> Result<View<'a>> {
-        let scalar = |name: &str| {
-            cloud
-                .scalars
-                .iter()
-                .find(|s| s.name == name)
-                .map(|s| s.values.as_slice())
-        };
-        if Self::of(cloud) != *self {
-            bail!("a block of points with other fields than the first block's");
-        }
-        Ok(View {
-            cloud,
-            intensity_scale,
-            standard: STANDARD.map(scalar),
-            scalars: self
-                .scalars
-                .iter()
-                .map(|n| scalar(n).expect("checked"))
-                .collect(),
-            extra_bytes: 4 * self.names().len(),
-        })
-    }
-}
-
-impl View<'_> {
-    /// The LAS record of point `i`.
-    fn record(&self, i: usize) -> LasPointRecord {
-        let cloud = self.cloud;
-        let p = cloud.origin + cloud.positions[i].as_dvec3();
-        let value = |k: usize| self.standard[k].map_or(0.0, |v| v[i]);
-        let byte = |k: usize| value(k).clamp(0.0, 255.0) as u8;
-        let [r, g, b, _] = cloud.colors.as_ref().map_or([0; 4], |c| c[i]);
-        let mut extra = Vec::with_capacity(self.extra_bytes);
-        if let Some(n) = &cloud.normals {
-            for v in n[i].to_array() {
-                extra.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        if let Some(radii) = &cloud.radii {
-            extra.extend_from_slice(&radii[i].to_le_bytes());
-        }
-        for values in &self.scalars {
-            extra.extend_from_slice(&values[i].to_le_bytes());
-        }
-        LasPointRecord {
-            x: p.x,
-            y: p.y,
-            z: p.z,
-            intensity: (value(0) * self.intensity_scale).clamp(0.0, 65535.0) as u16,
-            classification: byte(1),
-            return_number: byte(2).min(15),
-            number_of_returns: byte(3).min(15),
-            point_source_id: value(4).clamp(0.0, 65535.0) as u16,
-            gps_time: f64::from(value(5)) + cloud.stats.gps_time_origin.unwrap_or(0.0),
-            red: u16::from(r) * 257,
-            green: u16::from(g) * 257,
-            blue: u16::from(b) * 257,
-            extra_bytes: extra,
-            ..LasPointRecord::default()
-        }
-    }
-}
-
-/// The factor taking `cloud`'s intensities to LAS's 16 bits: 65,535 when they are fractions
-/// within 0..1 (E57 and normalised text files), else 1 (already counts).
-fn intensity_scale(cloud: &Cloud) -> f32 {
-    let Some(values) = cloud
-        .scalars
-        .iter()
-        .find(|s| s.name == "intensity")
-        .map(|s| &s.values)
-    else {
-        return 1.0;
-    };
-    let fractions =
-        values.iter().all(|v| (0.0..=1.0).contains(v)) && values.iter().any(|v| v.fract() != 0.0);
-    if fractions {
-        65535.0
-    } else {
-        1.0
-    }
-}
-
-/// The 192-byte extra-bytes descriptor of an f32 field named `name` (LAS 1.4 R15 table 24:
-/// data type 9, no options; the name is at most 32 bytes).
-fn descriptor(name: &str) -> [u8; 192] {
-    let mut d = [0u8; 192];
-    d[2] = 9;
-    let bytes = name.as_bytes();
-    let n = bytes.len().min(31);
-    d[4..4 + n].copy_from_slice(&bytes[..n]);
-    d
-}
-
-/// The smallest power of ten at least `extent / 2^30`, so coordinates measured from the
-/// lower corner fit 30 bits (1e-9 for an empty or degenerate extent).
-pub fn decimal_scale(extent: f64) -> f64 {
-    let raw = extent / f64::from(1u32 << 30);
-    if raw.is_finite() && raw > 0.0 {
-        10f64.powf(raw.log10().ceil())
-    } else {
-        1e-9
-    }
-}
-
-/// A fixed pseudo-random permutation of `0..n`. The writer fills a parent node with the first
-/// points of each child octant in the order it is given them, so in file order (scan lines,
-/// sorted tiles) a coarse level would cover only part of its cube; in a random order it is a
-/// uniform random subsample of it.
-fn shuffled(n: usize) -> Vec<u32> {
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    let mut rng = crate::rng::SplitMix64::new(0x5eed_c0bc);
-    for i in (1..n).rev() {
-        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-        order.swap(i, j);
-    }
-    order
-}
-
-/// A conversion's stop flag ([`ConvertOptions::stop`]); the writer polls it, and so does
-/// every record pushed into a [`Shuffler`].
-#[derive(Clone, Copy, Debug, Default)]
-struct Stop(Option<&'static AtomicBool>);
-
-impl Stop {
-    fn requested(self) -> bool {
-        self.0.is_some_and(|flag| flag.load(Ordering::Relaxed))
-    }
-}
-
-impl CancelCheck for Stop {
-    fn check(&self) -> copc_core::Result<()> {
-        if self.requested() {
-            Err(copc_core::Error::Cancelled)
-        } else {
-            Ok(())
-        }
+impl ConvertOptions {
+    fn stopped(&self) -> bool {
+        self.stop.is_some_and(|flag| flag.load(Ordering::Relaxed))
     }
 }
 
 /// Converts `input` (any format [`crate::scene::load_with`] reads) into the COPC file `out`.
-/// A binary PLY is streamed in blocks (memory bounded whatever its size); other formats are
-/// loaded whole. A stopped conversion fails with "interrupted"; a stopped or failed one leaves
-/// neither temporary files nor an output.
 pub fn convert(input: &Path, out: &Path, options: &ConvertOptions) -> Result<ConvertStats> {
-    let stop = Stop(options.stop);
-    let result = convert_until(input, out, options, stop);
-    if stop.requested() {
-        bail!(
-            "{}: interrupted; the temporary files are removed and no output is written",
-            out.display()
-        );
-    }
-    let stats = result?;
-    set_new_file_mode(out)?;
-    Ok(stats)
+    convert_many(&[input.to_path_buf()], out, options)
 }
 
-/// Converts every file of `inputs` into the one COPC file `out` (one input: [`convert`]).
+/// Converts every file of `inputs` into the one COPC file `out`: any number of LAS, LAZ and
+/// COPC files (merged by the rule in the module's notes), or one file of another format. A
+/// stopped conversion fails with "interrupted"; a stopped or failed one leaves no output.
 pub fn convert_many(
     inputs: &[PathBuf],
     out: &Path,
     options: &ConvertOptions,
 ) -> Result<ConvertStats> {
-    match inputs {
-        [] => bail!("no input files to convert"),
-        [input] => convert(input, out, options),
-        _ => bail!("merging {} inputs into one COPC file is not supported", inputs.len()),
+    let result = convert_until(inputs, out, options);
+    if options.stopped() {
+        bail!(
+            "{}: interrupted; the temporary files are removed and no output is written",
+            out.display()
+        );
     }
+    result
 }
 
-/// Gives `out` the mode a newly created file gets, 0666 less the umask (the writer renames its
-/// private temporary file, mode 0600, into place).
-fn set_new_file_mode(out: &Path) -> Result<()> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // SAFETY: `umask` only swaps the process's file-creation mask; the old one is put back
-        // at once.
-        let mask = unsafe {
-            let mask = libc::umask(0o022);
-            libc::umask(mask);
-            mask
-        };
-        std::fs::set_permissions(out, std::fs::Permissions::from_mode(0o666 & !mask))
-            .with_context(|| format!("{}: cannot set the mode", out.display()))?;
-    }
-    Ok(())
-}
-
-/// [`convert`] until `stop` is requested.
-fn convert_until(
-    input: &Path,
-    out: &Path,
-    options: &ConvertOptions,
-    stop: Stop,
-) -> Result<ConvertStats> {
+fn convert_until(inputs: &[PathBuf], out: &Path, options: &ConvertOptions) -> Result<ConvertStats> {
     if !out
         .file_name()
         .and_then(|n| n.to_str())
@@ -388,50 +119,352 @@ fn convert_until(
             options.node_points
         );
     }
-    crate::scene::check_regular(input)?;
+    if inputs.is_empty() {
+        bail!("no input files to convert");
+    }
+    for input in inputs {
+        crate::scene::check_regular(input)?;
+    }
     let start = Instant::now();
-    let extension = crate::scene::format_extension(input);
-    if extension == "ply" && !crate::lines::is_line_model(input) {
-        if let Some(stats) = convert_streamed(input, out, options.node_points, start, stop)? {
-            return Ok(stats);
+    let las_family = inputs.iter().all(|i| {
+        matches!(
+            crate::scene::format_extension(i).as_str(),
+            "las" | "laz" | "copc.laz"
+        )
+    });
+    let (layout, records, warnings) = if las_family {
+        match read_las(inputs, options)? {
+            Some(read) => read,
+            None => load_one(inputs, options)?,
         }
+    } else {
+        load_one(inputs, options)?
+    };
+    let points = records.len() / layout.record_len();
+    if points == 0 {
+        bail!("{}: no points to convert", inputs[0].display());
     }
-    if extension == "e57" {
-        return convert_e57(input, out, options.node_points, start, stop);
-    }
-    if matches!(extension.as_str(), "las" | "laz" | "copc.laz") {
-        if let Some(stats) = convert_las(input, out, options.node_points, start, stop)? {
-            return Ok(stats);
-        }
-    }
+    let load_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let written = copc_write::write(out, &layout, &records, options.node_points, &|| {
+        options.stopped()
+    })?;
+    Ok(ConvertStats {
+        points: points as u64,
+        nodes: written.nodes,
+        load_seconds,
+        write_seconds: start.elapsed().as_secs_f64(),
+        build_seconds: written.build_seconds,
+        bytes: written.bytes,
+        warnings,
+    })
+}
+
+type Read = (Layout, Vec<u8>, Vec<String>);
+
+/// The one input of another format than LAS, loaded whole by its loader and encoded.
+fn load_one(inputs: &[PathBuf], options: &ConvertOptions) -> Result<Read> {
+    let [input] = inputs else {
+        bail!(
+            "{}: only LAS, LAZ and COPC files merge into one COPC file; convert this one on its own",
+            inputs
+                .iter()
+                .find(|i| {
+                    !matches!(
+                        crate::scene::format_extension(i).as_str(),
+                        "las" | "laz" | "copc.laz"
+                    )
+                })
+                .unwrap_or(&inputs[0])
+                .display()
+        );
+    };
     let cloud = crate::scene::load_with(input, &options.read)?;
     if cloud.is_empty() {
         bail!("{}: no points to convert", input.display());
     }
-    let load_seconds = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    write_until(&cloud, out, options.node_points, stop)?;
-    Ok(ConvertStats {
-        points: cloud.len() as u64,
-        load_seconds,
-        write_seconds: start.elapsed().as_secs_f64(),
-        bytes: output_bytes(out)?,
-        warnings: Vec::new(),
-    })
+    let (layout, records) = records::encode_cloud(&cloud)?;
+    Ok((layout, records, Vec::new()))
 }
 
-fn output_bytes(out: &Path) -> Result<u64> {
-    Ok(std::fs::metadata(out)
-        .with_context(|| format!("{}: cannot read the written file", out.display()))?
-        .len())
+/// One LAS input's header, as the merge needs it.
+struct Input {
+    path: PathBuf,
+    header: las::Header,
+    source: Source,
+    points: u64,
 }
 
-/// The folder the writer spills into: the output's (so the spill is on the output's disk).
-fn spill_dir(out: &Path) -> PathBuf {
-    match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
+impl Input {
+    fn descriptors(&self) -> Vec<u8> {
+        self.header
+            .vlrs()
+            .iter()
+            .chain(self.header.evlrs())
+            .filter(|v| v.user_id.trim_end_matches('\0') == "LASF_Spec" && v.record_id == 4)
+            .flat_map(|v| v.data.clone())
+            .collect()
     }
+}
+
+/// The output layout of `inputs` by the merge rule, with the warnings it gives.
+fn merged_layout(inputs: &[Input]) -> Result<(Layout, Vec<String>)> {
+    let mut warnings = Vec::new();
+    let first = &inputs[0];
+    let crs = |i: &Input| crate::scene::las::crs(i.header.vlrs().iter().chain(i.header.evlrs()));
+    for other in &inputs[1..] {
+        let (a, b) = (crs(first), crs(other));
+        if a != b {
+            bail!(
+                "{} and {} have different coordinate reference systems ({} and {}); convert them to tiles (--tiles) or reproject one",
+                first.path.display(),
+                other.path.display(),
+                a.as_deref().unwrap_or("none"),
+                b.as_deref().unwrap_or("none")
+            );
+        }
+    }
+    let same_grid = inputs
+        .iter()
+        .all(|i| i.source.scale == first.source.scale && i.source.offset == first.source.offset);
+    let (scale, offset) = if same_grid {
+        (first.source.scale, first.source.offset)
+    } else {
+        let scale = inputs
+            .iter()
+            .fold(DVec3::splat(f64::INFINITY), |s, i| s.min(i.source.scale));
+        let lo = inputs.iter().fold(DVec3::splat(f64::INFINITY), |lo, i| {
+            let b = i.header.bounds();
+            lo.min(DVec3::new(b.min.x, b.min.y, b.min.z))
+        });
+        (scale, (lo / scale).floor() * scale)
+    };
+    let extra = first.header.point_format().extra_bytes;
+    let descriptors = first.descriptors();
+    let keep_extra = inputs
+        .iter()
+        .all(|i| i.header.point_format().extra_bytes == extra && i.descriptors() == descriptors);
+    if !keep_extra {
+        warnings.push(format!(
+            "{}: the inputs describe different extra bytes; the merged file keeps none",
+            inputs
+                .iter()
+                .find(|i| i.descriptors() != descriptors
+                    || i.header.point_format().extra_bytes != extra)
+                .unwrap_or(first)
+                .path
+                .display()
+        ));
+    }
+    for input in inputs {
+        let format = input.header.point_format();
+        for (dropped, what) in [
+            (format.has_nir, "NIR (near infrared)"),
+            (format.has_waveform, "waveform data"),
+        ] {
+            if dropped {
+                warnings.push(format!(
+                    "{}: point format {} has {what}, which a COPC file (point format 6 or 7) cannot hold; dropped",
+                    input.path.display(),
+                    input.source.format
+                ));
+            }
+        }
+    }
+    let descriptors = if keep_extra && extra > 0 {
+        descriptors
+            .chunks_exact(192)
+            .map(|d| d.try_into().expect("192 bytes"))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let layout = Layout {
+        format: if inputs.iter().any(|i| i.header.point_format().has_color) {
+            7
+        } else {
+            6
+        },
+        extra_bytes: if keep_extra { extra } else { 0 },
+        descriptors,
+        scale,
+        offset,
+        vlrs: records::crs_vlrs(first.header.vlrs().iter().chain(first.header.evlrs())),
+        standard_gps_time: inputs
+            .iter()
+            .all(|i| i.header.gps_time_type() == las::GpsTimeType::Standard),
+    };
+    Ok((layout, warnings))
+}
+
+/// Reads LAS, LAZ and COPC `inputs` into one buffer of records, in parallel; `None` when one of
+/// them is a point-wise compressed LAZ (LASzip 1.2), which only the loader reads (and then
+/// converts alone).
+fn read_las(inputs: &[PathBuf], options: &ConvertOptions) -> Result<Option<Read>> {
+    let mut opened = Vec::with_capacity(inputs.len());
+    for path in inputs {
+        let Some(reader) = crate::scene::las::open_blocks(path)? else {
+            if inputs.len() == 1 {
+                return Ok(None);
+            }
+            bail!(
+                "{}: a point-wise compressed LAZ (LASzip 1.2) does not merge; convert it on its own",
+                path.display()
+            );
+        };
+        let header = reader.header().clone();
+        let format = header.point_format();
+        let t = header.transforms();
+        let source = Source {
+            format: format.to_u8().unwrap_or_default() & 0x3f,
+            len: usize::from(format.len()),
+            scale: DVec3::new(t.x.scale, t.y.scale, t.z.scale),
+            offset: DVec3::new(t.x.offset, t.y.offset, t.z.offset),
+            keep_extra: true,
+        };
+        opened.push(Input {
+            path: path.clone(),
+            points: header.number_of_points(),
+            header,
+            source,
+        });
+    }
+    let (layout, warnings) = merged_layout(&opened)?;
+    let len = layout.record_len();
+    let total: u64 = opened.iter().map(|i| i.points).sum();
+    let bytes = usize::try_from(total)
+        .ok()
+        .and_then(|n| n.checked_mul(len))
+        .context("the inputs declare more points than this machine can address")?;
+    let mut records = vec![0u8; bytes];
+    let mut parts = Vec::with_capacity(opened.len());
+    let mut rest = records.as_mut_slice();
+    for input in opened {
+        let (part, tail) = rest.split_at_mut(input.points as usize * len);
+        rest = tail;
+        parts.push((input, part));
+    }
+    parts
+        .into_par_iter()
+        .map(|(input, part)| read_into(&input, &layout, part, options))
+        .collect::<Result<Vec<()>>>()?;
+    Ok(Some((layout, records, warnings)))
+}
+
+/// Reads every record of `input` into `part` (its declared count of `layout`'s records):
+/// an uncompressed file by positioned reads of blocks in parallel, a compressed one block
+/// after block by the `las` crate.
+fn read_into(
+    input: &Input,
+    layout: &Layout,
+    part: &mut [u8],
+    options: &ConvertOptions,
+) -> Result<()> {
+    let source = Source {
+        keep_extra: layout.extra_bytes > 0,
+        ..input.source
+    };
+    if input.header.point_format().is_compressed {
+        read_compressed(input, source, layout, part, options)
+    } else {
+        read_uncompressed(input, source, layout, part, options)
+    }
+}
+
+fn read_uncompressed(
+    input: &Input,
+    source: Source,
+    layout: &Layout,
+    part: &mut [u8],
+    options: &ConvertOptions,
+) -> Result<()> {
+    use std::os::unix::fs::FileExt;
+    let file = input.path.display().to_string();
+    let raw = input
+        .header
+        .clone()
+        .into_raw()
+        .map_err(|e| anyhow::anyhow!("{file}: invalid LAS header: {e}"))?;
+    let start = u64::from(raw.offset_to_point_data);
+    let handle =
+        std::fs::File::open(&input.path).with_context(|| format!("{file}: cannot open"))?;
+    let size = handle
+        .metadata()
+        .with_context(|| format!("{file}: cannot read its size"))?
+        .len();
+    let end = start + input.points * source.len as u64;
+    if end > size {
+        bail!(
+            "{file}: the header declares {} points of {} bytes from byte {start}, but the file ends at byte {size} (truncated file?)",
+            input.points,
+            source.len
+        );
+    }
+    let len = layout.record_len();
+    part.par_chunks_mut(BLOCK_POINTS as usize * len)
+        .enumerate()
+        .try_for_each_init(Vec::new, |buf, (block, dst)| {
+            if options.stopped() {
+                bail!("interrupted");
+            }
+            let first = block as u64 * BLOCK_POINTS;
+            let at = start + first * source.len as u64;
+            let n = dst.len() / len;
+            if source.is_identity(layout) {
+                return handle
+                    .read_exact_at(dst, at)
+                    .with_context(|| format!("{file}: cannot read point record {first}"));
+            }
+            buf.resize(n * source.len, 0);
+            handle
+                .read_exact_at(buf, at)
+                .with_context(|| format!("{file}: cannot read point record {first}"))?;
+            source.transcode(layout, buf, dst);
+            Ok(())
+        })
+}
+
+fn read_compressed(
+    input: &Input,
+    source: Source,
+    layout: &Layout,
+    part: &mut [u8],
+    options: &ConvertOptions,
+) -> Result<()> {
+    let file = input.path.display().to_string();
+    let len = layout.record_len();
+    crate::scene::guard::deep_stack(|| -> Result<()> {
+        let Some(mut reader) = crate::scene::las::open_blocks(&input.path)? else {
+            bail!("{file}: cannot be read in blocks");
+        };
+        let mut data = las::PointDataBuilder::new()
+            .for_header(reader.header())
+            .build();
+        let mut done = 0u64;
+        while done < input.points {
+            if options.stopped() {
+                bail!("interrupted");
+            }
+            let want = BLOCK_POINTS.min(input.points - done);
+            let n = crate::scene::guard::third_party(|| reader.fill_points(want, &mut data))
+                .map_err(|e| anyhow::anyhow!("{file}: point record {done}: {e}"))?
+                .map_err(|e| anyhow::anyhow!("{file}: point record {done}: {e}"))?;
+            if n == 0 {
+                bail!(
+                    "{file}: the header declares {} points, the file holds {done} (truncated file?)",
+                    input.points
+                );
+            }
+            let at = done as usize * len;
+            source.transcode(
+                layout,
+                data.raw_bytes(),
+                &mut part[at..at + n as usize * len],
+            );
+            done += n;
+        }
+        Ok(())
+    })
 }
 
 /// Writes `cloud` as the COPC file `out`.
@@ -441,455 +474,7 @@ pub fn write(cloud: &Cloud, out: &Path) -> Result<()> {
 
 /// [`write`] with `node_points` points per node.
 pub fn write_with(cloud: &Cloud, out: &Path, node_points: u32) -> Result<()> {
-    write_until(cloud, out, node_points, Stop::default())
-}
-
-/// [`write_with`] until `stop` is requested.
-fn write_until(cloud: &Cloud, out: &Path, node_points: u32, stop: Stop) -> Result<()> {
-    let fields = Fields::of(cloud);
-    let view = fields.view(cloud, intensity_scale(cloud))?;
-    let extent = cloud
-        .bounds()
-        .map_or(0.0, |(lo, hi)| f64::from((hi - lo).max_element()));
-    let progress = Progress::new(
-        "converting",
-        cloud.len(),
-        cloud.len() >= PROGRESS_MIN_POINTS,
-    );
-    let order = shuffled(cloud.len());
-    let records = order.iter().enumerate().map(|(done, &i)| {
-        if done % 65536 == 0 {
-            progress.advance(65536.min(cloud.len() - done));
-        }
-        Ok(view.record(i as usize))
-    });
-    let scale = decimal_scale(extent);
-    let result = write_scaled(
-        out,
-        fields.layout()?,
-        records,
-        (scale, scale, scale),
-        node_points,
-        stop,
-    );
-    progress.finish();
-    result
-}
-
-/// Hands `records` to the writer, coordinates quantized at `scale`.
-fn write_scaled(
-    out: &Path,
-    layout: StreamingLayout,
-    records: impl Iterator<Item = copc_core::Result<LasPointRecord>>,
-    (sx, sy, sz): (f64, f64, f64),
-    node_points: u32,
-    stop: Stop,
-) -> Result<()> {
-    let mut metadata = CopcWriteMetadata::default();
-    metadata.scale = Some((sx, sy, sz));
-    metadata.generating_software = Some(format!("surfel {}", env!("CARGO_PKG_VERSION")));
-    copc_writer::write_streaming_with_cancel(
-        out,
-        layout,
-        records,
-        &CopcWriterParams::new(node_points),
-        &metadata,
-        &spill_dir(out),
-        &stop,
-    )
-    .map_err(|e| anyhow::anyhow!("{}: cannot write COPC: {e}", out.display()))
-}
-
-/// Points per shuffle bucket at most (what one bucket holds in memory when it is shuffled).
-const BUCKET_POINTS: usize = 1 << 20;
-
-/// An external shuffle: records go to one of `n` temporary files chosen at random, then each
-/// file is read back, shuffled in memory and handed on, so the first records handed on are a
-/// uniform sample of the whole input (see [`shuffled`]) with one bucket in memory at a time.
-struct Shuffler {
-    paths: Vec<PathBuf>,
-    files: Vec<BufWriter<File>>,
-    counts: Vec<usize>,
-    layout: StreamingLayout,
-    buf: Vec<u8>,
-    rng: SplitMix64,
-    stop: Stop,
-}
-
-impl Shuffler {
-    fn new(dir: &Path, points: usize, layout: StreamingLayout, stop: Stop) -> Result<Self> {
-        let n = points.div_ceil(BUCKET_POINTS).clamp(1, 4096);
-        let mut paths = Vec::with_capacity(n);
-        let mut files = Vec::with_capacity(n);
-        for k in 0..n {
-            let path = dir.join(format!(".surfel-convert-{}-{k}.part", std::process::id()));
-            let file = File::create(&path)
-                .with_context(|| format!("{}: cannot create a shuffle file", path.display()))?;
-            paths.push(path);
-            files.push(BufWriter::with_capacity(1 << 16, file));
-        }
-        Ok(Self {
-            paths,
-            files,
-            counts: vec![0; n],
-            buf: vec![0; layout.record_width()],
-            layout,
-            rng: SplitMix64::new(0x5eed_c0bc),
-            stop,
-        })
-    }
-
-    fn push(&mut self, record: &LasPointRecord) -> Result<()> {
-        if self.stop.requested() {
-            bail!("interrupted");
-        }
-        let k = (self.rng.next_u64() % self.files.len() as u64) as usize;
-        copc_core::serialize_le(record, &self.layout, &mut self.buf)?;
-        self.files[k]
-            .write_all(&self.buf)
-            .with_context(|| format!("{}: cannot write", self.paths[k].display()))?;
-        self.counts[k] += 1;
-        Ok(())
-    }
-
-    fn finish(mut self) -> Result<Shuffled> {
-        for (file, path) in self.files.iter_mut().zip(&self.paths) {
-            file.flush()
-                .with_context(|| format!("{}: cannot write", path.display()))?;
-        }
-        Ok(Shuffled {
-            paths: std::mem::take(&mut self.paths),
-            counts: std::mem::take(&mut self.counts),
-            layout: self.layout.clone(),
-            next: 0,
-            current: Vec::new(),
-            rng: SplitMix64::new(0x5eed_b0c1),
-        })
-    }
-}
-
-impl Drop for Shuffler {
-    fn drop(&mut self) {
-        for path in &self.paths {
-            // Best effort: a file that cannot be removed stays behind as `.surfel-convert-*`.
-            let _ = std::fs::remove_file(path);
-        }
-    }
-}
-
-/// The records of a [`Shuffler`], bucket after bucket, each shuffled.
-struct Shuffled {
-    paths: Vec<PathBuf>,
-    counts: Vec<usize>,
-    layout: StreamingLayout,
-    next: usize,
-    current: Vec<LasPointRecord>,
-    rng: SplitMix64,
-}
-
-impl Shuffled {
-    fn load(&mut self, k: usize) -> copc_core::Result<()> {
-        let bytes = std::fs::read(&self.paths[k])
-            .map_err(|e| copc_core::Error::io("read a shuffle bucket", e))?;
-        let width = self.layout.record_width();
-        if bytes.len() != self.counts[k] * width {
-            return Err(copc_core::Error::InvalidData(format!(
-                "{}: {} bytes, {} records of {width} expected",
-                self.paths[k].display(),
-                bytes.len(),
-                self.counts[k]
-            )));
-        }
-        let _ = std::fs::remove_file(&self.paths[k]);
-        self.current = bytes
-            .chunks_exact(width)
-            .map(|r| copc_core::deserialize_le(r, &self.layout))
-            .collect::<std::io::Result<_>>()
-            .map_err(|e| copc_core::Error::io("decode a shuffle bucket", e))?;
-        for i in (1..self.current.len()).rev() {
-            let j = (self.rng.next_u64() % (i as u64 + 1)) as usize;
-            self.current.swap(i, j);
-        }
-        Ok(())
-    }
-}
-
-impl Iterator for Shuffled {
-    type Item = copc_core::Result<LasPointRecord>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        while self.current.is_empty() {
-            if self.next == self.paths.len() {
-                return None;
-            }
-            self.next += 1;
-            if let Err(e) = self.load(self.next - 1) {
-                return Some(Err(e));
-            }
-        }
-        self.current.pop().map(Ok)
-    }
-}
-
-impl Drop for Shuffled {
-    fn drop(&mut self) {
-        for path in &self.paths[self.next..] {
-            // Best effort, as for `Shuffler`.
-            let _ = std::fs::remove_file(path);
-        }
-    }
-}
-
-/// Streams a binary PLY into the writer through a [`Shuffler`]; `None` when the file cannot
-/// be streamed.
-fn convert_streamed(
-    input: &Path,
-    out: &Path,
-    node_points: u32,
-    start: Instant,
-    stop: Stop,
-) -> Result<Option<ConvertStats>> {
-    let mut fields: Option<Fields> = None;
-    let mut scale: Option<f32> = None;
-    let mut shuffler: Option<Shuffler> = None;
-    let mut failed: Option<anyhow::Error> = None;
-    let mut points = 0usize;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    let dir = spill_dir(out);
-    let streamed = crate::scene::ply::for_each_chunk(input, 32 << 20, |total, mut chunk| {
-        if failed.is_some() {
-            return;
-        }
-        chunk.retain_finite();
-        let result = (|| -> Result<()> {
-            let fields = fields.get_or_insert_with(|| Fields::of(&chunk));
-            if shuffler.is_none() {
-                shuffler = Some(Shuffler::new(&dir, total, fields.layout()?, stop)?);
-            }
-            let shuffler = shuffler.as_mut().expect("created above");
-            let scale = *scale.get_or_insert_with(|| intensity_scale(&chunk));
-            let view = fields.view(&chunk, scale)?;
-            for i in 0..chunk.len() {
-                let r = view.record(i);
-                let p = DVec3::new(r.x, r.y, r.z);
-                (lo, hi) = (lo.min(p), hi.max(p));
-                shuffler.push(&r)?;
-            }
-            points += chunk.len();
-            Ok(())
-        })();
-        if let Err(e) = result {
-            failed = Some(e);
-        }
-    })?;
-    if streamed.is_none() {
-        return Ok(None);
-    }
-    if let Some(e) = failed {
-        return Err(e.context(format!("{}: cannot convert", input.display())));
-    }
-    let (Some(fields), Some(shuffler)) = (fields, shuffler) else {
-        bail!("{}: no points to convert", input.display());
-    };
-    if points == 0 {
-        bail!("{}: no points to convert", input.display());
-    }
-    let scale = decimal_scale((hi - lo).max_element());
-    write_shuffled(
-        out,
-        shuffler,
-        fields.layout()?,
-        points,
-        (scale, scale, scale),
-        node_points,
-        start,
-    )
-    .map(Some)
-}
-
-/// Streams a LAS or LAZ file's records (every LAS field as it is, extra bytes included; NIR and
-/// waveform data, which the writer cannot keep, dropped with a warning) into the writer
-/// through a [`Shuffler`], at the input's scale; `None` for a file only the loader reads.
-fn convert_las(
-    input: &Path,
-    out: &Path,
-    node_points: u32,
-    start: Instant,
-    stop: Stop,
-) -> Result<Option<ConvertStats>> {
-    let file = input.display().to_string();
-    let dir = spill_dir(out);
-    // The `las` crate's reader stays on the deep-stack thread (the LAZ decoder recurses).
-    let opened = crate::scene::guard::deep_stack(|| -> Result<Option<_>> {
-        let Some(mut reader) = crate::scene::las::open_blocks(input)? else {
-            return Ok(None);
-        };
-        let header = reader.header().clone();
-        let mut layout = StreamingLayout::from_las_header(&header);
-        layout.has_nir = false;
-        layout.has_waveform = false;
-        let declared = usize::try_from(header.number_of_points()).unwrap_or(usize::MAX);
-        let mut shuffler = Shuffler::new(&dir, declared, layout.clone(), stop)?;
-        let mut data = las::PointDataBuilder::new().for_header(&header).build();
-        let mut points = 0usize;
-        loop {
-            let n = crate::scene::guard::third_party(|| reader.fill_points(65_536, &mut data))
-                .map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?
-                .map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?;
-            if n == 0 {
-                return Ok(Some((header, layout, shuffler, points)));
-            }
-            for point in data.points() {
-                let point =
-                    point.map_err(|e| anyhow::anyhow!("{file}: point record {points}: {e}"))?;
-                let mut record = LasPointRecord::from_las_point(&point);
-                record.nir = 0;
-                shuffler.push(&record)?;
-                points += 1;
-            }
-        }
-    })?;
-    let Some((header, layout, shuffler, read)) = opened else {
-        return Ok(None);
-    };
-    if read == 0 {
-        bail!("{file}: no points to convert");
-    }
-    let t = header.transforms();
-    let mut stats = write_shuffled(
-        out,
-        shuffler,
-        layout,
-        read,
-        (t.x.scale, t.y.scale, t.z.scale),
-        node_points,
-        start,
-    )?;
-    let format = header.point_format();
-    for (dropped, what) in [
-        (format.has_nir, "NIR (near infrared)"),
-        (format.has_waveform, "waveform data"),
-    ] {
-        if dropped {
-            stats.warnings.push(format!(
-                "{file}: point format {} has {what}, which a COPC file (point format 6 or 7) cannot hold; dropped",
-                format.to_u8().unwrap_or_default()
-            ));
-        }
-    }
-    Ok(Some(stats))
-}
-
-/// Streams an E57 file's points (every scan, in the file's frame; colour and intensity when
-/// scans record them) into the writer through a [`Shuffler`]. A first pass finds whether the
-/// intensities are fractions of 1 (then scaled to 16 bits, as [`intensity_scale`] does).
-fn convert_e57(
-    input: &Path,
-    out: &Path,
-    node_points: u32,
-    start: Instant,
-    stop: Stop,
-) -> Result<ConvertStats> {
-    use crate::scene::e57::{for_each_point, E57Point};
-    let (mut fractions, mut any_fraction) = (true, false);
-    let (mut declared, mut colors) = (0u64, false);
-    for_each_point(
-        input,
-        &mut |records, color, _| {
-            (declared, colors) = (records, color);
-            Ok(())
-        },
-        &mut |p: E57Point| {
-            if let Some(v) = p.intensity {
-                fractions &= (0.0..=1.0).contains(&v);
-                any_fraction |= v.fract() != 0.0;
-            }
-            Ok(())
-        },
-    )?;
-    let scale = if fractions && any_fraction {
-        65535.0
-    } else {
-        1.0
-    };
-    let layout = Fields {
-        colors,
-        normals: false,
-        radii: false,
-        scalars: Vec::new(),
-    }
-    .layout()?;
-    let n = usize::try_from(declared).unwrap_or(usize::MAX);
-    let mut shuffler = Shuffler::new(&spill_dir(out), n, layout.clone(), stop)?;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    let mut points = 0usize;
-    let file = input.display().to_string();
-    for_each_point(input, &mut |_, _, _| Ok(()), &mut |p: E57Point| {
-        if !p.world.is_finite() {
-            return Ok(());
-        }
-        (lo, hi) = (lo.min(p.world), hi.max(p.world));
-        let [r, g, b, _] = p.color.unwrap_or([0; 4]);
-        let record = LasPointRecord {
-            x: p.world.x,
-            y: p.world.y,
-            z: p.world.z,
-            intensity: (p.intensity.unwrap_or(0.0) * scale).clamp(0.0, 65535.0) as u16,
-            red: u16::from(r) * 257,
-            green: u16::from(g) * 257,
-            blue: u16::from(b) * 257,
-            ..LasPointRecord::default()
-        };
-        shuffler
-            .push(&record)
-            .map_err(|e| crate::scene::LoadError::whole(&file, e.to_string()))?;
-        points += 1;
-        Ok(())
-    })?;
-    if points == 0 {
-        bail!("{}: no points to convert", input.display());
-    }
-    let scale = decimal_scale((hi - lo).max_element());
-    write_shuffled(
-        out,
-        shuffler,
-        layout,
-        points,
-        (scale, scale, scale),
-        node_points,
-        start,
-    )
-}
-
-/// Hands the `points` records of `shuffler` to the writer with a progress bar; `start` is when
-/// reading the input began (the load time is measured up to now).
-fn write_shuffled(
-    out: &Path,
-    shuffler: Shuffler,
-    layout: StreamingLayout,
-    points: usize,
-    scale: (f64, f64, f64),
-    node_points: u32,
-    start: Instant,
-) -> Result<ConvertStats> {
-    let load_seconds = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    let progress = Progress::new("converting", points, points >= PROGRESS_MIN_POINTS);
-    let stop = shuffler.stop;
-    let records = shuffler.finish()?.enumerate().map(|(done, r)| {
-        if done % 65536 == 0 {
-            progress.advance(65536.min(points - done));
-        }
-        r
-    });
-    let result = write_scaled(out, layout, records, scale, node_points, stop);
-    progress.finish();
-    result?;
-    Ok(ConvertStats {
-        points: points as u64,
-        load_seconds,
-        write_seconds: start.elapsed().as_secs_f64(),
-        bytes: output_bytes(out)?,
-        warnings: Vec::new(),
-    })
+    let (layout, records) = records::encode_cloud(cloud)?;
+    copc_write::write(out, &layout, &records, node_points, &|| false)?;
+    Ok(())
 }

@@ -2,6 +2,8 @@
 //! octree from a local file or an HTTP server.
 
 pub mod convert;
+pub mod copc_write;
 pub mod loader;
+pub mod records;
 pub mod select;
 pub mod source;

@@ -458,11 +458,11 @@ fn convert_stopped_by_sigint_removes_its_temporary_files() {
             .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
             .collect()
     };
-    // Wait for the writer's spill file, then interrupt.
-    while !names().iter().any(|n| n.starts_with(".copc-writer-spill.")) {
+    // Wait for the writer's temporary file, then interrupt.
+    while !names().iter().any(|n| n.starts_with(".big.copc.laz.")) {
         assert!(
             child.try_wait().expect("wait").is_none(),
-            "convert ended before its spill was seen"
+            "convert ended before its temporary file was seen"
         );
         std::thread::sleep(std::time::Duration::from_millis(2));
     }

@@ -118,11 +118,14 @@ fn conversion_keeps_every_point_and_attribute() {
             cloud.normals.as_ref().unwrap()[ia],
             back.normals.as_ref().unwrap()[ib],
         );
-        assert!((na - nb).length() < 1e-6, "{na} vs {nb}");
-        assert_eq!(
+        // Normals are stored as two 16-bit octahedral coordinates, radii in 16 bits.
+        let degrees = na.dot(nb).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!(degrees < 0.05, "{na} vs {nb}: {degrees}°");
+        let (ra, rb) = (
             cloud.radii.as_ref().unwrap()[ia],
-            back.radii.as_ref().unwrap()[ib]
+            back.radii.as_ref().unwrap()[ib],
         );
+        assert!((ra - rb).abs() <= 0.005 * ra, "radius {ra} vs {rb}");
     }
 }
 
@@ -813,9 +816,9 @@ fn a_corrupt_node_is_skipped_with_one_message() {
 fn eviction_under_a_small_memory_budget_keeps_the_image_complete() {
     let path = gpu::dragon();
     let location = path.to_str().unwrap();
-    // Room for 14 batches (one per node here): two close views from opposite sides need more
+    // Room for 16 batches (one per node here): two close views from opposite sides need more
     // between them, so the second evicts the first's nodes.
-    let small = gpu::options(100_000, 14 * 30 * 10240, 0.5);
+    let small = gpu::options(100_000, 16 * 30 * 10240, 0.5);
     let large = gpu::options(100_000, 512 << 20, 0.5);
     let side = |sign: f32| {
         move |c: Vec3, r: f32| {
@@ -940,7 +943,7 @@ fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
 }
 
 #[test]
-fn a_binary_ply_is_converted_in_blocks_through_the_external_shuffle() {
+fn a_binary_ply_is_converted_with_compact_normals_and_radii() {
     let mut cloud = survey(30_000);
     // PLY keeps positions, normals, colours and radii (not the LAS fields).
     cloud.scalars.clear();
@@ -985,10 +988,11 @@ fn a_binary_ply_is_converted_in_blocks_through_the_external_shuffle() {
             cloud.colors.as_ref().unwrap()[*ia],
             back.colors.as_ref().unwrap()[*ib]
         );
-        assert_eq!(
+        let (ra, rb) = (
             cloud.radii.as_ref().unwrap()[*ia],
-            back.radii.as_ref().unwrap()[*ib]
+            back.radii.as_ref().unwrap()[*ib],
         );
+        assert!((ra - rb).abs() <= 0.005 * ra, "radius {ra} vs {rb}");
     }
     // The root node is a uniform sample: its points span the cloud, not the first rows.
     let source = FileSource::open(&out).unwrap();
