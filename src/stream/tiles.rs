@@ -313,6 +313,50 @@ pub struct Done<'a> {
     pub seconds: f64,
 }
 
+/// Converts `tile` in the job `job`'s own staging folder beside the output (created on first
+/// use into `staging`), then moves the file into place: a conversion's temporary files are
+/// named by the process, so two jobs writing into one folder would share them.
+fn convert_staged(
+    tile: &Tile,
+    job: usize,
+    staging: &mut Option<PathBuf>,
+    options: &ConvertOptions,
+) -> Result<ConvertStats> {
+    let dir = match staging {
+        Some(dir) => dir.clone(),
+        None => {
+            let parent = match tile.out.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            let dir = parent.join(format!(".surfel-job-{}-{job}", std::process::id()));
+            std::fs::create_dir_all(&dir)
+                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+            staging.insert(dir).clone()
+        }
+    };
+    let file = tile
+        .out
+        .file_name()
+        .context("a tile's output has a file name")?;
+    let staged = dir.join(file);
+    let stats = convert::convert(&tile.input, &staged, options).map_err(|e| {
+        let text = format!("{e:#}").replace(
+            &staged.display().to_string(),
+            &tile.out.display().to_string(),
+        );
+        anyhow!(text)
+    })?;
+    std::fs::rename(&staged, &tile.out).with_context(|| {
+        format!(
+            "{}: cannot move the converted tile into place from {}",
+            tile.out.display(),
+            staged.display()
+        )
+    })?;
+    Ok(stats)
+}
+
 /// The default number of parallel jobs: the cores divided by [`THREADS_PER_JOB`], at least 1.
 pub fn default_jobs() -> usize {
     (cores() / THREADS_PER_JOB).max(1)
@@ -339,11 +383,12 @@ pub fn convert_tiles<'a>(
     let mut results: Vec<Option<Done<'a>>> = tiles.iter().map(|_| None).collect();
     std::thread::scope(|scope| {
         let (send, receive) = mpsc::channel::<(usize, Done<'a>)>();
-        for _ in 0..jobs {
+        for job in 0..jobs {
             let send = send.clone();
             let (next, stopped) = (&next, &stopped);
             scope.spawn(move || {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+                let mut staging: Option<PathBuf> = None;
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     if i >= tiles.len() || stopped() {
@@ -351,7 +396,7 @@ pub fn convert_tiles<'a>(
                     }
                     let tile = &tiles[i];
                     let start = Instant::now();
-                    let run = || convert::convert(&tile.input, &tile.out, options);
+                    let mut run = || convert_staged(tile, job, &mut staging, options);
                     let result = match &pool {
                         Ok(pool) => pool.install(run),
                         Err(_) => run(),
@@ -364,6 +409,10 @@ pub fn convert_tiles<'a>(
                     if send.send((i, done)).is_err() {
                         break;
                     }
+                }
+                if let Some(dir) = staging {
+                    // Best effort: a folder that cannot be removed stays as `.surfel-job-*`.
+                    let _ = std::fs::remove_dir(dir);
                 }
             });
         }
