@@ -5,3 +5,4 @@ pub mod convert;
 pub mod loader;
 pub mod select;
 pub mod source;
+pub mod vpc;
