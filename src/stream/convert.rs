@@ -342,7 +342,10 @@ pub fn convert_many(
     match inputs {
         [] => bail!("no input files to convert"),
         [input] => convert(input, out, options),
-        _ => bail!("merging {} inputs into one COPC file is not supported", inputs.len()),
+        _ => bail!(
+            "merging {} inputs into one COPC file is not supported",
+            inputs.len()
+        ),
     }
 }
 

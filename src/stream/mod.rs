@@ -6,3 +6,4 @@ pub mod loader;
 pub mod select;
 pub mod source;
 pub mod tiles;
+pub mod vpc;
