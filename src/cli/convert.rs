@@ -31,8 +31,8 @@ pub struct ConvertArgs {
     /// one per 4 cores.
     #[arg(long, value_name = "N", requires = "tiles", value_parser = clap::value_parser!(u32).range(1..))]
     pub jobs: Option<u32>,
-    /// With --tiles: the virtual point cloud's name, written as NAME.vpc in the --out folder.
-    /// Default: the folder's name.
+    /// With --tiles: the virtual point cloud's name, written as NAME.vpc in the --out folder
+    /// (listing the tiles that converted). Default: the folder's name.
     #[arg(long, value_name = "NAME", requires = "tiles")]
     pub vpc: Option<String>,
     /// Target points per octree node (one LAZ chunk each).
@@ -166,6 +166,15 @@ fn convert_tiles(a: &ConvertArgs, inputs: &[PathBuf], options: &ConvertOptions) 
         rate(points, seconds),
         dir.display()
     );
+    if !converted.is_empty() && !STOP.load(Ordering::Relaxed) {
+        let vpc = tiles::vpc_path(dir, a.vpc.as_deref());
+        let summaries = converted
+            .iter()
+            .map(|(tile, _)| tiles::summarize(&vpc, &tile.out, Some(&tile.input)))
+            .collect::<Result<Vec<_>>>()?;
+        crate::stream::vpc::write(&vpc, &summaries)?;
+        eprintln!("{}: {} tiles", vpc.display(), summaries.len());
+    }
     if STOP.load(Ordering::Relaxed) {
         bail!("interrupted after {} of {total} tiles", converted.len());
     }

@@ -11,6 +11,7 @@ use std::time::Instant;
 use anyhow::{anyhow, bail, Context as _, Result};
 
 use super::convert::{self, ConvertOptions, ConvertStats};
+use super::vpc::{self, Crs, TileSummary};
 use crate::scene::format_extension;
 
 /// The format extensions a folder or a pattern contributes (every format the loaders read).
@@ -423,4 +424,39 @@ pub fn convert_tiles<'a>(
         }
     });
     results
+}
+
+/// The CRS of `header` as a `.vpc` records it; `None` without one (an empty WKT record is
+/// none).
+fn vpc_crs(header: &las::Header) -> Option<Crs> {
+    let vlrs = header
+        .vlrs()
+        .iter()
+        .chain(header.evlrs())
+        .filter(|v| !empty_wkt(v));
+    Crs::of_vlrs(vlrs).filter(|c| *c != Crs::default())
+}
+
+/// The `.vpc` entry of the LAS, LAZ or COPC file `file` (from its header), its href relative
+/// to the `.vpc` at `vpc`; its CRS is `source`'s (the file it was converted from) when `file`
+/// records none.
+pub fn summarize(vpc: &Path, file: &Path, source: Option<&Path>) -> Result<TileSummary> {
+    let mut summary = vpc::summarize(vpc, file)?;
+    summary.crs = las_header(file)
+        .and_then(|h| vpc_crs(&h))
+        .or_else(|| vpc_crs(&las_header(source?)?));
+    Ok(summary)
+}
+
+/// The `.vpc` a tiled conversion into `dir` writes: `NAME.vpc` (a `.vpc` ending given with
+/// `name` is not doubled), by default named after the folder.
+pub fn vpc_path(dir: &Path, name: Option<&str>) -> PathBuf {
+    let folder = || {
+        std::path::absolute(dir)
+            .ok()
+            .and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "tiles".to_owned())
+    };
+    let name = name.map_or_else(folder, |n| n.strip_suffix(".vpc").unwrap_or(n).to_owned());
+    dir.join(format!("{name}.vpc"))
 }

@@ -7,6 +7,7 @@ use std::process::{Command, Output};
 
 use surfel::scene::{self, Cloud};
 use surfel::stream::tiles::{self, FORMATS};
+use surfel::stream::vpc;
 
 /// A fresh folder for one test.
 fn scratch(name: &str) -> PathBuf {
@@ -133,6 +134,17 @@ fn records(cloud: &Cloud) -> Vec<Record> {
     out
 }
 
+/// The bounds of a LAS file's header, as a `.vpc` lists them.
+fn header_bounds(path: &Path) -> ([f64; 3], [f64; 3]) {
+    let b = las::Reader::from_path(path).unwrap().header().bounds();
+    ([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z])
+}
+
+/// Parses the `.vpc` at `path`.
+fn read_vpc(path: &Path) -> vpc::Vpc {
+    vpc::parse(text(path), &std::fs::read(path).unwrap()).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
 /// The records of every file of `paths`, together, sorted.
 fn union(paths: &[PathBuf]) -> Vec<Record> {
     let mut all: Vec<Record> = paths
@@ -199,10 +211,72 @@ fn tiles_are_converted_one_copc_file_each_keeping_every_point() {
     }
     assert_eq!(union(&inputs).len(), 1350);
     assert_eq!(union(&inputs), union(&outputs));
-    let last = e.lines().last().unwrap_or_default();
+    let lines: Vec<&str> = e.lines().collect();
     assert!(
-        last.starts_with("3 of 3 tiles, 1350 points in ") && last.contains(", 2 jobs) -> "),
+        lines[3].starts_with("3 of 3 tiles, 1350 points in ") && lines[3].contains(", 2 jobs) -> "),
         "{e}"
+    );
+    // The virtual point cloud is named after the folder and lists every tile, in input order.
+    let list = out.join("out.vpc");
+    assert_eq!(lines[4], format!("{}: 3 tiles", list.display()));
+    assert_eq!(lines.len(), 5, "{e}");
+    let v = read_vpc(&list);
+    assert_eq!(v.tiles.len(), 3);
+    for ((tile, (name, n)), file) in v.tiles.iter().zip(&sizes).zip(&outputs) {
+        assert_eq!(tile.id, *name);
+        assert_eq!(tile.href, format!("./{name}.copc.laz"));
+        assert_eq!(Path::new(&tile.location), file.as_path());
+        assert_eq!(tile.points, *n as u64);
+        assert_eq!(tile.encoding, vpc::Encoding::Copc);
+        // The converted tile records no CRS; the input's is listed.
+        assert_eq!(tile.crs.as_ref().and_then(|c| c.epsg), Some(32610));
+        let (lo, hi) = tile.bounds.expect("proj:bbox");
+        assert_eq!((lo, hi), header_bounds(file));
+        // Within a step of the 0.001 scale of the input's (written unquantized).
+        let (ilo, ihi) = header_bounds(&input.join(format!("{name}.las")));
+        for axis in 0..3 {
+            assert!(
+                (lo[axis] - ilo[axis]).abs() < 1.5e-3,
+                "{name}: {lo:?} {ilo:?}"
+            );
+            assert!(
+                (hi[axis] - ihi[axis]).abs() < 1.5e-3,
+                "{name}: {hi:?} {ihi:?}"
+            );
+        }
+    }
+    assert_eq!(v.points(), 1350);
+    // `surfel vpc` lists converted tiles again, from their headers, relative to its folder.
+    let again = dir.join("again.vpc");
+    let o = surfel(&["vpc", text(&out.join("*.copc.laz")), "--out", text(&again)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o),
+        format!("{}: 3 files, 1350 points\n", again.display())
+    );
+    let w = read_vpc(&again);
+    let hrefs: Vec<&str> = w.tiles.iter().map(|t| t.href.as_str()).collect();
+    assert_eq!(
+        hrefs,
+        [
+            "./out/north.copc.laz",
+            "./out/south.copc.laz",
+            "./out/west.copc.laz"
+        ]
+    );
+    for (a, b) in v.tiles.iter().zip(&w.tiles) {
+        assert_eq!(
+            (a.location.as_str(), a.points, a.bounds),
+            (b.location.as_str(), b.points, b.bounds)
+        );
+    }
+    let o = surfel(&["vpc", text(&out), "--out", text(&dir.join("all.json"))]);
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: a virtual point cloud's name ends in .vpc (readers choose the format by it)\n",
+            dir.join("all.json").display()
+        )
     );
     // Nothing else: no staging folder or temporary file is left behind.
     let mut written: Vec<String> = std::fs::read_dir(&out)
@@ -212,7 +286,12 @@ fn tiles_are_converted_one_copc_file_each_keeping_every_point() {
     written.sort();
     assert_eq!(
         written,
-        ["north.copc.laz", "south.copc.laz", "west.copc.laz"]
+        [
+            "north.copc.laz",
+            "out.vpc",
+            "south.copc.laz",
+            "west.copc.laz"
+        ]
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
@@ -232,6 +311,8 @@ fn a_corrupt_tile_is_reported_and_the_others_converted() {
         "--tiles",
         "--jobs",
         "1",
+        "--vpc",
+        "survey",
         "--out",
         text(&out),
     ]);
@@ -250,11 +331,15 @@ fn a_corrupt_tile_is_reported_and_the_others_converted() {
     );
     assert!(lines[2].starts_with("[3/3] c: 150 points in "), "{e}");
     assert!(lines[3].starts_with("2 of 3 tiles, 350 points in "), "{e}");
+    let list = out.join("survey.vpc");
+    assert_eq!(lines[4], format!("{}: 2 tiles", list.display()));
     assert_eq!(
-        lines[4],
+        lines[5],
         format!("error: 1 of 3 tiles failed: {}", bad.display())
     );
-    assert_eq!(lines.len(), 5, "{e}");
+    assert_eq!(lines.len(), 6, "{e}");
+    let ids: Vec<String> = read_vpc(&list).tiles.into_iter().map(|t| t.id).collect();
+    assert_eq!(ids, ["a", "c"]);
     assert_eq!(
         union(&[input.join("a.las"), input.join("c.las")]),
         union(&[out.join("a.copc.laz"), out.join("c.copc.laz")])
