@@ -14,9 +14,10 @@ use super::convert::{self, ConvertOptions, ConvertStats};
 use super::vpc::{self, Crs, TileSummary};
 use crate::scene::format_extension;
 
-/// The format extensions a folder or a pattern contributes (every format the loaders read).
+/// The format extensions a folder or a pattern contributes (every format the loaders read, in
+/// the order [`crate::scene::error::FORMATS`] lists them).
 pub const FORMATS: [&str; 11] = [
-    "las", "laz", "copc.laz", "e57", "ply", "pcd", "obj", "xyz", "txt", "pts", "csv",
+    "ply", "obj", "pcd", "las", "laz", "copc.laz", "e57", "xyz", "txt", "pts", "csv",
 ];
 
 /// The COPC files' name ending.
@@ -31,13 +32,10 @@ fn is_one_of(path: &Path, formats: &[&str]) -> bool {
     formats.contains(&format_extension(path).as_str())
 }
 
-/// `formats` as name endings for a message: `.las, .laz or .copc.laz`.
+/// `formats` as name endings for a message: `.las, .laz`.
 fn endings(formats: &[&str]) -> String {
     let dotted: Vec<String> = formats.iter().map(|f| format!(".{f}")).collect();
-    match dotted.split_last() {
-        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
-        _ => dotted.join(""),
-    }
+    dotted.join(", ")
 }
 
 /// Whether `text` is a glob pattern rather than a path (it holds `*`, `?` or `[`).
@@ -59,7 +57,7 @@ pub fn expand(args: &[PathBuf], formats: &[&str], recursive: bool) -> Result<Vec
             folder(arg, formats, recursive, &mut files)?;
             if files.len() == before {
                 bail!(
-                    "{}: the folder holds no file ending in {}{}",
+                    "{}: the folder holds no point-cloud file ({}){}",
                     arg.display(),
                     endings(formats),
                     if recursive {
@@ -86,7 +84,7 @@ pub fn expand(args: &[PathBuf], formats: &[&str], recursive: bool) -> Result<Vec
             }
             if matched.is_empty() {
                 bail!(
-                    "{text}: the pattern matches no file ending in {}",
+                    "{text}: the pattern matches no point-cloud file ({})",
                     endings(formats)
                 );
             }
@@ -459,4 +457,14 @@ pub fn vpc_path(dir: &Path, name: Option<&str>) -> PathBuf {
     };
     let name = name.map_or_else(folder, |n| n.strip_suffix(".vpc").unwrap_or(n).to_owned());
     dir.join(format!("{name}.vpc"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_formats_are_those_the_loaders_name() {
+        assert_eq!(endings(&FORMATS), crate::scene::error::FORMATS);
+    }
 }

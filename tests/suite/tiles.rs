@@ -382,7 +382,7 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
         ["sub/d.las", "c.copc.laz"]
     );
     let error = |args: &[PathBuf], recursive| expand(args, recursive).unwrap_err().to_string();
-    let all = ".las, .laz, .copc.laz, .e57, .ply, .pcd, .obj, .xyz, .txt, .pts or .csv";
+    let all = surfel::scene::error::FORMATS;
     assert_eq!(
         error(&[dir.join("missing.las")], false),
         format!(
@@ -393,7 +393,7 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
     assert_eq!(
         error(&[dir.join("*.e57")], false),
         format!(
-            "{}: the pattern matches no file ending in {all}",
+            "{}: the pattern matches no point-cloud file ({all})",
             dir.join("*.e57").display()
         )
     );
@@ -402,14 +402,14 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
     assert_eq!(
         error(std::slice::from_ref(&empty), false),
         format!(
-            "{}: the folder holds no file ending in {all}; --recursive searches its subfolders too",
+            "{}: the folder holds no point-cloud file ({all}); --recursive searches its subfolders too",
             empty.display()
         )
     );
     assert_eq!(
         error(std::slice::from_ref(&empty), true),
         format!(
-            "{}: the folder holds no file ending in {all}",
+            "{}: the folder holds no point-cloud file ({all})",
             empty.display()
         )
     );
@@ -428,7 +428,7 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
             .unwrap_err()
             .to_string(),
         format!(
-            "{}: the folder holds no file ending in .copc.laz; --recursive searches its subfolders too",
+            "{}: the folder holds no point-cloud file (.copc.laz); --recursive searches its subfolders too",
             sub.display()
         )
     );
@@ -443,7 +443,7 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
     assert_eq!(
         stderr(&o),
         format!(
-            "error: {}: the pattern matches no file ending in {all}\n",
+            "error: {}: the pattern matches no point-cloud file ({all})\n",
             dir.join("*.e57").display()
         )
     );
