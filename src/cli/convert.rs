@@ -81,6 +81,17 @@ pub(super) fn convert(a: ConvertArgs) -> Result<()> {
     if a.tiles {
         return convert_tiles(&a, &inputs, &options);
     }
+    // A merge into one of its inputs (a folder converted twice) would take in the old output.
+    if let Some(input) = inputs
+        .iter()
+        .find(|i| inputs.len() > 1 && same_file(i, &a.out))
+    {
+        bail!(
+            "{}: the output is also one of the {} inputs; choose another --out",
+            input.display(),
+            inputs.len()
+        );
+    }
     if let Some(warning) = tiles::check_one_crs(&inputs)? {
         eprintln!("warning: {warning}");
     }
@@ -88,16 +99,15 @@ pub(super) fn convert(a: ConvertArgs) -> Result<()> {
     for warning in &stats.warnings {
         eprintln!("warning: {warning}");
     }
-    let rate = |s: f64| stats.points as f64 / s.max(1e-9) / 1e6;
     eprintln!(
         "{} points -> {} ({:.1} MB): loaded in {:.2} s ({:.2} M points/s), written in {:.2} s ({:.2} M points/s)",
         stats.points,
         a.out.display(),
         stats.bytes as f64 / 1e6,
         stats.load_seconds,
-        rate(stats.load_seconds),
+        rate(stats.points, stats.load_seconds),
         stats.write_seconds,
-        rate(stats.write_seconds),
+        rate(stats.points, stats.write_seconds),
     );
     Ok(())
 }

@@ -339,6 +339,7 @@ fn convert_staged(
         .file_name()
         .context("a tile's output has a file name")?;
     let staged = dir.join(file);
+    // The converter's messages name the file it writes: the tile's place, not the staging one.
     let stats = convert::convert(&tile.input, &staged, options).map_err(|e| {
         let text = format!("{e:#}").replace(
             &staged.display().to_string(),

@@ -270,6 +270,17 @@ fn tiles_are_converted_one_copc_file_each_keeping_every_point() {
             (b.location.as_str(), b.points, b.bounds)
         );
     }
+    // A merge of the folder into one of its files is refused.
+    let north = out.join("north.copc.laz");
+    let o = surfel(&["convert", text(&out), "--out", text(&north)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "error: {}: the output is also one of the 3 inputs; choose another --out\n",
+            north.display()
+        )
+    );
     let o = surfel(&["vpc", text(&out), "--out", text(&dir.join("all.json"))]);
     assert_eq!(
         stderr(&o),
