@@ -94,7 +94,8 @@ fn write_tile(path: &Path, n: usize, x0: f64, colors: bool, epsg: Option<u16>) {
 
 /// One point as the loaders read it: the position in millimetres, the colour, then intensity,
 /// classification, return number, number of returns, point source id and the GPS time in
-/// microseconds.
+/// milliseconds (loaded as f32 seconds after a file's earliest time, they agree to the
+/// millisecond whatever that earliest time is).
 type Record = ([i64; 3], [u8; 4], [i64; 6]);
 
 /// `cloud`'s points as [`Record`]s, sorted.
@@ -122,7 +123,7 @@ fn records(cloud: &Cloud) -> Vec<Record> {
             for (v, name) in values.iter_mut().zip(names) {
                 *v = field(name)[i] as i64;
             }
-            values[5] = ((f64::from(field("gps_time")[i]) + origin) * 1e6).round() as i64;
+            values[5] = ((f64::from(field("gps_time")[i]) + origin) * 1e3).round() as i64;
             (
                 [w.x, w.y, w.z].map(|v| (v * 1000.0).round() as i64),
                 cloud.colors.as_ref().map_or([0; 4], |c| c[i]),
