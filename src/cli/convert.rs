@@ -28,7 +28,7 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub tiles: bool,
     /// With --tiles: inputs converted at once, each on an equal share of the cores. Default:
-    /// one per 4 cores.
+    /// one per core.
     #[arg(long, value_name = "N", requires = "tiles", value_parser = clap::value_parser!(u32).range(1..))]
     pub jobs: Option<u32>,
     /// With --tiles: the virtual point cloud's name, written as NAME.vpc in the --out folder

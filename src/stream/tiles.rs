@@ -23,10 +23,6 @@ pub const FORMATS: [&str; 11] = [
 /// The COPC files' name ending.
 pub const COPC_SUFFIX: &str = ".copc.laz";
 
-/// Threads a tile's conversion is given when the jobs are not chosen: the default number of
-/// jobs is the cores divided by this.
-pub const THREADS_PER_JOB: usize = 4;
-
 /// Whether `path`'s format extension is one of `formats`.
 fn is_one_of(path: &Path, formats: &[&str]) -> bool {
     formats.contains(&format_extension(path).as_str())
@@ -357,17 +353,19 @@ fn convert_staged(
     Ok(stats)
 }
 
-/// The default number of parallel jobs: the cores divided by [`THREADS_PER_JOB`], at least 1.
+/// The default number of parallel jobs: one per core. Much of a tile's conversion runs on one
+/// thread (reading, the shuffle, the writer's partitioning), so tiles side by side use the
+/// cores better than one tile at a time on all of them (docs/measurements.md).
 pub fn default_jobs() -> usize {
-    (cores() / THREADS_PER_JOB).max(1)
+    cores()
 }
 
 fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
-/// Converts every tile, `jobs` at a time, each job with its own thread pool of an equal share
-/// of the cores (all of them for one job). `finished` sees each tile as it ends, in the order
+/// Converts every tile, `jobs` at a time (at most one per tile), each job with its own thread
+/// pool of an equal share of the cores (all of them for one job). `finished` sees each tile as it ends, in the order
 /// they end; a failed tile does not stop the others. When the options' stop flag is set, no
 /// further tile starts. Returns the results in `tiles`' order (`None` for a tile not started).
 pub fn convert_tiles<'a>(
