@@ -63,11 +63,10 @@ pub fn expand(args: &[PathBuf], formats: &[&str], recursive: bool) -> Result<Vec
                     }
                 );
             }
-        } else if arg.exists() || !is_pattern(&text) {
-            if !arg.exists() {
-                bail!("{}: no such file or folder", arg.display());
-            }
+        } else if arg.exists() {
             files.push(arg.clone());
+        } else if !is_pattern(&text) {
+            bail!("{}: no such file or folder", arg.display());
         } else {
             let paths =
                 glob::glob(&text).map_err(|e| anyhow!("{text}: not a valid pattern: {e}"))?;
@@ -103,7 +102,7 @@ pub fn expand(args: &[PathBuf], formats: &[&str], recursive: bool) -> Result<Vec
 }
 
 /// Appends `dir`'s files in one of `formats`, sorted by name (then its subfolders' when
-/// `recursive`).
+/// `recursive`; a link to a folder is not followed, so a link back up ends nothing).
 fn folder(dir: &Path, formats: &[&str], recursive: bool, files: &mut Vec<PathBuf>) -> Result<()> {
     let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("{}: cannot list the folder", dir.display()))?
@@ -113,7 +112,7 @@ fn folder(dir: &Path, formats: &[&str], recursive: bool, files: &mut Vec<PathBuf
     entries.sort();
     let mut subfolders = Vec::new();
     for path in entries {
-        if path.is_dir() {
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_dir()) {
             subfolders.push(path);
         } else if path.is_file() && is_one_of(&path, formats) {
             files.push(path);
