@@ -352,6 +352,13 @@ fn a_corrupt_tile_is_reported_and_the_others_converted() {
     assert_eq!(lines.len(), 6, "{e}");
     let ids: Vec<String> = read_vpc(&list).tiles.into_iter().map(|t| t.id).collect();
     assert_eq!(ids, ["a", "c"]);
+    // The failed tile left nothing behind (no staging folder, no temporary file).
+    let mut written: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    written.sort();
+    assert_eq!(written, ["a.copc.laz", "c.copc.laz", "survey.vpc"]);
     assert_eq!(
         union(&[input.join("a.las"), input.join("c.las")]),
         union(&[out.join("a.copc.laz"), out.join("c.copc.laz")])
@@ -380,6 +387,8 @@ fn folders_and_patterns_expand_to_their_point_cloud_files() {
         names(expand(std::slice::from_ref(&dir), false).unwrap()),
         ["a.laz", "b.las", "c.copc.laz"]
     );
+    // A link back up is not followed.
+    std::os::unix::fs::symlink(&dir, sub.join("up")).unwrap();
     assert_eq!(
         names(expand(std::slice::from_ref(&dir), true).unwrap()),
         ["a.laz", "b.las", "c.copc.laz", "sub/d.las"]
@@ -481,6 +490,14 @@ fn tiles_sharing_a_name_are_named_apart() {
     assert_eq!(
         names(&["t/x.las", "t/x.laz", "t-x.las"]),
         ["t-x", "t-x-2", "t-x-3"]
+    );
+    assert_eq!(
+        tiles::vpc_path(Path::new("out/city"), None),
+        Path::new("out/city/city.vpc")
+    );
+    assert_eq!(
+        tiles::vpc_path(Path::new("out"), Some("all.vpc")),
+        Path::new("out/all.vpc")
     );
     let tiles = tiles::plan(
         &[PathBuf::from("a/x.las"), PathBuf::from("b/x.las")],
