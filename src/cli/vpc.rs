@@ -31,6 +31,10 @@ pub(super) fn vpc(a: VpcArgs) -> Result<()> {
         );
     }
     let files = tiles::expand(&a.inputs, &["copc.laz"], a.recursive)?;
+    let crs: Vec<Option<String>> = files.iter().map(|f| tiles::input_crs(f)).collect();
+    if let Some(warning) = tiles::mixed_crs_warning(&files, &crs) {
+        eprintln!("warning: {warning}");
+    }
     let summaries = files
         .iter()
         .map(|f| tiles::summarize(&a.out, f, None))

@@ -554,5 +554,34 @@ fn a_merge_of_inputs_in_two_crss_is_refused() {
             c.display()
         )
     );
+    // `surfel vpc` lists LAS files as they are, with the same warning and each file's CRS.
+    let list = dir.join("las.vpc");
+    let o = surfel(&["vpc", text(&a), text(&b), text(&c), "--out", text(&list)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).starts_with("warning: the tiles are in 3 CRSs: projected EPSG:32610"),
+        "{}",
+        stderr(&o)
+    );
+    let v = read_vpc(&list);
+    let listed: Vec<(String, Option<u32>, vpc::Encoding)> = v
+        .tiles
+        .iter()
+        .map(|t| {
+            (
+                t.href.clone(),
+                t.crs.as_ref().and_then(|c| c.epsg),
+                t.encoding,
+            )
+        })
+        .collect();
+    assert_eq!(
+        listed,
+        [
+            ("./a.las".to_owned(), Some(32610), vpc::Encoding::Las),
+            ("./b.las".to_owned(), Some(32611), vpc::Encoding::Las),
+            ("./c.las".to_owned(), None, vpc::Encoding::Las),
+        ]
+    );
     std::fs::remove_dir_all(dir).unwrap();
 }
