@@ -36,3 +36,4 @@ mod stream;
 mod validation;
 mod viewer;
 mod viewer_tools;
+mod vpc;
