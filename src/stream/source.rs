@@ -4,7 +4,9 @@
 //! Every read is one `(offset, length)` range checked against the source's length first. An
 //! HTTP read that fails with a server error (5xx), a timeout or a dropped connection is
 //! retried with exponential backoff; a client error (404, 403, …) or a server that ignores
-//! ranges is reported at once. Errors name the source and the byte range.
+//! ranges is reported at once. Errors name the source and the byte range. The HTTP files of
+//! one scene share an [`HttpPool`]: one agent, whose connections are kept alive and reused
+//! across requests and files, and a cap on the requests in flight.
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;
