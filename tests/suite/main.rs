@@ -37,3 +37,4 @@ mod tiles;
 mod validation;
 mod viewer;
 mod viewer_tools;
+mod vpc;
