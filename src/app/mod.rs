@@ -988,10 +988,15 @@ impl Viewer {
         let stream = self.streamed.as_ref().map(|s| {
             let t = s.stats();
             format!(
-                "streamed {} of {} points, budget {} (, .)\nnodes {}, loading {}, read {:.1} MB, pool {} of {}{}",
+                "streamed {} of {} points, budget {} (, .)\n{}nodes {}, loading {}, read {:.1} MB, pool {} of {}{}",
                 hud::thousands(t.drawn_points),
                 hud::thousands(t.selected_points),
                 hud::thousands(s.point_budget()),
+                if t.tiles > 1 {
+                    format!("tiles open {} of {}, ", t.tiles_open, t.tiles)
+                } else {
+                    String::new()
+                },
                 t.selected_nodes,
                 t.loading,
                 t.bytes_read as f64 / 1e6,

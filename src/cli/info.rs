@@ -23,9 +23,76 @@ pub struct InfoArgs {
     pub up: Option<Up>,
     #[command(flatten)]
     pub input: InputArgs,
+    #[command(flatten)]
+    pub http: HttpArgs,
+}
+
+/// Reading a `.vpc` over HTTP.
+#[derive(Args, Debug)]
+pub struct HttpArgs {
+    /// A `.vpc` URL: requests in flight at most.
+    #[arg(long, value_name = "N", default_value_t = crate::stream::source::DEFAULT_CONNECTIONS as u64,
+          value_parser = clap::value_parser!(u64).range(1..=256))]
+    pub http_connections: u64,
+}
+
+/// `surfel info` of a virtual point cloud: its tiles as the `.vpc` lists them (no tile is
+/// read), total points, bounds and CRS.
+fn info_vpc(location: &str, http: &HttpArgs) -> Result<()> {
+    let options = crate::stream::source::HttpOptions {
+        connections: http.http_connections as usize,
+        ..Default::default()
+    };
+    let vpc = crate::stream::vpc::read(location, &options)?;
+    println!("file              {location}");
+    println!("format            virtual point cloud (STAC ItemCollection)");
+    println!("tiles             {}", vpc.tiles.len());
+    println!("points            {}", vpc.points());
+    match vpc.bounds() {
+        Some((lo, hi)) => println!(
+            "bounds            {:.3} {:.3} {:.3} .. {:.3} {:.3} {:.3}",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        ),
+        None => println!("bounds            unknown (no tile has a 3D proj:bbox)"),
+    }
+    let mut crs: Vec<String> = vpc
+        .tiles
+        .iter()
+        .map(|t| match &t.crs {
+            Some(c) => match (c.epsg, &c.wkt2) {
+                (Some(code), _) => format!("EPSG:{code}"),
+                (None, Some(_)) => "WKT 2 without an EPSG code".to_owned(),
+                (None, None) => "none".to_owned(),
+            },
+            None => "none".to_owned(),
+        })
+        .collect();
+    crs.sort();
+    crs.dedup();
+    println!("crs               {}", crs.join(", "));
+    for t in &vpc.tiles {
+        let bounds = t.bounds.map_or("bounds unknown".to_owned(), |(lo, hi)| {
+            format!(
+                "{:.3} {:.3} {:.3} .. {:.3} {:.3} {:.3}",
+                lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+            )
+        });
+        println!(
+            "  {:<24} {:>12} points  {}  {}  {bounds}",
+            t.id,
+            t.points,
+            t.encoding.media_type(),
+            t.href
+        );
+    }
+    Ok(())
 }
 
 pub(super) fn info(a: InfoArgs) -> Result<()> {
+    let name = a.file.to_string_lossy();
+    if crate::stream::vpc::is_vpc(&name) {
+        return info_vpc(&name, &a.http);
+    }
     let cloud = load_prepared(&a.file, &a.input.options(false))?;
     println!("file              {}", a.file.display());
     println!("points            {}", cloud.len());

@@ -1,5 +1,5 @@
-//! The command line: `surfel render | view | info | sample | convert | convert-lines | hpr | hpr-study |
-//! bench | report`, one module per subcommand.
+//! The command line: `surfel render | view | info | sample | convert | vpc | convert-lines | hpr |
+//! hpr-study | bench | report`, one module per subcommand.
 
 mod bench;
 mod convert;
@@ -9,6 +9,7 @@ mod info;
 mod render;
 mod sample;
 mod view;
+mod vpc;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -31,6 +32,7 @@ pub use info::InfoArgs;
 pub use render::RenderArgs;
 pub use sample::SampleArgs;
 pub use view::ViewArgs;
+pub use vpc::VpcArgs;
 
 /// surfel: a Vulkan point-cloud renderer.
 #[derive(Parser, Debug)]
@@ -50,8 +52,11 @@ pub enum Command {
     Info(InfoArgs),
     /// Sample a mesh into a point cloud (area-weighted, face normals, radii from density).
     Sample(SampleArgs),
-    /// Convert FILE to a COPC file (octree of LAZ chunks) for streaming.
+    /// Convert files, folders or patterns to one COPC file (octree of LAZ chunks) for
+    /// streaming, or each to its own COPC tile listed in a .vpc (--tiles).
     Convert(ConvertArgs),
+    /// Write a virtual point cloud (.vpc) listing COPC files, from their headers.
+    Vpc(VpcArgs),
     /// Convert a mesh's thin parts (leaves, branches) into ribbons and tubes (thesis 000 §5.1).
     ConvertLines(ConvertLinesArgs),
     /// Hidden point removal: the points of FILE visible from a viewpoint (003).
@@ -178,6 +183,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info::info(a),
         Command::Sample(a) => sample::sample(a),
         Command::Convert(a) => convert::convert(a),
+        Command::Vpc(a) => vpc::vpc(a),
         Command::ConvertLines(a) => convert_lines::convert_lines(a),
         Command::Hpr(a) => hpr::hpr(a),
         Command::HprStudy(a) => hpr::hpr_study(a),

@@ -17,6 +17,7 @@ use crate::scene::compose;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
 use crate::stream::loader::LoaderOptions;
+use crate::stream::source::{HttpOptions, DEFAULT_CONNECTIONS};
 use crate::upload::streamed::{
     StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
 };
@@ -66,11 +67,12 @@ pub struct RenderArgs {
     pub stream: StreamArgs,
 }
 
-/// Streaming a COPC file (a path or an http(s) URL) by view instead of loading it.
+/// Streaming a COPC file or a virtual point cloud (`.vpc`; a path or an http(s) URL) by
+/// view instead of loading it.
 #[derive(Args, Debug, Clone)]
 pub struct StreamArgs {
     /// Stream FILE (a COPC path or URL): read only the octree nodes the view needs, within
-    /// the point and GPU budgets. URLs are always streamed.
+    /// the point and GPU budgets. URLs and `.vpc` files are always streamed.
     #[arg(long)]
     pub stream: bool,
     /// Streaming: points drawn per frame at most.
@@ -86,12 +88,17 @@ pub struct StreamArgs {
     /// needs is resident.
     #[arg(long, value_name = "N")]
     pub refine_frames: Option<u32>,
+    /// Streaming over HTTP: requests in flight at most (over every file of a `.vpc`).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_CONNECTIONS as u64,
+          value_parser = clap::value_parser!(u64).range(1..=256))]
+    pub http_connections: u64,
 }
 
 impl StreamArgs {
     /// Whether `file` is streamed.
     pub fn streams(&self, file: &std::path::Path) -> bool {
-        self.stream || crate::stream::source::is_url(&file.to_string_lossy())
+        let name = file.to_string_lossy();
+        self.stream || crate::stream::source::is_url(&name) || crate::stream::vpc::is_vpc(&name)
     }
 
     /// The streaming options for a method that needs normals and radii estimated with `k`
@@ -104,6 +111,10 @@ impl StreamArgs {
             loader: LoaderOptions {
                 k,
                 normal_field,
+                http: HttpOptions {
+                    connections: self.http_connections as usize,
+                    ..HttpOptions::default()
+                },
                 ..LoaderOptions::default()
             },
         }
@@ -474,6 +485,14 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
             "drawn_points": stats.drawn_points,
             "selected_nodes": stats.selected_nodes,
             "bytes_read": stats.bytes_read,
+            "tiles": streamed.tiles().iter().map(|t| serde_json::json!({
+                "href": t.href,
+                "points": t.points,
+                "opened": t.file.is_some(),
+                "failed": t.error.is_some(),
+                "bytes_read": t.bytes_read(),
+                "reads": t.reads(),
+            })).collect::<Vec<_>>(),
             "first_pixel_s": first_pixel_s,
             "refine_s": refine_s,
             "max_rss_bytes": max_rss_bytes(),

@@ -172,8 +172,8 @@ fn load(s: Start, shown: (String, String)) -> Result<(Cloud, ViewerOptions)> {
     Ok((cloud, options))
 }
 
-/// The viewer on a streamed COPC file: its root node opens first (for the colour field and
-/// the camera), the viewer streams the rest by view.
+/// The viewer on a streamed COPC file or virtual point cloud: its (central file's) root node
+/// opens first (for the colour field and the camera), the viewer streams the rest by view.
 fn view_streamed(s: Start) -> Result<()> {
     let location = s.a.file.to_string_lossy().into_owned();
     let k = if s.config.method.needs_surfels {

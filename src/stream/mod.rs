@@ -7,3 +7,5 @@ pub mod loader;
 pub mod records;
 pub mod select;
 pub mod source;
+pub mod tiles;
+pub mod vpc;

@@ -128,28 +128,13 @@ pub fn spacing(info: &Info, n: &Node) -> f64 {
 }
 
 fn measure(node: &Node, info: &Info, origin: DVec3, view: &SelectView) -> Measure {
-    let key = node.key;
-    let (lo, hi) = info.cube(key);
-    let (lo, hi) = ((lo - origin).as_vec3(), (hi - origin).as_vec3());
-    let centre = (lo + hi) * 0.5;
-    let radius = f64::from((hi - lo).length() * 0.5);
-    let distance = f64::from((centre - view.eye).length()).max(radius * 1e-3);
+    let (lo, hi) = info.cube(node.key);
+    let (weight, visible, distance) = measure_box(lo, hi, origin, view);
     let px = f64::from(view.pixels_per_radian);
-    let spacing = spacing(info, node);
-    let cube = GpuBatch {
-        min_x: lo.x,
-        min_y: lo.y,
-        min_z: lo.z,
-        first: 0,
-        max_x: hi.x,
-        max_y: hi.y,
-        max_z: hi.z,
-        count: 0,
-    };
     Measure {
-        weight: radius / distance * px,
-        visible: batch_visible(view.view_proj, &cube),
-        refine: spacing / distance * px > f64::from(view.error_px),
+        weight,
+        visible,
+        refine: spacing(info, node) / distance * px > f64::from(view.error_px),
     }
 }
 
@@ -213,27 +198,157 @@ pub fn select(
     view: &SelectView,
     budget: Budget,
 ) -> Selection {
-    let budget = with_root(h, budget);
-    let mut out = Selection::default();
-    let mut heap = BinaryHeap::new();
-    if let Some(root) = h.nodes.get(&Key::ROOT) {
-        heap.push(Candidate {
-            weight: measure(root, info, origin, view).weight,
-            key: root.key,
-        });
+    let tree = Tree {
+        hierarchy: Some(h),
+        info,
+        bounds: info.cube(Key::ROOT),
+    };
+    let forest = select_forest(&[tree], origin, view, budget);
+    Selection {
+        nodes: forest.nodes.into_iter().map(|(_, k)| k).collect(),
+        points: forest.points,
+        slots: forest.slots,
+        pages: forest.pages.into_iter().map(|(_, k)| k).collect(),
     }
-    while let Some(Candidate { key, .. }) = heap.pop() {
+}
+
+/// One octree of a forest (the files of a virtual point cloud).
+#[derive(Clone, Copy, Debug)]
+pub struct Tree<'a> {
+    /// What is known of its hierarchy; `None` while the file is not opened.
+    pub hierarchy: Option<&'a Hierarchy>,
+    pub info: &'a Info,
+    /// Its bounds (file coordinates), for a file not opened yet.
+    pub bounds: (DVec3, DVec3),
+}
+
+/// A forest's selection: nodes and pages by tree index, and the trees to open.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ForestSelection {
+    pub nodes: Vec<(usize, Key)>,
+    pub points: u64,
+    pub slots: u64,
+    pub pages: Vec<(usize, Key)>,
+    /// Trees not opened whose bounds the view reaches, most wanted first.
+    pub open: Vec<usize>,
+}
+
+/// A forest's candidate: larger weight first, then the smaller tree and key.
+struct TreeCandidate {
+    weight: f64,
+    tree: usize,
+    key: Key,
+}
+
+impl PartialEq for TreeCandidate {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for TreeCandidate {}
+
+impl PartialOrd for TreeCandidate {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for TreeCandidate {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.weight
+            .total_cmp(&other.weight)
+            .then_with(|| other.tree.cmp(&self.tree))
+            .then_with(|| other.key.cmp(&self.key))
+    }
+}
+
+/// The projected size, the visibility and the eye's distance of the box `lo..hi` (file
+/// coordinates).
+fn measure_box(lo: DVec3, hi: DVec3, origin: DVec3, view: &SelectView) -> (f64, bool, f64) {
+    let (lo, hi) = ((lo - origin).as_vec3(), (hi - origin).as_vec3());
+    let centre = (lo + hi) * 0.5;
+    let radius = f64::from((hi - lo).length() * 0.5);
+    let distance = f64::from((centre - view.eye).length()).max(radius * 1e-3);
+    let cube = GpuBatch {
+        min_x: lo.x,
+        min_y: lo.y,
+        min_z: lo.z,
+        first: 0,
+        max_x: hi.x,
+        max_y: hi.y,
+        max_z: hi.z,
+        count: 0,
+    };
+    (
+        radius / distance * f64::from(view.pixels_per_radian),
+        batch_visible(view.view_proj, &cube),
+        distance,
+    )
+}
+
+/// The nodes `view` draws from the forest `trees` within one `budget`: the selection of
+/// [`select`] grown over every tree at once from their roots. With one tree its root is
+/// drawn whatever the budget; with several, a tree's root is a candidate when its bounds are
+/// in the view frustum, and a tree not opened yet whose root would be taken is listed in
+/// [`ForestSelection::open`] instead (its points are unknown until then).
+pub fn select_forest(
+    trees: &[Tree],
+    origin: DVec3,
+    view: &SelectView,
+    budget: Budget,
+) -> ForestSelection {
+    let single = trees.len() == 1;
+    let budget = match (single, trees.first().and_then(|t| t.hierarchy)) {
+        (true, Some(h)) => with_root(h, budget),
+        _ => budget,
+    };
+    let mut out = ForestSelection::default();
+    let mut heap = BinaryHeap::new();
+    for (i, t) in trees.iter().enumerate() {
+        let (weight, visible) = match t.hierarchy.and_then(|h| h.nodes.get(&Key::ROOT)) {
+            Some(root) => {
+                let m = measure(root, t.info, origin, view);
+                (m.weight, m.visible)
+            }
+            None if t.hierarchy.is_some() => continue,
+            None => {
+                let (weight, visible, _) = measure_box(t.bounds.0, t.bounds.1, origin, view);
+                (weight, visible)
+            }
+        };
+        if single || visible {
+            heap.push(TreeCandidate {
+                weight,
+                tree: i,
+                key: Key::ROOT,
+            });
+        }
+    }
+    while let Some(TreeCandidate { tree, key, .. }) = heap.pop() {
+        let t = &trees[tree];
+        let Some(h) = t.hierarchy else {
+            out.open.push(tree);
+            continue;
+        };
         let node = &h.nodes[&key];
-        if !out.take(node, budget) {
+        let slots = slots_of(node.points);
+        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
             break;
         }
-        let m = measure(node, info, origin, view);
-        for child in expand(h, key, &m, &mut out.pages) {
-            heap.push(Candidate {
-                weight: measure(&h.nodes[&child], info, origin, view).weight,
+        out.points += node.points;
+        out.slots += slots;
+        out.nodes.push((tree, key));
+        let m = measure(node, t.info, origin, view);
+        let mut pages = Vec::new();
+        for child in expand(h, key, &m, &mut pages) {
+            heap.push(TreeCandidate {
+                weight: measure(&h.nodes[&child], t.info, origin, view).weight,
+                tree,
                 key: child,
             });
         }
+        out.pages.extend(pages.into_iter().map(|k| (tree, k)));
     }
     out.pages.sort();
     out

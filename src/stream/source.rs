@@ -4,13 +4,15 @@
 //! Every read is one `(offset, length)` range checked against the source's length first. An
 //! HTTP read that fails with a server error (5xx), a timeout or a dropped connection is
 //! retried with exponential backoff; a client error (404, 403, …) or a server that ignores
-//! ranges is reported at once. Errors name the source and the byte range.
+//! ranges is reported at once. Errors name the source and the byte range. The HTTP files of
+//! one scene share an [`HttpPool`]: one agent, whose connections are kept alive and reused
+//! across requests and files, and a cap on the requests in flight.
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
 /// A read that failed: the message names the source and the range.
@@ -37,6 +39,8 @@ pub trait ByteSource: Send + Sync {
     fn read_at(&self, at: u64, len: u64) -> Result<Vec<u8>, SourceError>;
     /// Bytes read so far (for the viewer's HUD and reports).
     fn bytes_read(&self) -> u64;
+    /// Reads (requests to a server) so far.
+    fn reads(&self) -> u64;
 
     fn is_empty(&self) -> bool {
         self.len() == 0
@@ -45,9 +49,13 @@ pub trait ByteSource: Send + Sync {
 
 /// Opens `location`: an `http://` or `https://` URL, or a local path.
 pub fn open(location: &str, http: &HttpOptions) -> Result<Arc<dyn ByteSource>, SourceError> {
-    let lower = location.to_ascii_lowercase();
-    if lower.starts_with("http://") || lower.starts_with("https://") {
-        Ok(Arc::new(HttpSource::open(location, http)?))
+    open_in(location, &HttpPool::new(http))
+}
+
+/// [`open`], a URL read through `pool`'s connections.
+pub fn open_in(location: &str, pool: &Arc<HttpPool>) -> Result<Arc<dyn ByteSource>, SourceError> {
+    if is_url(location) {
+        Ok(Arc::new(HttpSource::open(location, pool)?))
     } else {
         Ok(Arc::new(FileSource::open(Path::new(location))?))
     }
@@ -77,6 +85,7 @@ pub struct FileSource {
     file: File,
     len: u64,
     read: AtomicU64,
+    reads: AtomicU64,
 }
 
 impl FileSource {
@@ -97,6 +106,7 @@ impl FileSource {
             name,
             file,
             read: AtomicU64::new(0),
+            reads: AtomicU64::new(0),
         })
     }
 }
@@ -119,11 +129,16 @@ impl ByteSource for FileSource {
                 message: format!("{}: bytes {at}..{}: {e}", self.name, at + len),
             })?;
         self.read.fetch_add(len, Ordering::Relaxed);
+        self.reads.fetch_add(1, Ordering::Relaxed);
         Ok(bytes)
     }
 
     fn bytes_read(&self) -> u64 {
         self.read.load(Ordering::Relaxed)
+    }
+
+    fn reads(&self) -> u64 {
+        self.reads.load(Ordering::Relaxed)
     }
 }
 
@@ -136,6 +151,8 @@ pub struct HttpOptions {
     pub backoff: Duration,
     /// Limit on one request, connection included.
     pub timeout: Duration,
+    /// Requests in flight at most, over every file read through one [`HttpPool`].
+    pub connections: usize,
 }
 
 impl Default for HttpOptions {
@@ -144,17 +161,65 @@ impl Default for HttpOptions {
             attempts: 5,
             backoff: Duration::from_millis(200),
             timeout: Duration::from_secs(20),
+            connections: DEFAULT_CONNECTIONS,
         }
+    }
+}
+
+/// Default of [`HttpOptions::connections`].
+pub const DEFAULT_CONNECTIONS: usize = 8;
+
+/// What the HTTP files of one dataset share: one agent (its connections kept alive and reused
+/// from request to request and file to file) and a cap on the requests in flight.
+pub struct HttpPool {
+    agent: ureq::Agent,
+    options: HttpOptions,
+    /// Requests in flight.
+    busy: Mutex<usize>,
+    freed: Condvar,
+}
+
+impl HttpPool {
+    pub fn new(options: &HttpOptions) -> Arc<Self> {
+        let connections = options.connections.max(1);
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .timeout_global(Some(options.timeout))
+            .http_status_as_error(false)
+            .max_idle_connections(connections)
+            .max_idle_connections_per_host(connections)
+            .build()
+            .into();
+        Arc::new(Self {
+            agent,
+            options: options.clone(),
+            busy: Mutex::new(0),
+            freed: Condvar::new(),
+        })
+    }
+
+    /// Runs `f` once fewer than `connections` requests are in flight.
+    fn limited<T>(&self, f: impl FnOnce() -> T) -> T {
+        {
+            let mut busy = self.busy.lock().unwrap_or_else(|e| e.into_inner());
+            while *busy >= self.options.connections.max(1) {
+                busy = self.freed.wait(busy).unwrap_or_else(|e| e.into_inner());
+            }
+            *busy += 1;
+        }
+        let out = f();
+        *self.busy.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
+        self.freed.notify_one();
+        out
     }
 }
 
 /// A file on an HTTP(S) server, read with `Range` requests.
 pub struct HttpSource {
     url: String,
-    agent: ureq::Agent,
+    pool: Arc<HttpPool>,
     len: u64,
-    options: HttpOptions,
     read: AtomicU64,
+    reads: AtomicU64,
 }
 
 /// Why one attempt failed, and whether another may succeed.
@@ -166,18 +231,13 @@ struct Attempt {
 impl HttpSource {
     /// Asks for the first byte to learn the length (from `Content-Range`) and to check that
     /// the server honours ranges.
-    pub fn open(url: &str, options: &HttpOptions) -> Result<Self, SourceError> {
-        let agent: ureq::Agent = ureq::Agent::config_builder()
-            .timeout_global(Some(options.timeout))
-            .http_status_as_error(false)
-            .build()
-            .into();
+    pub fn open(url: &str, pool: &Arc<HttpPool>) -> Result<Self, SourceError> {
         let mut source = Self {
             url: url.to_owned(),
-            agent,
+            pool: pool.clone(),
             len: 0,
-            options: options.clone(),
             read: AtomicU64::new(0),
+            reads: AtomicU64::new(0),
         };
         let (_, total) = source.fetch(0, 1)?;
         source.len = total;
@@ -186,15 +246,16 @@ impl HttpSource {
 
     /// The bytes `at..at + len` and the file's length, with retries.
     fn fetch(&self, at: u64, len: u64) -> Result<(Vec<u8>, u64), SourceError> {
-        let mut wait = self.options.backoff;
+        let mut wait = self.pool.options.backoff;
         let mut attempt = 1;
         loop {
-            match self.attempt(at, len) {
+            self.reads.fetch_add(1, Ordering::Relaxed);
+            match self.pool.limited(|| self.attempt(at, len)) {
                 Ok(done) => {
                     self.read.fetch_add(len, Ordering::Relaxed);
                     return Ok(done);
                 }
-                Err(e) if e.retry && attempt < self.options.attempts => {
+                Err(e) if e.retry && attempt < self.pool.options.attempts => {
                     std::thread::sleep(wait);
                     wait *= 2;
                     attempt += 1;
@@ -221,6 +282,7 @@ impl HttpSource {
     fn attempt(&self, at: u64, len: u64) -> Result<(Vec<u8>, u64), Attempt> {
         let end = at + len - 1;
         let response = self
+            .pool
             .agent
             .get(&self.url)
             .header("Range", &format!("bytes={at}-{end}"))
@@ -299,5 +361,9 @@ impl ByteSource for HttpSource {
 
     fn bytes_read(&self) -> u64 {
         self.read.load(Ordering::Relaxed)
+    }
+
+    fn reads(&self) -> u64 {
+        self.reads.load(Ordering::Relaxed)
     }
 }

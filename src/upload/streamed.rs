@@ -1,15 +1,16 @@
-//! A streamed COPC cloud on the GPU: a fixed pool of batch slots that the nodes a view needs
+//! A streamed COPC cloud or virtual point cloud on the GPU: a fixed pool of batch slots that the nodes a view needs
 //! are copied into, and the per-frame batch table that says which slots to draw.
 //!
 //! Each frame ([`StreamedScene::update`]): collect what the loader's workers finished (never
 //! waiting), choose the nodes of the view within the point budget and the pool
-//! (`stream::select`), copy finished nodes of that choice into free slots through the staging
+//! (`stream::select`, over every file's octree at once), copy finished nodes of that choice into free slots through the staging
 //! ring, evicting the least recently drawn nodes the view does not need, hand the loader the
 //! missing nodes and pages most wanted first, and write the table: a chosen node's batches
 //! are drawn once it is resident, so a parent stays on screen while its children load. A slot
 //! freed by eviction is reused only after every frame in flight that could draw it has
-//! finished. A node or page that cannot be read or decoded is reported once and skipped;
-//! rendering goes on with the rest.
+//! finished. A node or page that cannot be read or decoded is reported once and skipped, and
+//! so is a file of a virtual point cloud that cannot be opened; rendering goes on with the
+//! rest.
 
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet, VecDeque};
@@ -26,8 +27,8 @@ use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
 use crate::scene::copc::Key;
 use crate::scene::{Camera, Cloud, Up};
-use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats};
-use crate::stream::select::{self, Budget, Hierarchy, SelectView, Selection};
+use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats, TileId};
+use crate::stream::select::{self, Budget, ForestSelection, Hierarchy, SelectView, Tree};
 use crate::streams::upload::pool;
 use crate::streams::{Stream, StreamLayout};
 
@@ -40,6 +41,9 @@ pub const DEFAULT_GPU_BYTES: u64 = 1 << 30;
 /// Default screen-space error: nodes are refined while their spacing exceeds this many pixels
 /// (half a pixel: a random subsample at one point per pixel leaves visible holes).
 pub const DEFAULT_ERROR_PX: f32 = 0.5;
+
+/// The hierarchy of a file that could not be opened.
+static EMPTY: std::sync::LazyLock<Hierarchy> = std::sync::LazyLock::new(Hierarchy::default);
 
 /// Staging bytes per copy (a node larger than this is reported and skipped).
 const STAGING_BYTES: u64 = 64 << 20;
@@ -70,6 +74,9 @@ impl Default for StreamOptions {
     }
 }
 
+/// A node of the scene: its file and its key in the file's octree.
+pub type NodeId = (TileId, Key);
+
 /// A resident node: its slots and batches (`first` at its slot).
 struct Resident {
     slots: Vec<u32>,
@@ -97,6 +104,9 @@ pub struct StreamStats {
     pub failed: usize,
     /// Nodes evicted so far.
     pub evicted: u64,
+    /// Files opened, and in the scene (1 for a COPC file).
+    pub tiles_open: usize,
+    pub tiles: usize,
     /// The loader's work so far.
     pub loader: LoaderStats,
 }
@@ -108,7 +118,8 @@ pub struct StreamedScene {
     /// The root node (its attributes stand for the file's).
     pub root: Cloud,
     loader: Loader,
-    hierarchy: Hierarchy,
+    /// Each file's hierarchy, once opened.
+    hierarchies: Vec<Option<Hierarchy>>,
     options: StreamOptions,
     uploader: Uploader,
     /// The pool's stream buffers, in the loader's stream order.
@@ -118,14 +129,16 @@ pub struct StreamedScene {
     /// Slots freed at a frame, reusable once the frames in flight then have finished.
     retiring: VecDeque<(u64, Vec<u32>)>,
     frames_in_flight: u64,
-    resident: HashMap<Key, Resident>,
+    resident: HashMap<NodeId, Resident>,
     /// Decoded nodes waiting for slots.
-    ready: HashMap<Key, EncodedNode>,
-    failed: HashMap<Key, String>,
-    failed_pages: HashMap<Key, String>,
+    ready: HashMap<NodeId, EncodedNode>,
+    failed: HashMap<NodeId, String>,
+    failed_pages: HashMap<NodeId, String>,
+    /// Files that could not be opened.
+    failed_tiles: HashSet<TileId>,
     /// Messages not yet taken by [`Self::take_messages`].
     messages: Vec<String>,
-    selection: Selection,
+    selection: ForestSelection,
     table: Vec<GpuBatch>,
     frame: u64,
     evicted: u64,
@@ -133,11 +146,11 @@ pub struct StreamedScene {
     budget_warned: bool,
     /// Points per classification class of the nodes placed so far, each node counted once.
     classes: BTreeMap<u32, usize>,
-    counted: HashSet<Key>,
+    counted: HashSet<NodeId>,
 }
 
 impl StreamedScene {
-    /// Opens `location` (a COPC path or URL) and allocates a pool of `options.gpu_bytes`;
+    /// Opens `location` (a COPC file's or `.vpc`'s path or URL) and allocates a pool of `options.gpu_bytes`;
     /// `coloring` picks the colour mode (`color::select` on [`Opened::root`]); `frames` is
     /// the renderer's frames in flight.
     pub fn open(
@@ -177,7 +190,6 @@ impl StreamedScene {
             .map(|(s, b)| (*s, b.raw))
             .collect();
         let table = streams.host_batches.clone();
-        let copc = loader.copc();
         let (lo, hi) = loader.local_bounds();
         let mut coloring = coloring;
         if coloring.mode == COLOR_ELEVATION {
@@ -201,7 +213,7 @@ impl StreamedScene {
             centre: (lo + hi) * 0.5,
             radius: ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE),
             points: streams.point_count,
-            has_colors: copc.has_color(),
+            has_colors: loader.has_colors(),
             has_normals: loader.has_normals(),
             up: Up::Z,
             origin: loader.origin(),
@@ -221,12 +233,21 @@ impl StreamedScene {
             streamed: true,
             draw_points: super::DrawCount::new(0),
         };
+        let mut hierarchies: Vec<Option<Hierarchy>> =
+            (0..loader.tiles().len()).map(|_| None).collect();
+        hierarchies[opened.tile] = Some(opened.hierarchy);
+        let failed_tiles = loader.failed_at_open.iter().map(|(t, _)| *t).collect();
+        let messages = loader
+            .failed_at_open
+            .iter()
+            .map(|(_, m)| m.clone())
+            .collect();
         let mut out = Self {
             scene,
             info,
             root: opened.root.clone(),
             loader,
-            hierarchy: opened.hierarchy,
+            hierarchies,
             options: options.clone(),
             uploader: Uploader::new(ctx, STAGING_BYTES)?,
             targets,
@@ -237,8 +258,9 @@ impl StreamedScene {
             ready: HashMap::new(),
             failed: HashMap::new(),
             failed_pages: HashMap::new(),
-            messages: Vec::new(),
-            selection: Selection::default(),
+            failed_tiles,
+            messages,
+            selection: ForestSelection::default(),
             table,
             frame: 0,
             evicted: 0,
@@ -248,10 +270,10 @@ impl StreamedScene {
         };
         out.check_budget();
         // The root is resident before the first frame.
-        let root = out.loader.encode(Key::ROOT, opened.root)?;
-        out.ready.insert(Key::ROOT, root);
+        let root = out.loader.encode(opened.tile, Key::ROOT, opened.root)?;
+        out.ready.insert((opened.tile, Key::ROOT), root);
         let mut budget = UPLOAD_BYTES_PER_FRAME;
-        out.place(Key::ROOT, &mut budget)?;
+        out.place((opened.tile, Key::ROOT), &mut budget)?;
         out.uploader.finish()?;
         Ok(out)
     }
@@ -286,9 +308,26 @@ impl StreamedScene {
         self.classes.len()
     }
 
-    /// Points of the root node (drawn whatever the point budget).
+    /// Points of the root node of a single file (drawn whatever the point budget); 0 for a
+    /// virtual point cloud (its files' roots are drawn within the budget).
     pub fn root_points(&self) -> u64 {
-        self.hierarchy.nodes.get(&Key::ROOT).map_or(0, |n| n.points)
+        match self.hierarchies.as_slice() {
+            [Some(h)] => h.nodes.get(&Key::ROOT).map_or(0, |n| n.points),
+            _ => 0,
+        }
+    }
+
+    /// The streamed files.
+    pub fn tiles(&self) -> &[crate::stream::loader::Tile] {
+        self.loader.tiles()
+    }
+
+    /// The points of chosen node `id`.
+    fn node_points(&self, id: &NodeId) -> u64 {
+        self.hierarchies[id.0]
+            .as_ref()
+            .and_then(|h| h.nodes.get(&id.1))
+            .map_or(0, |n| n.points)
     }
 
     /// A point budget below the root node's points still draws the root: says so once.
@@ -303,9 +342,9 @@ impl StreamedScene {
         }
     }
 
-    /// Points in the file.
+    /// Points in the file (every file of a virtual point cloud, as its `.vpc` says).
     pub fn file_points(&self) -> u64 {
-        self.loader.copc().header.number_of_points()
+        self.loader.points()
     }
 
     /// Bytes of the pool's stream buffers (what the GPU budget bounds).
@@ -328,7 +367,7 @@ impl StreamedScene {
     }
 
     /// Whether the last view's choice is complete: every chosen node resident or failed,
-    /// and no page it reached still unread.
+    /// no page it reached still unread and no file it reached still unopened.
     pub fn stable(&self) -> bool {
         self.selection
             .nodes
@@ -339,6 +378,11 @@ impl StreamedScene {
                 .pages
                 .iter()
                 .all(|k| self.failed_pages.contains_key(k))
+            && self
+                .selection
+                .open
+                .iter()
+                .all(|t| self.failed_tiles.contains(t))
     }
 
     /// Whether what is left waits only for slots that frames still in flight may read (they
@@ -353,7 +397,7 @@ impl StreamedScene {
             .nodes
             .iter()
             .filter(|k| self.resident.contains_key(k))
-            .map(|k| self.hierarchy.nodes[k].points)
+            .map(|k| self.node_points(k))
             .sum();
         let slots = self.scene.streams.batch_count;
         StreamStats {
@@ -362,11 +406,13 @@ impl StreamedScene {
             selected_nodes: self.selection.nodes.len(),
             resident_nodes: self.resident.len(),
             loading: self.loader.pending(),
-            bytes_read: self.loader.source().bytes_read(),
+            bytes_read: self.loader.bytes_read(),
             slots,
             used_slots: self.resident.values().map(|r| r.slots.len() as u32).sum(),
-            failed: self.failed.len() + self.failed_pages.len(),
+            failed: self.failed.len() + self.failed_pages.len() + self.failed_tiles.len(),
             evicted: self.evicted,
+            tiles_open: self.hierarchies.iter().filter(|h| h.is_some()).count(),
+            tiles: self.hierarchies.len(),
             loader: self.loader.stats(),
         }
     }
@@ -411,15 +457,31 @@ impl StreamedScene {
             points: self.options.point_budget,
             slots: u64::from(self.scene.streams.batch_count),
         };
-        self.selection = select::select(
-            &self.hierarchy,
-            &self.loader.copc().info,
-            self.origin(),
-            &view,
-            budget,
-        );
+        let tiles = self.loader.tiles();
+        let unopened = crate::scene::copc::Info {
+            center: glam::DVec3::ZERO,
+            halfsize: 1.0,
+            spacing: 1.0,
+            root: (0, 0),
+            gps_time: (0.0, 0.0),
+        };
+        let trees: Vec<Tree> = tiles
+            .iter()
+            .zip(&self.hierarchies)
+            .enumerate()
+            .map(|(i, (t, h))| Tree {
+                hierarchy: if self.failed_tiles.contains(&i) {
+                    Some(&EMPTY)
+                } else {
+                    h.as_ref()
+                },
+                info: t.file.as_ref().map_or(&unopened, |f| &f.info),
+                bounds: t.bounds,
+            })
+            .collect();
+        self.selection = select::select_forest(&trees, self.origin(), &view, budget);
         // Nodes decoded for an earlier view and no longer chosen are dropped.
-        let chosen: std::collections::HashSet<Key> = self.selection.nodes.iter().copied().collect();
+        let chosen: HashSet<NodeId> = self.selection.nodes.iter().copied().collect();
         self.ready.retain(|k, _| chosen.contains(k));
         let mut bytes = UPLOAD_BYTES_PER_FRAME;
         let order = self.selection.nodes.clone();
@@ -438,46 +500,76 @@ impl StreamedScene {
     fn absorb(&mut self, done: Vec<Done>) {
         for d in done {
             match d {
-                Done::Page { key, at, entries } => match entries {
-                    Ok(entries) => {
-                        if !self.hierarchy.add_page(at, entries) {
-                            self.fail_page(key, format!("the hierarchy page at byte {at} is referenced twice (a cycle); skipped"));
-                        }
+                Done::Opened { tile, result } => match result {
+                    Ok(opened) => {
+                        self.hierarchies[tile] = Some(opened.hierarchy);
+                        self.ready.insert((tile, Key::ROOT), opened.root);
                     }
                     Err(e) => {
-                        self.fail_page(key, format!("hierarchy page of node {key} skipped: {e}"))
+                        self.failed_tiles.insert(tile);
+                        let t = &self.loader.tiles()[tile];
+                        let message = t
+                            .error
+                            .clone()
+                            .unwrap_or_else(|| format!("tile {}: {e}", t.href));
+                        self.messages.push(message);
                     }
                 },
-                Done::Node { key, result } => match result {
+                Done::Page {
+                    tile,
+                    key,
+                    at,
+                    entries,
+                } => match entries {
+                    Ok(entries) => {
+                        let added = self.hierarchies[tile]
+                            .as_mut()
+                            .is_some_and(|h| h.add_page(at, entries));
+                        if !added {
+                            self.fail_page((tile, key), format!("the hierarchy page at byte {at} is referenced twice (a cycle); skipped"));
+                        }
+                    }
+                    Err(e) => self.fail_page(
+                        (tile, key),
+                        format!("hierarchy page of node {key} skipped: {e}"),
+                    ),
+                },
+                Done::Node { tile, key, result } => match result {
                     Ok(node) => {
-                        self.ready.insert(key, node);
+                        self.ready.insert((tile, key), node);
                     }
                     Err(e) => {
-                        let at = self.hierarchy.nodes.get(&key).map_or(0, |n| n.offset);
+                        let at = self.hierarchies[tile]
+                            .as_ref()
+                            .and_then(|h| h.nodes.get(&key))
+                            .map_or(0, |n| n.offset);
                         let message = format!("node {key} (chunk at byte {at}) skipped: {e}");
                         self.messages.push(message.clone());
-                        self.failed.insert(key, message);
+                        self.failed.insert((tile, key), message);
                     }
                 },
             }
         }
     }
 
-    fn fail_page(&mut self, key: Key, message: String) {
-        self.hierarchy.pages.remove(&key);
+    fn fail_page(&mut self, key: NodeId, message: String) {
+        if let Some(h) = self.hierarchies[key.0].as_mut() {
+            h.pages.remove(&key.1);
+        }
         self.messages.push(message.clone());
         self.failed_pages.insert(key, message);
     }
 
     /// Copies ready node `key` into free slots (evicting nodes the view does not draw when
     /// needed) within the frame's upload `budget`; false when it could not be placed now.
-    fn place(&mut self, key: Key, budget: &mut u64) -> Result<bool> {
+    fn place(&mut self, key: NodeId, budget: &mut u64) -> Result<bool> {
         let node = &self.ready[&key];
         let bytes = node.data.len() as u64;
         if bytes > STAGING_BYTES {
             let node = self.ready.remove(&key).expect("ready");
             let message = format!(
-                "node {key} skipped: {} points ({bytes} bytes) exceed the {STAGING_BYTES}-byte staging buffer",
+                "node {} skipped: {} points ({bytes} bytes) exceed the {STAGING_BYTES}-byte staging buffer",
+                key.1,
                 node.points
             );
             self.messages.push(message.clone());
@@ -555,8 +647,8 @@ impl StreamedScene {
     /// Evicts up to `slots` slots' worth of resident nodes the current view does not choose,
     /// least recently drawn first.
     fn evict(&mut self, slots: usize) {
-        let chosen: std::collections::HashSet<&Key> = self.selection.nodes.iter().collect();
-        let mut idle: Vec<(u64, Key)> = self
+        let chosen: HashSet<&NodeId> = self.selection.nodes.iter().collect();
+        let mut idle: Vec<(u64, NodeId)> = self
             .resident
             .iter()
             .filter(|(k, _)| !chosen.contains(k))
@@ -577,20 +669,27 @@ impl StreamedScene {
         }
     }
 
-    /// Hands the loader the chosen nodes that are missing and the pages the view reached,
-    /// most wanted first (at most a few per worker, so a changed view is served soon).
+    /// Hands the loader the files to open, the chosen nodes that are missing and the pages the
+    /// view reached, most wanted first (at most a few per worker, so a changed view is served
+    /// soon).
     fn request(&mut self) {
         let limit = 4 * self.options.loader.threads.max(1);
+        let open = self
+            .selection
+            .open
+            .iter()
+            .filter(|t| !self.failed_tiles.contains(t))
+            .map(|&t| Job::Open(t));
         let pages = self
             .selection
             .pages
             .iter()
             .filter(|k| !self.failed_pages.contains_key(k))
-            .filter_map(|k| {
-                self.hierarchy
-                    .pages
-                    .get(k)
-                    .map(|&(at, len)| Job::Page { key: *k, at, len })
+            .filter_map(|&(tile, key)| {
+                let h = self.hierarchies[tile].as_ref()?;
+                h.pages
+                    .get(&key)
+                    .map(|&(at, len)| Job::Page { tile, key, at, len })
             });
         let nodes = self
             .selection
@@ -601,8 +700,11 @@ impl StreamedScene {
                     && !self.ready.contains_key(k)
                     && !self.failed.contains_key(k)
             })
-            .map(|k| Job::Node(self.hierarchy.nodes[k]));
-        let jobs: Vec<Job> = pages.chain(nodes).take(limit).collect();
+            .filter_map(|&(tile, key)| {
+                let node = self.hierarchies[tile].as_ref()?.nodes.get(&key)?;
+                Some(Job::Node(tile, *node))
+            });
+        let jobs: Vec<Job> = open.chain(pages).chain(nodes).take(limit).collect();
         self.loader.request(&jobs);
     }
 

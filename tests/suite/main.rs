@@ -33,6 +33,8 @@ mod render_methods;
 mod robustness;
 mod splat;
 mod stream;
+mod tiles;
 mod validation;
 mod viewer;
 mod viewer_tools;
+mod vpc;

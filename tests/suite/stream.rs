@@ -476,6 +476,7 @@ mod gpu {
                     attempts: 4,
                     backoff: Duration::from_millis(5),
                     timeout: Duration::from_secs(10),
+                    connections: 8,
                 },
             },
         }

@@ -1,0 +1,531 @@
+//! Virtual point clouds (`.vpc`): the writer's output against the spec, and streaming a
+//! forest of tiles from files and over HTTP.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use glam::{DVec3, Vec3};
+use serde_json::Value;
+use surfel::color;
+use surfel::frame::Frame;
+use surfel::methods::MethodConfig;
+use surfel::render::{Extras, Renderer, View};
+use surfel::scene::{Camera, Cloud, Scalar, Up};
+use surfel::stream::loader::LoaderOptions;
+use surfel::stream::source::HttpOptions;
+use surfel::stream::{convert, vpc};
+use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
+
+use crate::common;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir()
+        .join(format!("surfel-vpc-{}", std::process::id()))
+        .join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Edge of a tile in metres.
+const TILE: f64 = 40.0;
+
+/// The points of tile `(ix, iy)`: a wavy sheet at UTM-sized coordinates on a 0.5 m grid, with
+/// colours, intensity and classification.
+fn tile_cloud(ix: usize, iy: usize) -> Cloud {
+    let side = (TILE / 0.5) as usize;
+    let origin = DVec3::new(
+        500_000.0 + ix as f64 * TILE,
+        4_000_000.0 + iy as f64 * TILE,
+        100.0,
+    );
+    let mut positions = Vec::new();
+    for j in 0..side {
+        for i in 0..side {
+            let (x, y) = (i as f32 * 0.5 + 0.25, j as f32 * 0.5 + 0.25);
+            let (wx, wy) = (x + (ix as f64 * TILE) as f32, y + (iy as f64 * TILE) as f32);
+            positions.push(Vec3::new(
+                x,
+                y,
+                (wx * 0.05).sin() * 3.0 + (wy * 0.04).cos() * 2.0,
+            ));
+        }
+    }
+    let n = positions.len();
+    Cloud {
+        colors: Some(
+            (0..n)
+                .map(|i| {
+                    [
+                        (i % 200) as u8 + 40,
+                        (ix * 60 % 256) as u8,
+                        (iy * 60 % 256) as u8,
+                        255,
+                    ]
+                })
+                .collect(),
+        ),
+        scalars: vec![
+            Scalar {
+                name: "intensity".into(),
+                values: (0..n).map(|i| (i * 37 % 4000) as f32).collect(),
+            },
+            Scalar {
+                name: "classification".into(),
+                values: (0..n).map(|i| (2 + i % 3) as f32).collect(),
+            },
+        ],
+        positions,
+        origin,
+        up: Up::Z,
+        ..Cloud::default()
+    }
+}
+
+/// A `side` x `side` grid of COPC tiles under `dir/tiles` and its `.vpc` at `dir/grid.vpc`;
+/// tile `iy * side + ix` is item `iy * side + ix`.
+fn grid(dir: &Path, side: usize) -> PathBuf {
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    let out = dir.join("grid.vpc");
+    let summaries: Vec<vpc::TileSummary> = (0..side * side)
+        .map(|k| {
+            let path = tiles.join(format!("t{k:02}.copc.laz"));
+            convert::write_with(&tile_cloud(k % side, k / side), &path, 400).unwrap();
+            vpc::summarize(&out, &path).unwrap()
+        })
+        .collect();
+    vpc::write(&out, &summaries).unwrap();
+    out
+}
+
+fn options(point_budget: u64) -> StreamOptions {
+    StreamOptions {
+        point_budget,
+        gpu_bytes: 64 << 20,
+        error_px: 0.0,
+        loader: LoaderOptions {
+            threads: 2,
+            k: 0,
+            scalar: None,
+            normal_field: false,
+            http: HttpOptions {
+                attempts: 3,
+                backoff: Duration::from_millis(5),
+                timeout: Duration::from_secs(10),
+                connections: 4,
+            },
+        },
+    }
+}
+
+struct Streamed {
+    frame: Frame,
+    stats: StreamStats,
+    messages: Vec<String>,
+    /// Per tile: href, opened, bytes read.
+    tiles: Vec<(String, bool, u64)>,
+}
+
+/// Streams `location` until the view of `camera` (from the framing sphere) is complete.
+fn stream(
+    location: &str,
+    options: &StreamOptions,
+    camera: &dyn Fn(&StreamedScene) -> Camera,
+    size: u32,
+) -> Streamed {
+    let ctx = common::context();
+    let mut s = StreamedScene::open(
+        &ctx,
+        location,
+        options,
+        |root| Ok(color::select(root, "rgb", Up::Z).unwrap()),
+        2,
+    )
+    .unwrap();
+    let mut r = Renderer::new(
+        &ctx,
+        &s.scene,
+        s.info,
+        &MethodConfig::parse("points").unwrap(),
+        size,
+        size,
+        Extras {
+            readback: true,
+            frames_in_flight: 2,
+            ..Extras::default()
+        },
+    )
+    .unwrap();
+    let camera = camera(&s);
+    let view = View {
+        camera,
+        lights: Vec::new(),
+        use_color: true,
+        time: 0.0,
+    };
+    let mut messages = Vec::new();
+    for round in 0.. {
+        assert!(round < 2000, "streaming never settled");
+        s.update(&camera, size, size).unwrap();
+        assert!(s.stats().selected_points <= options.point_budget);
+        r.render_batches(&view, Some(s.batches()), false).unwrap();
+        messages.extend(s.take_messages());
+        if s.stable() {
+            break;
+        }
+        s.wait(Duration::from_millis(50));
+    }
+    let frame = r.render_batches(&view, Some(s.batches()), true).unwrap();
+    messages.extend(s.take_messages());
+    drop(r);
+    common::assert_clean(&ctx);
+    Streamed {
+        frame: frame.unwrap(),
+        stats: s.stats(),
+        messages,
+        tiles: s
+            .tiles()
+            .iter()
+            .map(|t| (t.href.clone(), t.file.is_some(), t.bytes_read()))
+            .collect(),
+    }
+}
+
+fn framing(s: &StreamedScene) -> Camera {
+    let (c, r) = s.bounding_sphere();
+    Camera::framing(c, r)
+}
+
+#[test]
+fn the_written_vpc_has_every_field_the_spec_requires() {
+    let dir = scratch("fields");
+    let path = grid(&dir, 2);
+    let json: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    assert_eq!(json["type"], "FeatureCollection");
+    let features = json["features"].as_array().unwrap();
+    assert_eq!(features.len(), 4);
+    for (k, f) in features.iter().enumerate() {
+        assert_eq!(f["type"], "Feature");
+        assert_eq!(f["stac_version"], "1.0.0");
+        assert_eq!(
+            f["stac_extensions"],
+            serde_json::json!([
+                "https://stac-extensions.github.io/pointcloud/v1.0.0/schema.json",
+                "https://stac-extensions.github.io/projection/v1.1.0/schema.json"
+            ])
+        );
+        assert_eq!(f["id"], format!("t{k:02}"));
+        // No CRS: no WGS 84 footprint.
+        assert!(f["geometry"].is_null());
+        assert!(f.get("bbox").is_none());
+        assert_eq!(f["links"], serde_json::json!([]));
+        let p = &f["properties"];
+        assert!(p["datetime"].as_str().unwrap().ends_with("T00:00:00Z"));
+        assert_eq!(p["pc:count"], 6400);
+        assert_eq!(p["pc:type"], "lidar");
+        assert_eq!(p["pc:encoding"], "application/vnd.laszip+copc");
+        let names: Vec<&str> = p["pc:schemas"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|d| d["name"].as_str().unwrap())
+            .collect();
+        assert_eq!(&names[..3], ["X", "Y", "Z"]);
+        assert!(names.contains(&"Red") && names.contains(&"Classification"));
+        assert!(p.get("proj:epsg").is_some_and(Value::is_null));
+        let bbox: Vec<f64> = p["proj:bbox"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let (ix, iy) = ((k % 2) as f64, (k / 2) as f64);
+        assert_eq!(bbox.len(), 6);
+        assert!(
+            (bbox[0] - (500_000.25 + ix * TILE)).abs() < 1e-6,
+            "{bbox:?}"
+        );
+        assert!(
+            (bbox[4] - (4_000_000.0 + iy * TILE + TILE - 0.25)).abs() < 1e-6,
+            "{bbox:?}"
+        );
+        assert_eq!(p["proj:geometry"]["type"], "Polygon");
+        let data = &f["assets"]["data"];
+        assert_eq!(data["href"], format!("./tiles/t{k:02}.copc.laz"));
+        assert_eq!(data["roles"], serde_json::json!(["data"]));
+    }
+    let parsed = vpc::read(path.to_str().unwrap(), &HttpOptions::default()).unwrap();
+    for (k, t) in parsed.tiles.iter().enumerate() {
+        assert_eq!(
+            t.location,
+            dir.join(format!("tiles/t{k:02}.copc.laz"))
+                .display()
+                .to_string()
+        );
+        assert!(Path::new(&t.location).is_file());
+    }
+    assert_eq!(parsed.points(), 4 * 6400);
+}
+
+/// Writes `cloud` as an uncompressed LAS 1.2 file (point format 3: colours, GPS time).
+fn write_las(cloud: &Cloud, path: &Path) {
+    let mut builder = las::Builder::from((1, 2));
+    builder.point_format = las::point::Format::new(3).unwrap();
+    builder.transforms = las::Vector {
+        x: las::Transform {
+            scale: 0.001,
+            offset: cloud.origin.x,
+        },
+        y: las::Transform {
+            scale: 0.001,
+            offset: cloud.origin.y,
+        },
+        z: las::Transform {
+            scale: 0.001,
+            offset: cloud.origin.z,
+        },
+    };
+    let mut w = las::Writer::from_path(path, builder.into_header().unwrap()).unwrap();
+    let colors = cloud.colors.as_ref().unwrap();
+    for (i, p) in cloud.positions.iter().enumerate() {
+        let q = cloud.origin + p.as_dvec3();
+        let c = colors[i];
+        w.write_point(las::Point {
+            x: q.x,
+            y: q.y,
+            z: q.z,
+            intensity: cloud.scalars[0].values[i] as u16,
+            classification: las::point::Classification::new(cloud.scalars[1].values[i] as u8)
+                .unwrap(),
+            color: Some(las::Color::new(
+                u16::from(c[0]) * 257,
+                u16::from(c[1]) * 257,
+                u16::from(c[2]) * 257,
+            )),
+            gps_time: Some(0.0),
+            ..las::Point::default()
+        })
+        .unwrap();
+    }
+    w.close().unwrap();
+}
+
+#[test]
+fn a_hand_written_vpc_with_las_and_copc_tiles_loads() {
+    let dir = scratch("mixed");
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    convert::write_with(&tile_cloud(0, 0), &dir.join("data/a.copc.laz"), 400).unwrap();
+    convert::write_with(&tile_cloud(1, 0), &dir.join("data/b.copc.laz"), 400).unwrap();
+    write_las(&tile_cloud(0, 1), &dir.join("data/c.las"));
+    let item = |id: &str, href: &str, encoding: &str, ix: f64, iy: f64| {
+        let (x, y) = (500_000.0 + ix * TILE, 4_000_000.0 + iy * TILE);
+        format!(
+            r#"{{
+      "type": "Feature",
+      "stac_version": "1.0.0",
+      "stac_extensions": [
+        "https://stac-extensions.github.io/pointcloud/v1.0.0/schema.json",
+        "https://stac-extensions.github.io/projection/v1.1.0/schema.json"
+      ],
+      "id": "{id}",
+      "geometry": null,
+      "properties": {{
+        "datetime": "2023-05-01T00:00:00Z",
+        "pc:count": 6400,
+        "pc:encoding": "{encoding}",
+        "pc:schemas": [],
+        "pc:type": "lidar",
+        "proj:bbox": [{x}, {y}, 94.0, {}, {}, 106.0],
+        "proj:epsg": null
+      }},
+      "links": [],
+      "assets": {{ "data": {{ "href": "{href}", "roles": ["data"] }} }}
+    }}"#,
+            x + TILE,
+            y + TILE
+        )
+    };
+    let text = format!(
+        "{{\n  \"type\": \"FeatureCollection\",\n  \"features\": [\n    {},\n    {},\n    {}\n  ]\n}}\n",
+        item("a", "./data/a.copc.laz", "application/vnd.laszip+copc", 0.0, 0.0),
+        item("b", "data/b.copc.laz", "application/vnd.laszip+copc", 1.0, 0.0),
+        item("c", "./data/../data/c.las", "application/vnd.las", 0.0, 1.0),
+    );
+    let path = dir.join("mixed.vpc");
+    std::fs::write(&path, text).unwrap();
+    let s = stream(path.to_str().unwrap(), &options(u64::MAX), &framing, 128);
+    assert!(s.messages.is_empty(), "{:?}", s.messages);
+    assert_eq!(s.stats.tiles, 3);
+    assert_eq!(s.stats.tiles_open, 3);
+    assert_eq!(s.stats.drawn_points, 3 * 6400);
+    assert!(
+        common::coverage(&s.frame) > 0.2,
+        "{}",
+        common::coverage(&s.frame)
+    );
+}
+
+#[test]
+fn tiles_outside_the_view_are_never_read() {
+    let dir = scratch("culled");
+    let path = grid(&dir, 4);
+    // Close above tile 0 (x and y in [0, TILE) of the grid), looking straight down.
+    let above_tile_0 = |s: &StreamedScene| {
+        let corner = (DVec3::new(500_000.0, 4_000_000.0, 100.0) - s.origin()).as_vec3();
+        let centre = corner + Vec3::new(TILE as f32 * 0.5, TILE as f32 * 0.5, 0.0);
+        Camera::look_at_up(Up::Z, centre + Vec3::new(0.0, -1.0, 30.0), centre, 1.0)
+    };
+    let s = stream(
+        path.to_str().unwrap(),
+        &options(u64::MAX),
+        &above_tile_0,
+        96,
+    );
+    assert!(s.messages.is_empty(), "{:?}", s.messages);
+    assert!(s.tiles[0].1 && s.tiles[0].2 > 0);
+    // The view reaches tiles 0, 1, 4 and 5 at most; one of the four tiles at the grid's
+    // centre (5, 6, 9, 10) is opened first, whatever the view.
+    let mut central = 0;
+    for (k, (href, opened, bytes)) in s.tiles.iter().enumerate() {
+        if [6, 9, 10].contains(&k) && *opened {
+            central += 1;
+        } else if k % 4 >= 2 || k / 4 >= 2 {
+            assert!(
+                !opened && *bytes == 0,
+                "{href}: opened {opened}, {bytes} bytes read"
+            );
+        }
+    }
+    assert!(central <= 1, "{central}");
+    assert!(s.stats.tiles_open <= 5, "{}", s.stats.tiles_open);
+    assert!(
+        common::coverage(&s.frame) > 0.1,
+        "{}",
+        common::coverage(&s.frame)
+    );
+}
+
+/// A loopback HTTP/1.1 server for the files under a directory, answering `Range` requests.
+/// `fault(path)` may replace every answer for a path with a status code.
+struct Server {
+    url: String,
+    requests: Arc<Mutex<HashMap<String, u64>>>,
+}
+
+fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
+    use std::io::{BufRead, BufReader, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("http://{}", listener.local_addr().unwrap());
+    let requests = Arc::new(Mutex::new(HashMap::<String, u64>::new()));
+    let count = requests.clone();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let (root, count) = (root.clone(), count.clone());
+            std::thread::spawn(move || {
+                let mut reader = BufReader::new(stream.try_clone().unwrap());
+                loop {
+                    let mut line = String::new();
+                    if reader.read_line(&mut line).unwrap_or(0) == 0 {
+                        return;
+                    }
+                    let path = line.split_whitespace().nth(1).unwrap_or("").to_owned();
+                    let mut range = None;
+                    loop {
+                        let mut h = String::new();
+                        if reader.read_line(&mut h).unwrap_or(0) == 0 || h.trim().is_empty() {
+                            break;
+                        }
+                        let lower = h.to_ascii_lowercase();
+                        if let Some(r) = lower.strip_prefix("range: bytes=") {
+                            let (a, b) = r.trim().split_once('-').unwrap();
+                            range = Some((a.parse::<u64>().unwrap(), b.parse::<u64>().unwrap()));
+                        }
+                    }
+                    *count.lock().unwrap().entry(path.clone()).or_default() += 1;
+                    let reply = |stream: &mut std::net::TcpStream,
+                                 status: &str,
+                                 headers: String,
+                                 body: &[u8]| {
+                        let head = format!(
+                            "HTTP/1.1 {status}\r\nContent-Length: {}\r\n{headers}\r\n",
+                            body.len()
+                        );
+                        stream.write_all(head.as_bytes()).is_ok() && stream.write_all(body).is_ok()
+                    };
+                    let ok = if let Some(code) = fault(&path) {
+                        reply(&mut stream, &format!("{code} Injected"), String::new(), b"")
+                    } else {
+                        match std::fs::read(root.join(path.trim_start_matches('/'))) {
+                            Err(_) => reply(&mut stream, "404 Not Found", String::new(), b"no"),
+                            Ok(bytes) => match range {
+                                None => reply(&mut stream, "200 OK", String::new(), &bytes),
+                                Some((a, b)) => {
+                                    let end = (b as usize).min(bytes.len() - 1);
+                                    reply(
+                                        &mut stream,
+                                        "206 Partial Content",
+                                        format!(
+                                            "Content-Range: bytes {a}-{end}/{}\r\n",
+                                            bytes.len()
+                                        ),
+                                        &bytes[a as usize..=end],
+                                    )
+                                }
+                            },
+                        }
+                    };
+                    if !ok {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    Server { url, requests }
+}
+
+#[test]
+fn sixteen_tiles_over_http_equal_the_local_render() {
+    let dir = scratch("http");
+    let path = grid(&dir, 4);
+    let local = stream(path.to_str().unwrap(), &options(200_000), &framing, 128);
+    let server = serve(dir.clone(), |_| None);
+    let url = format!("{}/grid.vpc", server.url);
+    let remote = stream(&url, &options(200_000), &framing, 128);
+    assert!(local.messages.is_empty(), "{:?}", local.messages);
+    assert!(remote.messages.is_empty(), "{:?}", remote.messages);
+    assert_eq!(local.stats.tiles_open, 16);
+    assert_eq!(remote.stats.drawn_points, local.stats.drawn_points);
+    // Opening a file over HTTP asks for its first byte (its length and range support).
+    assert_eq!(remote.stats.bytes_read, local.stats.bytes_read + 16);
+    assert!(remote.frame.color == local.frame.color);
+    assert!(common::coverage(&local.frame) > 0.3);
+    let requests = server.requests.lock().unwrap();
+    assert_eq!(requests.len(), 17, "{requests:?}");
+}
+
+#[test]
+fn a_missing_tile_and_a_failing_server_are_each_reported_once() {
+    let dir = scratch("faults");
+    grid(&dir, 2);
+    std::fs::remove_file(dir.join("tiles/t01.copc.laz")).unwrap();
+    let server = serve(dir.clone(), |p| (p == "/tiles/t02.copc.laz").then_some(503));
+    let url = format!("{}/grid.vpc", server.url);
+    let s = stream(&url, &options(u64::MAX), &framing, 96);
+    let base = format!("{}/tiles", server.url);
+    let mut messages = s.messages.clone();
+    messages.sort();
+    assert_eq!(
+        messages,
+        [
+            format!("tile ./tiles/t01.copc.laz skipped: {base}/t01.copc.laz: bytes 0..1: HTTP 404"),
+            format!("tile ./tiles/t02.copc.laz skipped: {base}/t02.copc.laz: bytes 0..1: HTTP 503 (after 3 attempts)"),
+        ]
+    );
+    assert_eq!(s.stats.drawn_points, 2 * 6400);
+    assert_eq!(s.stats.tiles_open, 2);
+    assert_eq!(server.requests.lock().unwrap()["/tiles/t02.copc.laz"], 3);
+}
