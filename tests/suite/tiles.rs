@@ -585,3 +585,56 @@ fn a_merge_of_inputs_in_two_crss_is_refused() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn tiles_merged_into_one_copc_file_keep_every_point() {
+    let dir = scratch("merge");
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    let sizes = [("a", 400), ("b", 350), ("c", 250)];
+    for (k, (name, n)) in sizes.iter().enumerate() {
+        let x0 = 500_000.0 + 100.0 * k as f64;
+        write_tile(
+            &input.join(format!("{name}.las")),
+            *n,
+            x0,
+            k != 1,
+            Some(32610),
+        );
+    }
+    let out = dir.join("all.copc.laz");
+    let o = surfel(&[
+        "convert",
+        text(&input.join("*.las")),
+        "--node-points",
+        "1000",
+        "--out",
+        text(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let inputs: Vec<PathBuf> = sizes
+        .iter()
+        .map(|(name, _)| input.join(format!("{name}.las")))
+        .collect();
+    // The merged file has colours, since two inputs do: the third's points are black.
+    let mut expected: Vec<Record> = union(&inputs)
+        .into_iter()
+        .map(|(p, c, v)| (p, if c[3] == 0 { [0, 0, 0, 255] } else { c }, v))
+        .collect();
+    expected.sort_unstable();
+    assert_eq!(expected.len(), 1000);
+    assert_eq!(union(std::slice::from_ref(&out)), expected);
+    // Its header's bounds are those of the tiles together, within a step of the 0.001 scale.
+    let (lo, hi) = header_bounds(&out);
+    for axis in 0..3 {
+        let lows = inputs.iter().map(|i| header_bounds(i).0[axis]);
+        let highs = inputs.iter().map(|i| header_bounds(i).1[axis]);
+        let (ilo, ihi) = (
+            lows.fold(f64::MAX, f64::min),
+            highs.fold(f64::MIN, f64::max),
+        );
+        assert!((lo[axis] - ilo).abs() < 1.5e-3, "{lo:?} {ilo}");
+        assert!((hi[axis] - ihi).abs() < 1.5e-3, "{hi:?} {ihi}");
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
