@@ -336,6 +336,18 @@ fn read_las(inputs: &[PathBuf], options: &ConvertOptions) -> Result<Option<Read>
         .ok()
         .and_then(|n| n.checked_mul(len))
         .context("the inputs declare more points than this machine can address")?;
+    // The records, their sort keys (16 bytes a point) and the nodes' indices (4).
+    let needed = bytes as u64 + total * 20;
+    if let Some(available) = crate::scene::sample::available_memory() {
+        if needed > available {
+            bail!(
+                "{} points need about {:.1} GB to convert into one file and {:.1} GB are available; convert them as tiles (--tiles)",
+                total,
+                needed as f64 / 1e9,
+                available as f64 / 1e9
+            );
+        }
+    }
     let mut records = vec![0u8; bytes];
     let mut parts = Vec::with_capacity(opened.len());
     let mut rest = records.as_mut_slice();
