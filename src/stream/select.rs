@@ -120,7 +120,8 @@ struct Measure {
 /// The point spacing of node `n`: the larger of the file's nominal spacing at its level
 /// (`info.spacing / 2^level`) and what its points give on a surface through its cube
 /// (`edge / sqrt(points)`: scans and LiDAR sample 2-manifolds). Writers set the nominal value
-/// from the cube alone (`copc-writer`: half size / 128), whatever the points per node.
+/// from the cube alone (half size / 128, as `copc-writer` and this project's writer do),
+/// whatever the points per node.
 pub fn spacing(info: &Info, n: &Node) -> f64 {
     let scale = f64::from(1u32 << n.key.level.clamp(0, 31));
     let edge = 2.0 * info.halfsize / scale;
