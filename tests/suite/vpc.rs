@@ -529,3 +529,68 @@ fn a_missing_tile_and_a_failing_server_are_each_reported_once() {
     assert_eq!(s.stats.tiles_open, 2);
     assert_eq!(server.requests.lock().unwrap()["/tiles/t02.copc.laz"], 3);
 }
+
+/// Four LAS tiles (point format 3, each with its own offset) converted into one COPC file and
+/// into four tiles with a `.vpc` render the same image at full budget.
+#[test]
+fn merged_and_tiled_conversions_render_the_same_image() {
+    let dir = scratch("merged-and-tiled");
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    for k in 0..4 {
+        write_las(&tile_cloud(k % 2, k / 2), &input.join(format!("t{k}.las")));
+    }
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_surfel"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    let input = input.to_str().unwrap();
+    let merged = dir.join("all.copc.laz");
+    let tiled = dir.join("tiled");
+    run(&[
+        "convert",
+        input,
+        "--node-points",
+        "1000",
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    run(&[
+        "convert",
+        input,
+        "--tiles",
+        "--node-points",
+        "1000",
+        "--out",
+        tiled.to_str().unwrap(),
+    ]);
+    let all = options(1 << 30);
+    let one = stream(merged.to_str().unwrap(), &all, &framing, 160);
+    let four = stream(
+        tiled.join("tiled.vpc").to_str().unwrap(),
+        &all,
+        &framing,
+        160,
+    );
+    assert_eq!(one.stats.drawn_points, 4 * 80 * 80);
+    assert_eq!(four.stats.drawn_points, one.stats.drawn_points);
+    assert!(common::coverage(&one.frame) > 0.3);
+    // The merged file and the tiles place the same points in different local frames (the
+    // merged header's offset against each tile's), so a point lying on a pixel boundary may
+    // round to either side: at most a few pixels per edge row differ.
+    let differing = one
+        .frame
+        .color
+        .iter()
+        .zip(&four.frame.color)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differing <= 80,
+        "{differing} of {} pixels differ",
+        one.frame.color.len()
+    );
+}
