@@ -10,6 +10,7 @@ use super::script::Tool;
 use super::tools::{self, Measure, Pick, Screen, Target};
 use super::Viewer;
 use crate::frame::Frame;
+use crate::gpu::layout::GpuBatch;
 use crate::overlay::{HudLine, Mark};
 use crate::scene::clip::{classification_field, ClipBox, Keep};
 use crate::scene::scene_file::Bookmark;
@@ -61,6 +62,13 @@ impl ClickTool {
     }
 }
 
+/// A streamed file's drawn points near the cursor, read again for a pick: one cloud, and per
+/// node its first point there and its name.
+struct NodePoints {
+    cloud: crate::scene::Cloud,
+    nodes: Vec<(usize, String)>,
+}
+
 /// Marker colors: picked points, measurement lines, the clipping box.
 const MARKER: [u8; 4] = [255, 214, 102, 255];
 const OUTLINE: [u8; 4] = [20, 20, 20, 255];
@@ -99,12 +107,64 @@ impl Viewer {
             .get_or_insert_with(|| crate::hpr::spacing(&self.cloud))
     }
 
-    /// Picks at `pixel` of `frame` (rendered with `camera`).
-    fn pick_at(&mut self, frame: &Frame, camera: &Camera, pixel: IVec2) -> Pick {
-        let spacing = self.spacing();
-        let resolved = self.filter.active(self.cloud.origin);
+    /// The points picks at `pixels` read: `None` for a loaded file (its cloud), else a
+    /// streamed file's drawn nodes whose batch boxes reach the pick cones, read again.
+    fn streamed_points(
+        &mut self,
+        frame: &Frame,
+        camera: &Camera,
+        pixels: &[IVec2],
+    ) -> Option<NodePoints> {
+        let streamed = self.streamed.as_mut()?;
+        let aspect = frame.width as f32 / frame.height.max(1) as f32;
+        let view_proj = camera.projection(aspect) * camera.view();
+        let half = glam::Vec2::new(frame.width as f32, frame.height as f32) * 0.5;
+        let reach = (tools::CONE_RADIUS + 1) as f32;
+        let near = |b: &GpuBatch| {
+            let (mut lo, mut hi) = (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY);
+            for k in 0..8 {
+                let corner = Vec3::new(
+                    if k & 1 != 0 { b.max_x } else { b.min_x },
+                    if k & 2 != 0 { b.max_y } else { b.min_y },
+                    if k & 4 != 0 { b.max_z } else { b.min_z },
+                );
+                let c = view_proj * corner.extend(1.0);
+                if c.w <= 0.0 {
+                    // A box reaching behind the eye may cover any pixel.
+                    return true;
+                }
+                let win = glam::Vec2::new(c.x, c.y) / c.w * half + half;
+                lo = lo.min(win);
+                hi = hi.max(win);
+            }
+            pixels.iter().any(|p| {
+                let p = p.as_vec2() + 0.5;
+                p.cmpge(lo - reach).all() && p.cmple(hi + reach).all()
+            })
+        };
+        let (cloud, nodes) = streamed.drawn_points(near);
+        Some(NodePoints { cloud, nodes })
+    }
+
+    /// Picks at `pixel` of `frame` (rendered with `camera`) among the loaded cloud's points,
+    /// or `streamed`'s.
+    fn pick_at(
+        &mut self,
+        frame: &Frame,
+        camera: &Camera,
+        pixel: IVec2,
+        streamed: Option<&NodePoints>,
+    ) -> Pick {
+        // A streamed file's nodes mix levels: the cone's own spacing estimate stands alone.
+        let spacing = if streamed.is_some() {
+            0.0
+        } else {
+            self.spacing()
+        };
+        let cloud = streamed.map_or(&self.cloud, |s| &s.cloud);
+        let resolved = self.filter.active(cloud.origin);
         let target = Target {
-            cloud: &self.cloud,
+            cloud,
             filter: resolved.as_ref(),
             spacing,
         };
@@ -116,33 +176,41 @@ impl Viewer {
         };
         let x = pixel.x.clamp(0, frame.width as i32 - 1);
         let y = pixel.y.clamp(0, frame.height as i32 - 1);
-        tools::pick(&target, &screen, IVec2::new(x, y))
+        let mut pick = tools::pick(&target, &screen, IVec2::new(x, y));
+        if let (Some(s), Some(p)) = (streamed, pick.picked.as_mut()) {
+            let k = s.nodes.partition_point(|(first, _)| *first <= p.index) - 1;
+            let (first, name) = &s.nodes[k];
+            p.node = Some((name.clone(), p.index - first));
+        }
+        pick
     }
 
     /// Runs the tool commands that waited for `frame` (rendered with `camera`).
     pub(super) fn resolve_requests(&mut self, frame: &Frame, camera: &Camera) -> Result<()> {
         for request in std::mem::take(&mut self.requests) {
-            let picks = matches!(
-                request,
-                Tool::Pick(..) | Tool::Measure(..) | Tool::Click(..)
-            );
-            if picks && self.streamed.is_some() {
-                let e = "picking and measuring need a loaded file: the viewer does not keep a \
-                         streamed file's points on the CPU";
-                println!("{}", json!({ "error": e }));
-                self.outcome(Ok(e.into()))?;
-                continue;
-            }
+            let pixels: Vec<IVec2> = match &request {
+                Tool::Pick(x, y) | Tool::Click(x, y) => vec![IVec2::new(*x, *y)],
+                Tool::Measure(_, pixels) => pixels.iter().map(|&(x, y)| IVec2::new(x, y)).collect(),
+                _ => Vec::new(),
+            };
+            let streamed = if pixels.is_empty() {
+                None
+            } else {
+                self.streamed_points(frame, camera, &pixels)
+            };
+            let streamed = streamed.as_ref();
             match request {
                 Tool::Pick(x, y) => {
-                    let pick = self.pick_at(frame, camera, IVec2::new(x, y));
-                    println!("{}", json!({ "pick": pick.json(&self.cloud) }));
+                    let pick = self.pick_at(frame, camera, IVec2::new(x, y), streamed);
+                    let cloud = streamed.map_or(&self.cloud, |s| &s.cloud);
+                    println!("{}", json!({ "pick": pick.json(cloud) }));
                 }
                 Tool::Measure(kind, pixels) => {
                     let picks: Vec<Pick> = pixels
                         .iter()
-                        .map(|&(x, y)| self.pick_at(frame, camera, IVec2::new(x, y)))
+                        .map(|&(x, y)| self.pick_at(frame, camera, IVec2::new(x, y), streamed))
                         .collect();
+                    let cloud = streamed.map_or(&self.cloud, |s| &s.cloud);
                     let points: Option<Vec<DVec3>> = picks
                         .iter()
                         .map(|p| p.picked.as_ref().map(|q| q.world))
@@ -155,7 +223,7 @@ impl Viewer {
                     out.insert("kind".into(), json!(kind.name()));
                     out.insert(
                         "picks".into(),
-                        picks.iter().map(|p| p.json(&self.cloud)).collect(),
+                        picks.iter().map(|p| p.json(cloud)).collect(),
                     );
                     for (name, v) in &values {
                         out.insert((*name).into(), json!(v));
@@ -182,8 +250,8 @@ impl Viewer {
                     );
                 }
                 Tool::Click(x, y) => {
-                    let pick = self.pick_at(frame, camera, IVec2::new(x, y));
-                    self.clicked(pick)?;
+                    let pick = self.pick_at(frame, camera, IVec2::new(x, y), streamed);
+                    self.clicked(pick, streamed)?;
                 }
                 other => self.tool_now(other)?,
             }
@@ -192,9 +260,11 @@ impl Viewer {
         Ok(())
     }
 
-    /// A click's pick, applied by the current tool.
-    fn clicked(&mut self, pick: Pick) -> Result<()> {
-        println!("{}", json!({ "pick": pick.json(&self.cloud) }));
+    /// A click's pick (among `streamed`'s points for a streamed file), applied by the
+    /// current tool.
+    fn clicked(&mut self, pick: Pick, streamed: Option<&NodePoints>) -> Result<()> {
+        let cloud = streamed.map_or(&self.cloud, |s| &s.cloud);
+        println!("{}", json!({ "pick": pick.json(cloud) }));
         let Some(p) = pick.picked else {
             return self.outcome(Ok(format!(
                 "no visible point within {} pixels of {}, {}",
@@ -211,10 +281,14 @@ impl Viewer {
         let n = self.picks.len();
         match self.tool {
             ClickTool::Pick => {
-                let a = tools::attributes(&self.cloud, p.index);
+                let a = tools::attributes(streamed.map_or(&self.cloud, |s| &s.cloud), p.index);
+                let index = match &p.node {
+                    Some((node, i)) => format!("{i} of {node}"),
+                    None => p.index.to_string(),
+                };
                 let message = format!(
-                    "point {} at {:.3}, {:.3}, {:.3}  {a}",
-                    p.index, p.world.x, p.world.y, p.world.z
+                    "point {index} at {:.3}, {:.3}, {:.3}  {a}",
+                    p.world.x, p.world.y, p.world.z
                 );
                 self.outcome(Ok(message))
             }

@@ -764,7 +764,7 @@ impl Viewer {
     /// not per frame) and rebuilds the renderer on the new segment table.
     fn cycle_color(&mut self) -> Result<()> {
         if self.streamed.is_some() {
-            // Reported like a streamed pick: the tour goes on.
+            // Reported, not failed: a scripted tour goes on.
             let e = "V is off for a streamed file: its colour field is chosen when it opens \
                      (--color-by)";
             println!("{}", serde_json::json!({ "error": e }));

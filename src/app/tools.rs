@@ -75,7 +75,11 @@ pub fn pixel_of(view_proj: Mat4, p: Vec3, width: u32, height: u32) -> Option<(IV
 /// A picked point.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Picked {
+    /// The point's index in the cloud picked from.
     pub index: usize,
+    /// For a streamed file, the node holding the point ("HREF node KEY") and its index there
+    /// (printed as the point's index).
+    pub node: Option<(String, usize)>,
     /// The pixel the point is drawn at.
     pub pixel: IVec2,
     /// In the file's coordinates: the cloud's f64 origin plus the local f32 position.
@@ -187,6 +191,7 @@ pub fn pick(target: &Target<'_>, screen: &Screen<'_>, pixel: IVec2) -> Pick {
             .first()
             .map(|&(index, pixel, view_depth)| Picked {
                 index,
+                node: None,
                 pixel,
                 world: cloud.origin + cloud.positions[index].as_dvec3(),
                 view_depth,
@@ -223,7 +228,8 @@ impl Pick {
             "hidden_by_hpr": self.hidden,
             "hpr_cone_points": self.cone_points,
             "point": self.picked.as_ref().map(|p| json!({
-                "index": p.index,
+                "index": p.node.as_ref().map_or(p.index, |n| n.1),
+                "node": p.node.as_ref().map(|n| &n.0),
                 "position": [p.world.x, p.world.y, p.world.z],
                 "drawn_at": [p.pixel.x, p.pixel.y],
                 "view_depth": p.view_depth,

@@ -224,6 +224,63 @@ impl Cloud {
         out
     }
 
+    /// The points of `parts` one after another, in the first part's frame (every part must
+    /// share its origin): a per-point field is kept when every part has it, a scalar field
+    /// when every part has one of its name; faces, lines and sensors are dropped.
+    pub fn concat(parts: Vec<Cloud>) -> Cloud {
+        let Some(first) = parts.first() else {
+            return Cloud::default();
+        };
+        let all = |has: &dyn Fn(&Cloud) -> bool| parts.iter().all(has);
+        let keep_normals = all(&|c| c.normals.is_some());
+        let keep_colors = all(&|c| c.colors.is_some());
+        let keep_radii = all(&|c| c.radii.is_some());
+        let names: Vec<String> = first
+            .scalars
+            .iter()
+            .map(|s| s.name.clone())
+            .filter(|n| all(&|c| c.scalars.iter().any(|s| &s.name == n)))
+            .collect();
+        let mut out = Cloud {
+            normals: keep_normals.then(Vec::new),
+            colors: keep_colors.then(Vec::new),
+            radii: keep_radii.then(Vec::new),
+            scalars: names
+                .iter()
+                .map(|name| Scalar {
+                    name: name.clone(),
+                    values: Vec::new(),
+                })
+                .collect(),
+            origin: first.origin,
+            up: first.up,
+            survey: first.survey,
+            ..Cloud::default()
+        };
+        for part in parts {
+            out.positions.extend(part.positions);
+            if let (Some(o), Some(p)) = (out.normals.as_mut(), part.normals) {
+                o.extend(p);
+            }
+            if let (Some(o), Some(p)) = (out.colors.as_mut(), part.colors) {
+                o.extend(p);
+            }
+            if let (Some(o), Some(p)) = (out.radii.as_mut(), part.radii) {
+                o.extend(p);
+            }
+            for s in &mut out.scalars {
+                let values = part
+                    .scalars
+                    .iter()
+                    .find(|p| p.name == s.name)
+                    .map(|p| p.values.as_slice())
+                    .unwrap_or_default();
+                s.values.extend_from_slice(values);
+            }
+        }
+        out
+    }
+
     /// Moves scalar fields that hold geometry into place: three normal components (named
     /// `NormalX`/`nx`/`normal_x` and so on, in any case), or the two 16-bit octahedral
     /// coordinates `surfel convert` writes, become `normals`, a field named `radius` becomes
@@ -386,6 +443,39 @@ impl Cloud {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn concat_keeps_the_fields_every_part_has() {
+        let scalar = |name: &str, v: &[f32]| Scalar {
+            name: name.into(),
+            values: v.to_vec(),
+        };
+        let a = Cloud {
+            positions: vec![Vec3::X, Vec3::Y],
+            colors: Some(vec![[1; 4], [2; 4]]),
+            radii: Some(vec![0.5, 0.25]),
+            scalars: vec![
+                scalar("intensity", &[1.0, 2.0]),
+                scalar("only_a", &[7.0, 8.0]),
+            ],
+            origin: DVec3::new(10.0, 0.0, 0.0),
+            ..Cloud::default()
+        };
+        let b = Cloud {
+            positions: vec![Vec3::Z],
+            colors: Some(vec![[3; 4]]),
+            scalars: vec![scalar("intensity", &[3.0])],
+            ..Cloud::default()
+        };
+        let c = Cloud::concat(vec![a, b]);
+        assert_eq!(c.positions, vec![Vec3::X, Vec3::Y, Vec3::Z]);
+        assert_eq!(c.colors, Some(vec![[1; 4], [2; 4], [3; 4]]));
+        assert_eq!(c.radii, None);
+        assert_eq!(c.normals, None);
+        assert_eq!(c.scalars, vec![scalar("intensity", &[1.0, 2.0, 3.0])]);
+        assert_eq!(c.origin, DVec3::new(10.0, 0.0, 0.0));
+        assert!(Cloud::concat(Vec::new()).is_empty());
+    }
 
     #[test]
     fn duplicates_count_repeats_and_the_positions_repeated() {

@@ -728,6 +728,38 @@ impl Loader {
         encode(&self.shared, file, &self.tiles[tile].location, key, cloud)
     }
 
+    /// Reads and decodes `nodes` (file, node) again, in parallel on the calling thread's
+    /// pool, as the scene's points (their fields conformed, no normals or radii added): for
+    /// tools that need drawn nodes' points on the CPU, which the workers do not keep once
+    /// encoded.
+    pub fn read_points(&self, nodes: &[(TileId, Node)]) -> Vec<Result<Cloud, LoadError>> {
+        use rayon::prelude::*;
+        let (shared, tiles) = (&*self.shared, &self.tiles);
+        nodes
+            .par_iter()
+            .map(|(tile, node)| {
+                let t = &tiles[*tile];
+                let file = t
+                    .file
+                    .as_ref()
+                    .ok_or_else(|| LoadError::whole(&t.location, "the file is not open"))?;
+                let mut cloud = match (&file.copc, &file.source) {
+                    (Some(copc), Some(source)) => {
+                        let data = copc.read_chunk(source.as_ref(), node)?;
+                        let decoded = copc.decode_guarded(node, &data)?;
+                        let mut cloud =
+                            copc::to_cloud(copc, decoded, shared.origin, file.eight_bit);
+                        cloud.retain_finite();
+                        cloud
+                    }
+                    _ => open_whole(&file.spec, &shared.http, Some(shared.origin))?.2,
+                };
+                conform(shared, &mut cloud);
+                Ok(cloud)
+            })
+            .collect()
+    }
+
     /// What the workers have done so far.
     pub fn stats(&self) -> LoaderStats {
         let c = &self.shared.counters;

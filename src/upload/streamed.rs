@@ -730,6 +730,52 @@ impl StreamedScene {
         self.scene.draw_points.set(end * BATCH_POINTS);
     }
 
+    /// The points of the nodes drawn this frame that `near` accepts (given one of a node's
+    /// batch boxes, local frame), read again from their files: one cloud in the scene's local
+    /// frame, and per node its first point in that cloud and its name ("HREF node KEY"). The
+    /// GPU pool holds only encoded streams, so a tool that needs a drawn point's attributes
+    /// (picking, measuring) reads the few nodes under the cursor; a node that cannot be read
+    /// again is left out with a message.
+    pub fn drawn_points(
+        &mut self,
+        near: impl Fn(&GpuBatch) -> bool,
+    ) -> (Cloud, Vec<(usize, String)>) {
+        let wanted: Vec<(TileId, crate::scene::copc::Node)> = self
+            .selection
+            .nodes
+            .iter()
+            .filter(|id| {
+                self.resident
+                    .get(id)
+                    .is_some_and(|r| r.batches.iter().any(&near))
+            })
+            .filter_map(|id| {
+                let node = self.hierarchies[id.0].as_ref()?.nodes.get(&id.1)?;
+                Some((id.0, *node))
+            })
+            .collect();
+        let mut parts = Vec::new();
+        let mut names = Vec::new();
+        let mut first = 0;
+        for ((tile, node), read) in wanted.iter().zip(self.loader.read_points(&wanted)) {
+            let href = &self.loader.tiles()[*tile].href;
+            match read {
+                Ok(cloud) => {
+                    names.push((first, format!("{href} node {}", node.key)));
+                    first += cloud.len();
+                    parts.push(cloud);
+                }
+                Err(e) => self.messages.push(format!(
+                    "{href} node {} not read for the tool: {e}",
+                    node.key
+                )),
+            }
+        }
+        let mut cloud = Cloud::concat(parts);
+        cloud.origin = self.info.origin;
+        (cloud, names)
+    }
+
     /// The centre and radius of the cloud's bounds (local frame), for framing a camera.
     pub fn bounding_sphere(&self) -> (Vec3, f32) {
         (self.info.centre, self.info.radius)

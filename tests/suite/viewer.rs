@@ -547,7 +547,8 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
         "{stdout}"
     );
     // The class filter and the box apply to the streamed nodes too (the nodes carry the class
-    // stream); picking refuses a streamed file with a message.
+    // stream); a pick reads the drawn nodes under the cursor again and finds a point of the
+    // file, with its node and attributes.
     let counts: Vec<u64> = stdout
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
@@ -559,9 +560,33 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
         counts[2] < counts[0] * 3 / 4 && counts[2] > 0,
         "the box: {counts:?}"
     );
+    let pick = stdout
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find_map(|v| v.get("pick").cloned())
+        .unwrap_or_else(|| panic!("no pick: {stdout}"));
+    let point = &pick["point"];
     assert!(
-        stdout.contains(r#"{"error":"picking and measuring need a loaded file"#),
-        "{stdout}"
+        point["node"]
+            .as_str()
+            .is_some_and(|n| n.contains("autzen.copc.laz node ")),
+        "{pick}"
+    );
+    assert!(point["attributes"]["classification"].is_number(), "{pick}");
+    let at: Vec<f64> = (0..3)
+        .map(|k| point["position"][k].as_f64().unwrap())
+        .collect();
+    let nearest = cloud
+        .positions
+        .iter()
+        .map(|p| {
+            let w = cloud.origin + p.as_dvec3();
+            (w - glam::DVec3::from_slice(&at)).length()
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        nearest < 0.01,
+        "{pick}: {nearest} m from a point of the file"
     );
     let methods: Vec<&str> = stdout
         .lines()

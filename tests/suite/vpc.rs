@@ -594,3 +594,57 @@ fn merged_and_tiled_conversions_render_the_same_image() {
         one.frame.color.len()
     );
 }
+
+/// The viewer measures across tiles: each pick reads the drawn nodes under the cursor again
+/// and finds a point of its tile, and the distance is between those points.
+#[test]
+fn the_viewer_measures_a_distance_between_points_of_two_tiles() {
+    let dir = scratch("measure");
+    let vpc = grid(&dir, 2);
+    std::fs::write(dir.join("tour.txt"), "measure distance 60 120 260 120\n").unwrap();
+    let o = crate::viewer::view(
+        &dir,
+        "640x480",
+        &vpc,
+        &["--size", "320x240", "--stream", "--script", "tour.txt"],
+    );
+    let stdout = crate::viewer::text(&o.stdout);
+    assert!(o.status.success(), "{}", crate::viewer::text(&o.stderr));
+    let measure = stdout
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .find_map(|v| v.get("measure").cloned())
+        .unwrap_or_else(|| panic!("no measurement: {stdout}"));
+    let clouds: Vec<Cloud> = (0..4).map(|k| tile_cloud(k % 2, k / 2)).collect();
+    let mut ends = Vec::new();
+    let mut tiles = Vec::new();
+    for pick in measure["picks"].as_array().unwrap() {
+        let p = &pick["point"];
+        let at = DVec3::from_slice(
+            &(0..3)
+                .map(|k| p["position"][k].as_f64().unwrap())
+                .collect::<Vec<_>>(),
+        );
+        let node = p["node"].as_str().unwrap_or_else(|| panic!("{measure}"));
+        let k: usize = node[node.find("t0").unwrap() + 2..][..1].parse().unwrap();
+        let cloud = &clouds[k];
+        let nearest = cloud
+            .positions
+            .iter()
+            .map(|q| (cloud.origin + q.as_dvec3() - at).length())
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest < 0.01,
+            "{pick}: {nearest} m from a point of tile {k}"
+        );
+        ends.push(at);
+        tiles.push(k);
+    }
+    assert_eq!(ends.len(), 2, "{measure}");
+    assert_ne!(tiles[0], tiles[1], "{measure}");
+    let distance = measure["distance"].as_f64().unwrap();
+    assert!(
+        (distance - ends[0].distance(ends[1])).abs() < 1e-6,
+        "{measure}"
+    );
+}
