@@ -896,9 +896,17 @@ fn work(shared: &Shared, queue: &(Mutex<Queue>, Condvar), send: &Sender<Finished
 }
 
 /// Opens a file in the scene's frame and encodes its root.
+/// Its reading and decoding count as reading.
 fn open_job(shared: &Shared, spec: &Spec) -> Result<Box<Opening>, LoadError> {
+    let c = &shared.counters;
+    let start = Instant::now();
     let (file, hierarchy, cloud, _) = open_tile(spec, &shared.http, Some(shared.origin))?;
+    let start = add_since(&c.read_ns, start);
+    let points = cloud.len() as u64;
     let root = encode(shared, &file, &spec.location, Key::ROOT, cloud)?;
+    add_since(&c.prepare_ns, start);
+    c.nodes.fetch_add(1, Ordering::Relaxed);
+    c.points.fetch_add(points, Ordering::Relaxed);
     Ok(Box::new(Opening {
         file,
         opened: OpenedTile { hierarchy, root },

@@ -529,3 +529,83 @@ fn a_missing_tile_and_a_failing_server_are_each_reported_once() {
     assert_eq!(s.stats.tiles_open, 2);
     assert_eq!(server.requests.lock().unwrap()["/tiles/t02.copc.laz"], 3);
 }
+
+/// A root of 100 points at `centre` (half size 1) with eight children of 100 points.
+fn two_levels(centre: DVec3) -> (surfel::stream::select::Hierarchy, surfel::scene::copc::Info) {
+    use surfel::scene::copc::{Entry, Info, Key, Node};
+    let node = |key| {
+        Entry::Node(Node {
+            key,
+            offset: 0,
+            bytes: 1,
+            points: 100,
+            entry_at: 0,
+        })
+    };
+    let mut h = surfel::stream::select::Hierarchy::default();
+    let mut entries = vec![node(Key::ROOT)];
+    entries.extend(Key::ROOT.children().map(node));
+    h.add_page(0, entries);
+    let info = Info {
+        center: centre,
+        halfsize: 1.0,
+        spacing: 0.5,
+        root: (0, 0),
+        gps_time: (0.0, 0.0),
+    };
+    (h, info)
+}
+
+#[test]
+fn every_visible_tile_root_is_drawn_before_any_tile_is_refined() {
+    use surfel::scene::copc::Key;
+    use surfel::stream::select::{select_forest, Budget, SelectView, Tree};
+    let (near, near_info) = two_levels(DVec3::ZERO);
+    let (far, far_info) = two_levels(DVec3::new(8.0, 0.0, 0.0));
+    let camera = Camera::look_at_up(
+        Up::Z,
+        Vec3::new(-3.0, 0.0, 2.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        1.0,
+    );
+    let view = SelectView {
+        view_proj: camera.projection(1.0) * camera.view(),
+        eye: camera.eye,
+        pixels_per_radian: 500.0,
+        error_px: 0.5,
+    };
+    let unit = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let unopened = |x: f64| Tree {
+        hierarchy: None,
+        info: &near_info,
+        bounds: (
+            DVec3::new(x - 1.0, -1.0, -1.0),
+            DVec3::new(x + 1.0, 1.0, 1.0),
+        ),
+    };
+    let trees = [
+        Tree {
+            hierarchy: Some(&near),
+            info: &near_info,
+            bounds: unit,
+        },
+        Tree {
+            hierarchy: Some(&far),
+            info: &far_info,
+            bounds: unit,
+        },
+        // Behind the eye, and ahead.
+        unopened(-29.0),
+        unopened(16.0),
+    ];
+    let budget = Budget {
+        points: 250,
+        slots: 1000,
+    };
+    let s = select_forest(&trees, DVec3::ZERO, &view, budget);
+    // The near tree's children outweigh the far root, yet the far root comes first; the next
+    // child exceeds the budget; the tree behind the eye is not opened, the one ahead is.
+    assert_eq!(s.nodes, [(0, Key::ROOT), (1, Key::ROOT)]);
+    assert_eq!(s.points, 200);
+    assert_eq!(s.open, [3]);
+}
