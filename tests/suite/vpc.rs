@@ -609,3 +609,52 @@ fn every_visible_tile_root_is_drawn_before_any_tile_is_refined() {
     assert_eq!(s.points, 200);
     assert_eq!(s.open, [3]);
 }
+
+fn surfel(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("run surfel")
+}
+
+#[test]
+fn info_lists_the_tiles_of_a_vpc_and_bad_ones_are_clear_errors() {
+    let dir = scratch("info");
+    let path = grid(&dir, 2);
+    let o = surfel(&["info", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8(o.stdout).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[1],
+        "format            virtual point cloud (STAC ItemCollection)"
+    );
+    assert_eq!(lines[2], "tiles             4");
+    assert_eq!(lines[3], "points            25600");
+    // x and y from the tiles' proj:bbox (the sheet's z is between 95 and 105).
+    let bounds: Vec<&str> = lines[4].split_whitespace().collect();
+    assert_eq!(bounds[..3], ["bounds", "500000.250", "4000000.250"]);
+    assert_eq!(bounds[4..7], ["..", "500079.750", "4000079.750"]);
+    let z: Vec<f64> = [bounds[3], bounds[7]].map(|v| v.parse().unwrap()).to_vec();
+    assert!(95.0 <= z[0] && z[0] < z[1] && z[1] <= 105.0, "{z:?}");
+    assert_eq!(lines[5], "crs               none");
+    assert_eq!(lines.len(), 10);
+    assert!(lines[6].starts_with("  t00 "), "{}", lines[6]);
+    assert!(lines[6].contains("6400 points  application/vnd.laszip+copc  ./tiles/t00.copc.laz"));
+    let bad = dir.join("bad.vpc");
+    std::fs::write(
+        &bad,
+        "{\"type\": \"FeatureCollection\",\n \"features\": [{\"type\": \"Feature\"}]}",
+    )
+    .unwrap();
+    for command in ["info", "render"] {
+        let o = surfel(&[command, bad.to_str().unwrap()]);
+        assert!(!o.status.success());
+        let err = String::from_utf8(o.stderr).unwrap();
+        assert!(
+            err.contains(&format!("{}: feature 0: missing field `id`", bad.display())),
+            "{err}"
+        );
+    }
+}
