@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -407,23 +408,33 @@ fn tiles_outside_the_view_are_never_read() {
     );
 }
 
-/// A loopback HTTP/1.1 server for the files under a directory, answering `Range` requests.
-/// `fault(path)` may replace every answer for a path with a status code.
+/// A loopback HTTP/1.1 server for the files under a directory, answering `Range` requests on
+/// kept-alive connections. `fault(path, attempt)` may replace the `attempt`-th answer (from 0)
+/// for a path with a status code.
 struct Server {
     url: String,
     requests: Arc<Mutex<HashMap<String, u64>>>,
+    /// Connections accepted, and the most requests answered at once.
+    connections: Arc<AtomicU64>,
+    most_at_once: Arc<AtomicU64>,
 }
 
-fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
+fn serve(root: PathBuf, fault: fn(&str, u64) -> Option<u16>) -> Server {
     use std::io::{BufRead, BufReader, Write};
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let url = format!("http://{}", listener.local_addr().unwrap());
     let requests = Arc::new(Mutex::new(HashMap::<String, u64>::new()));
     let count = requests.clone();
+    let connections = Arc::new(AtomicU64::new(0));
+    let most_at_once = Arc::new(AtomicU64::new(0));
+    let busy = Arc::new(AtomicU64::new(0));
+    let (accepted, most) = (connections.clone(), most_at_once.clone());
     std::thread::spawn(move || {
         for stream in listener.incoming() {
             let Ok(mut stream) = stream else { continue };
-            let (root, count) = (root.clone(), count.clone());
+            accepted.fetch_add(1, Ordering::SeqCst);
+            let (root, count, busy, most) =
+                (root.clone(), count.clone(), busy.clone(), most.clone());
             std::thread::spawn(move || {
                 let mut reader = BufReader::new(stream.try_clone().unwrap());
                 loop {
@@ -444,7 +455,15 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                             range = Some((a.parse::<u64>().unwrap(), b.parse::<u64>().unwrap()));
                         }
                     }
-                    *count.lock().unwrap().entry(path.clone()).or_default() += 1;
+                    let attempt = {
+                        let mut map = count.lock().unwrap();
+                        let n = map.entry(path.clone()).or_default();
+                        *n += 1;
+                        *n - 1
+                    };
+                    most.fetch_max(busy.fetch_add(1, Ordering::SeqCst) + 1, Ordering::SeqCst);
+                    // Answers take a moment, so requests that can overlap do.
+                    std::thread::sleep(Duration::from_millis(2));
                     let reply = |stream: &mut std::net::TcpStream,
                                  status: &str,
                                  headers: String,
@@ -455,7 +474,7 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                         );
                         stream.write_all(head.as_bytes()).is_ok() && stream.write_all(body).is_ok()
                     };
-                    let ok = if let Some(code) = fault(&path) {
+                    let ok = if let Some(code) = fault(&path, attempt) {
                         reply(&mut stream, &format!("{code} Injected"), String::new(), b"")
                     } else {
                         match std::fs::read(root.join(path.trim_start_matches('/'))) {
@@ -477,6 +496,7 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                             },
                         }
                     };
+                    busy.fetch_sub(1, Ordering::SeqCst);
                     if !ok {
                         return;
                     }
@@ -484,7 +504,12 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
             });
         }
     });
-    Server { url, requests }
+    Server {
+        url,
+        requests,
+        connections,
+        most_at_once,
+    }
 }
 
 #[test]
@@ -492,7 +517,7 @@ fn sixteen_tiles_over_http_equal_the_local_render() {
     let dir = scratch("http");
     let path = grid(&dir, 4);
     let local = stream(path.to_str().unwrap(), &options(200_000), &framing, 128);
-    let server = serve(dir.clone(), |_| None);
+    let server = serve(dir.clone(), |_, _| None);
     let url = format!("{}/grid.vpc", server.url);
     let remote = stream(&url, &options(200_000), &framing, 128);
     assert!(local.messages.is_empty(), "{:?}", local.messages);
@@ -505,6 +530,15 @@ fn sixteen_tiles_over_http_equal_the_local_render() {
     assert!(common::coverage(&local.frame) > 0.3);
     let requests = server.requests.lock().unwrap();
     assert_eq!(requests.len(), 17, "{requests:?}");
+    // Connections are kept alive and shared by the tiles: the .vpc's, and at most one per
+    // request in flight (4) for the tiles.
+    let total: u64 = requests.values().sum();
+    let connections = server.connections.load(Ordering::SeqCst);
+    assert!(
+        connections <= 5,
+        "{connections} connections for {total} requests"
+    );
+    assert!(server.most_at_once.load(Ordering::SeqCst) <= 4);
 }
 
 #[test]
@@ -512,7 +546,9 @@ fn a_missing_tile_and_a_failing_server_are_each_reported_once() {
     let dir = scratch("faults");
     grid(&dir, 2);
     std::fs::remove_file(dir.join("tiles/t01.copc.laz")).unwrap();
-    let server = serve(dir.clone(), |p| (p == "/tiles/t02.copc.laz").then_some(503));
+    let server = serve(dir.clone(), |p, _| {
+        (p == "/tiles/t02.copc.laz").then_some(503)
+    });
     let url = format!("{}/grid.vpc", server.url);
     let s = stream(&url, &options(u64::MAX), &framing, 96);
     let base = format!("{}/tiles", server.url);
@@ -657,4 +693,22 @@ fn info_lists_the_tiles_of_a_vpc_and_bad_ones_are_clear_errors() {
             "{err}"
         );
     }
+}
+
+#[test]
+fn requests_are_capped_and_retried_across_tiles() {
+    let dir = scratch("retries");
+    grid(&dir, 2);
+    // Every tile's first two requests fail with 503: each is retried.
+    let server = serve(dir.clone(), |p, attempt| {
+        (p.starts_with("/tiles/") && attempt < 2).then_some(503)
+    });
+    let url = format!("{}/grid.vpc", server.url);
+    let mut options = options(u64::MAX);
+    options.loader.threads = 4;
+    options.loader.http.connections = 1;
+    let s = stream(&url, &options, &framing, 96);
+    assert!(s.messages.is_empty(), "{:?}", s.messages);
+    assert_eq!(s.stats.drawn_points, 4 * 6400);
+    assert_eq!(server.most_at_once.load(Ordering::SeqCst), 1);
 }
