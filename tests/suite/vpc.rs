@@ -136,6 +136,17 @@ fn stream(
     camera: &dyn Fn(&StreamedScene) -> Camera,
     size: u32,
 ) -> Streamed {
+    stream_filtered(location, options, camera, size, None)
+}
+
+/// [`stream`] drawn through `filter` (file coordinates).
+fn stream_filtered(
+    location: &str,
+    options: &StreamOptions,
+    camera: &dyn Fn(&StreamedScene) -> Camera,
+    size: u32,
+    filter: Option<&surfel::scene::clip::Filter>,
+) -> Streamed {
     let ctx = common::context();
     let mut s = StreamedScene::open(
         &ctx,
@@ -159,6 +170,7 @@ fn stream(
         },
     )
     .unwrap();
+    r.set_filter(filter.and_then(|f| f.active(s.origin())));
     let camera = camera(&s);
     let view = View {
         camera,
@@ -711,4 +723,54 @@ fn requests_are_capped_and_retried_across_tiles() {
     assert!(s.messages.is_empty(), "{:?}", s.messages);
     assert_eq!(s.stats.drawn_points, 4 * 6400);
     assert_eq!(server.most_at_once.load(Ordering::SeqCst), 1);
+}
+
+#[test]
+fn a_clip_box_spans_the_tiles() {
+    use surfel::scene::clip::{ClipBox, Filter};
+    let dir = scratch("clip");
+    let path = grid(&dir, 2);
+    // The same tiles 0 and 2 (x below 500,040) in a .vpc of their own.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut json: Value = serde_json::from_str(&text).unwrap();
+    let features = json["features"].as_array_mut().unwrap();
+    features.retain(|f| f["id"] == "t00" || f["id"] == "t02");
+    let left = dir.join("left.vpc");
+    std::fs::write(&left, serde_json::to_string(&json).unwrap()).unwrap();
+    // One view of the grid's centre, from file coordinates.
+    let camera = |s: &StreamedScene| {
+        let centre = (DVec3::new(500_040.0, 4_000_040.0, 100.0) - s.origin()).as_vec3();
+        Camera::look_at_up(Up::Z, centre + Vec3::new(0.0, -60.0, 90.0), centre, 1.0)
+    };
+    let filter = Filter {
+        clip: Some(ClipBox::aligned(
+            DVec3::new(499_990.0, 3_999_990.0, 0.0),
+            DVec3::new(500_040.0, 4_000_090.0, 200.0),
+        )),
+        ..Filter::default()
+    };
+    let clipped = stream_filtered(
+        path.to_str().unwrap(),
+        &options(u64::MAX),
+        &camera,
+        128,
+        Some(&filter),
+    );
+    let half = stream(left.to_str().unwrap(), &options(u64::MAX), &camera, 128);
+    assert_eq!(clipped.stats.drawn_points, 4 * 6400);
+    assert_eq!(half.stats.drawn_points, 2 * 6400);
+    let covered = |f: &Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
+    assert!(
+        covered(&half.frame) > 128 * 128 / 10,
+        "{}",
+        covered(&half.frame)
+    );
+    let differ = (0..half.frame.pixels())
+        .filter(|&i| half.frame.covered(i) != clipped.frame.covered(i))
+        .count();
+    // The two scenes' origins differ: positions round differently in single precision.
+    assert!(
+        differ <= covered(&half.frame) / 100,
+        "{differ} pixels differ"
+    );
 }
