@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 fn answer(root: &Path, stream: TcpStream) -> std::io::Result<()> {
     let mut reader = BufReader::new(stream.try_clone()?);
+    stream.set_nodelay(true)?;
     let mut out = stream;
     loop {
         let mut line = String::new();

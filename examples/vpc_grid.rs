@@ -1,9 +1,11 @@
 //! Splits a point cloud into an N x N grid of COPC tiles (by x and y) and writes their
 //! virtual point cloud, for the measurements of `docs/measurements.md`:
 //!
-//!     cargo run --release --example vpc_grid -- CLOUD OUT_DIR [N]
+//!     cargo run --release --example vpc_grid -- CLOUD OUT_DIR [N [NODE_POINTS]]
 //!
-//! writes `OUT_DIR/tiles/tXXXX.copc.laz` and `OUT_DIR/grid.vpc`.
+//! writes `OUT_DIR/tiles/tXXXX.copc.laz` (at most NODE_POINTS points per octree node, default
+//! 20,000: every visible tile's root is drawn, so the roots of a 10 x 10 grid should fit a
+//! point budget together) and `OUT_DIR/grid.vpc`.
 
 use std::path::PathBuf;
 
@@ -45,6 +47,10 @@ fn main() -> Result<()> {
         anyhow::bail!("usage: vpc_grid CLOUD OUT_DIR [N]");
     };
     let n: usize = rest.first().map_or(Ok(10), |s| s.parse()).context("N")?;
+    let node_points: u32 = rest
+        .get(1)
+        .map_or(Ok(20_000), |s| s.parse())
+        .context("NODE_POINTS")?;
     let cloud = scene::load(&PathBuf::from(input))?;
     let (lo, hi) = cloud.bounds().context("an empty cloud")?;
     let cell = |v: f32, a: f32, b: f32| (((v - a) / (b - a) * n as f32) as usize).min(n - 1);
@@ -61,7 +67,7 @@ fn main() -> Result<()> {
             continue;
         }
         let path = out.join(format!("tiles/t{k:04}.copc.laz"));
-        convert::write(&subset(&cloud, indices), &path)?;
+        convert::write_with(&subset(&cloud, indices), &path, node_points)?;
         tiles.push(vpc::summarize(&vpc_path, &path)?);
         eprintln!("{}: {} points", path.display(), indices.len());
     }

@@ -269,8 +269,6 @@ struct Shared {
 pub struct Loader {
     shared: Arc<Shared>,
     tiles: Vec<Tile>,
-    /// The `.vpc`, when the scene is one.
-    vpc: Option<String>,
     queue: Arc<(Mutex<Queue>, Condvar)>,
     done: Receiver<Finished>,
     workers: Vec<JoinHandle<()>>,
@@ -502,24 +500,19 @@ fn open_whole(
     ))
 }
 
-/// The scene's files: one file, or the items of a `.vpc`; and the `.vpc`'s location.
-fn specs(location: &str, http: &HttpOptions) -> Result<(Vec<Tile>, Option<String>), LoadError> {
+/// The scene's files: one COPC file, or the items of a `.vpc`; and whether it is a `.vpc`.
+fn specs(location: &str, http: &HttpOptions) -> Result<(Vec<Tile>, bool), LoadError> {
     if !vpc::is_vpc(location) {
-        let encoding = Encoding::of(None, location).unwrap_or(Encoding::Copc);
         let tile = Tile {
             href: location.to_owned(),
             location: location.to_owned(),
             points: 0,
             bounds: (DVec3::ZERO, DVec3::ZERO),
-            encoding: if encoding == Encoding::Copc {
-                Encoding::Copc
-            } else {
-                encoding
-            },
+            encoding: Encoding::Copc,
             file: None,
             error: None,
         };
-        return Ok((vec![tile], None));
+        return Ok((vec![tile], false));
     }
     let parsed =
         vpc::read(location, http).map_err(|e| LoadError::whole(location, format!("{e:#}")))?;
@@ -538,7 +531,7 @@ fn specs(location: &str, http: &HttpOptions) -> Result<(Vec<Tile>, Option<String
             error: None,
         })
         .collect();
-    Ok((tiles, Some(location.to_owned())))
+    Ok((tiles, true))
 }
 
 impl Loader {
@@ -548,29 +541,21 @@ impl Loader {
     /// `proj:bbox`); the rest by `options.threads` workers as requested.
     pub fn open(location: &str, options: LoaderOptions) -> Result<Opened, LoadError> {
         let http = HttpPool::new(&options.http);
-        let (mut tiles, vpc) = specs(location, &options.http)?;
+        let (mut tiles, is_vpc) = specs(location, &options.http)?;
         let mut failed_at_open = Vec::new();
         let spec = |t: &Tile| Spec {
             location: t.location.clone(),
             encoding: t.encoding,
         };
-        let (origin, first, (file, hierarchy, root)) = if vpc.is_none() {
+        let (origin, first, (file, hierarchy, root)) = if !is_vpc {
             let (file, hierarchy, root, origin) = open_tile(&spec(&tiles[0]), &http, None)?;
-            let t = &mut tiles[0];
-            t.points = file
-                .copc
-                .as_ref()
-                .map_or(root.len() as u64, |c| c.header.number_of_points());
-            let b = file.copc.as_ref().map(|c| c.header.bounds());
-            t.bounds = b.map_or((file.info.center, file.info.center), |b| {
-                (
+            if let Some(copc) = &file.copc {
+                let b = copc.header.bounds();
+                tiles[0].points = copc.header.number_of_points();
+                tiles[0].bounds = (
                     DVec3::new(b.min.x, b.min.y, b.min.z),
                     DVec3::new(b.max.x, b.max.y, b.max.z),
-                )
-            });
-            if file.copc.is_none() {
-                let h = DVec3::splat(file.info.halfsize);
-                t.bounds = (file.info.center - h, file.info.center + h);
+                );
             }
             (origin, 0, (file, hierarchy, root))
         } else {
@@ -656,7 +641,6 @@ impl Loader {
             loader: Loader {
                 shared,
                 tiles,
-                vpc,
                 queue,
                 done,
                 workers,
@@ -672,11 +656,6 @@ impl Loader {
     /// The scene's files.
     pub fn tiles(&self) -> &[Tile] {
         &self.tiles
-    }
-
-    /// The `.vpc` the scene was opened from, if any.
-    pub fn vpc(&self) -> Option<&str> {
-        self.vpc.as_deref()
     }
 
     /// Bytes read so far over every file.
@@ -928,9 +907,17 @@ fn work(shared: &Shared, queue: &(Mutex<Queue>, Condvar), send: &Sender<Finished
 }
 
 /// Opens a file in the scene's frame and encodes its root.
+/// Its reading and decoding count as reading.
 fn open_job(shared: &Shared, spec: &Spec) -> Result<Box<Opening>, LoadError> {
+    let c = &shared.counters;
+    let start = Instant::now();
     let (file, hierarchy, cloud, _) = open_tile(spec, &shared.http, Some(shared.origin))?;
+    let start = add_since(&c.read_ns, start);
+    let points = cloud.len() as u64;
     let root = encode(shared, &file, &spec.location, Key::ROOT, cloud)?;
+    add_since(&c.prepare_ns, start);
+    c.nodes.fetch_add(1, Ordering::Relaxed);
+    c.points.fetch_add(points, Ordering::Relaxed);
     Ok(Box::new(Opening {
         file,
         opened: OpenedTile { hierarchy, root },

@@ -289,10 +289,13 @@ fn measure_box(lo: DVec3, hi: DVec3, origin: DVec3, view: &SelectView) -> (f64, 
 }
 
 /// The nodes `view` draws from the forest `trees` within one `budget`: the selection of
-/// [`select`] grown over every tree at once from their roots. With one tree its root is
-/// drawn whatever the budget; with several, a tree's root is a candidate when its bounds are
-/// in the view frustum, and a tree not opened yet whose root would be taken is listed in
-/// [`ForestSelection::open`] instead (its points are unknown until then).
+/// [`select`] grown over every tree at once. The roots come first: with one tree its root is
+/// drawn whatever the budget; with several, every tree whose root (its cube, or its bounds
+/// before it is opened) is in the view frustum has its root drawn whatever the point budget
+/// (as far as the pool holds them), so no part of the view is left empty; the point budget
+/// is raised to those roots' points. A tree not opened yet that the view reaches is listed in
+/// [`ForestSelection::open`] instead (its points are unknown until then). The roots' children
+/// then grow the selection by projected size until the first one that does not fit.
 pub fn select_forest(
     trees: &[Tree],
     origin: DVec3,
@@ -300,12 +303,8 @@ pub fn select_forest(
     budget: Budget,
 ) -> ForestSelection {
     let single = trees.len() == 1;
-    let budget = match (single, trees.first().and_then(|t| t.hierarchy)) {
-        (true, Some(h)) => with_root(h, budget),
-        _ => budget,
-    };
     let mut out = ForestSelection::default();
-    let mut heap = BinaryHeap::new();
+    let mut roots = Vec::new();
     for (i, t) in trees.iter().enumerate() {
         let (weight, visible) = match t.hierarchy.and_then(|h| h.nodes.get(&Key::ROOT)) {
             Some(root) => {
@@ -319,40 +318,90 @@ pub fn select_forest(
             }
         };
         if single || visible {
-            heap.push(TreeCandidate {
+            roots.push(TreeCandidate {
                 weight,
                 tree: i,
                 key: Key::ROOT,
             });
         }
     }
-    while let Some(TreeCandidate { tree, key, .. }) = heap.pop() {
+    roots.sort_by(|a, b| b.cmp(a));
+    let mut heap = BinaryHeap::new();
+    for TreeCandidate { tree, .. } in roots {
         let t = &trees[tree];
         let Some(h) = t.hierarchy else {
             out.open.push(tree);
             continue;
         };
+        let node = &h.nodes[&Key::ROOT];
+        let slots = slots_of(node.points);
+        if out.slots + slots > budget.slots {
+            continue;
+        }
+        out.points += node.points;
+        out.slots += slots;
+        out.nodes.push((tree, Key::ROOT));
+        grow(
+            h,
+            tree,
+            t.info,
+            node,
+            origin,
+            view,
+            &mut heap,
+            &mut out.pages,
+        );
+    }
+    let points = budget.points.max(out.points);
+    while let Some(TreeCandidate { tree, key, .. }) = heap.pop() {
+        let t = &trees[tree];
+        let h = t.hierarchy.expect("only opened trees have children");
         let node = &h.nodes[&key];
         let slots = slots_of(node.points);
-        if out.points + node.points > budget.points || out.slots + slots > budget.slots {
+        if out.points + node.points > points || out.slots + slots > budget.slots {
             break;
         }
         out.points += node.points;
         out.slots += slots;
         out.nodes.push((tree, key));
-        let m = measure(node, t.info, origin, view);
-        let mut pages = Vec::new();
-        for child in expand(h, key, &m, &mut pages) {
-            heap.push(TreeCandidate {
-                weight: measure(&h.nodes[&child], t.info, origin, view).weight,
-                tree,
-                key: child,
-            });
-        }
-        out.pages.extend(pages.into_iter().map(|k| (tree, k)));
+        grow(
+            h,
+            tree,
+            t.info,
+            node,
+            origin,
+            view,
+            &mut heap,
+            &mut out.pages,
+        );
     }
     out.pages.sort();
     out
+}
+
+/// Pushes the children `node` of tree `tree` opens (see [`expand`]) onto `heap` and the unread
+/// pages among them onto `pages`.
+#[allow(clippy::too_many_arguments)]
+fn grow(
+    h: &Hierarchy,
+    tree: usize,
+    info: &Info,
+    node: &Node,
+    origin: DVec3,
+    view: &SelectView,
+    heap: &mut BinaryHeap<TreeCandidate>,
+    pages: &mut Vec<(usize, Key)>,
+) {
+    let m = measure(node, info, origin, view);
+    let mut reached = Vec::new();
+    for child in expand(h, node.key, &m, &mut reached) {
+        heap.push(TreeCandidate {
+            weight: measure(&h.nodes[&child], info, origin, view).weight,
+            tree,
+            key: child,
+        });
+    }
+    pages.extend(reached.into_iter().map(|k| (tree, k)));
 }
 
 /// [`select`] by rescanning every known node at each step: the same rule, no heap.

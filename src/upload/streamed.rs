@@ -458,6 +458,7 @@ impl StreamedScene {
             slots: u64::from(self.scene.streams.batch_count),
         };
         let tiles = self.loader.tiles();
+        // A file not opened has no octree cube yet: the selection reads its bounds instead.
         let unopened = crate::scene::copc::Info {
             center: glam::DVec3::ZERO,
             halfsize: 1.0,

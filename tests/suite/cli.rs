@@ -1408,7 +1408,13 @@ fn documented_defaults_agree_with_the_help() {
     let docs = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/cli.md"))
         .expect("docs/cli.md");
     let cli = surfel::cli::Cli::command();
-    for flag in ["error-px", "point-budget", "gpu-budget", "camera-file"] {
+    for flag in [
+        "error-px",
+        "point-budget",
+        "gpu-budget",
+        "camera-file",
+        "http-connections",
+    ] {
         let documented = documented_default(&docs, flag);
         let mut subcommands = 0;
         for sub in cli.get_subcommands() {

@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -135,6 +136,17 @@ fn stream(
     camera: &dyn Fn(&StreamedScene) -> Camera,
     size: u32,
 ) -> Streamed {
+    stream_filtered(location, options, camera, size, None)
+}
+
+/// [`stream`] drawn through `filter` (file coordinates).
+fn stream_filtered(
+    location: &str,
+    options: &StreamOptions,
+    camera: &dyn Fn(&StreamedScene) -> Camera,
+    size: u32,
+    filter: Option<&surfel::scene::clip::Filter>,
+) -> Streamed {
     let ctx = common::context();
     let mut s = StreamedScene::open(
         &ctx,
@@ -158,6 +170,7 @@ fn stream(
         },
     )
     .unwrap();
+    r.set_filter(filter.and_then(|f| f.active(s.origin())));
     let camera = camera(&s);
     let view = View {
         camera,
@@ -407,23 +420,33 @@ fn tiles_outside_the_view_are_never_read() {
     );
 }
 
-/// A loopback HTTP/1.1 server for the files under a directory, answering `Range` requests.
-/// `fault(path)` may replace every answer for a path with a status code.
+/// A loopback HTTP/1.1 server for the files under a directory, answering `Range` requests on
+/// kept-alive connections. `fault(path, attempt)` may replace the `attempt`-th answer (from 0)
+/// for a path with a status code.
 struct Server {
     url: String,
     requests: Arc<Mutex<HashMap<String, u64>>>,
+    /// Connections accepted, and the most requests answered at once.
+    connections: Arc<AtomicU64>,
+    most_at_once: Arc<AtomicU64>,
 }
 
-fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
+fn serve(root: PathBuf, fault: fn(&str, u64) -> Option<u16>) -> Server {
     use std::io::{BufRead, BufReader, Write};
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let url = format!("http://{}", listener.local_addr().unwrap());
     let requests = Arc::new(Mutex::new(HashMap::<String, u64>::new()));
     let count = requests.clone();
+    let connections = Arc::new(AtomicU64::new(0));
+    let most_at_once = Arc::new(AtomicU64::new(0));
+    let busy = Arc::new(AtomicU64::new(0));
+    let (accepted, most) = (connections.clone(), most_at_once.clone());
     std::thread::spawn(move || {
         for stream in listener.incoming() {
             let Ok(mut stream) = stream else { continue };
-            let (root, count) = (root.clone(), count.clone());
+            accepted.fetch_add(1, Ordering::SeqCst);
+            let (root, count, busy, most) =
+                (root.clone(), count.clone(), busy.clone(), most.clone());
             std::thread::spawn(move || {
                 let mut reader = BufReader::new(stream.try_clone().unwrap());
                 loop {
@@ -444,7 +467,15 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                             range = Some((a.parse::<u64>().unwrap(), b.parse::<u64>().unwrap()));
                         }
                     }
-                    *count.lock().unwrap().entry(path.clone()).or_default() += 1;
+                    let attempt = {
+                        let mut map = count.lock().unwrap();
+                        let n = map.entry(path.clone()).or_default();
+                        *n += 1;
+                        *n - 1
+                    };
+                    most.fetch_max(busy.fetch_add(1, Ordering::SeqCst) + 1, Ordering::SeqCst);
+                    // Answers take a moment, so requests that can overlap do.
+                    std::thread::sleep(Duration::from_millis(2));
                     let reply = |stream: &mut std::net::TcpStream,
                                  status: &str,
                                  headers: String,
@@ -455,7 +486,7 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                         );
                         stream.write_all(head.as_bytes()).is_ok() && stream.write_all(body).is_ok()
                     };
-                    let ok = if let Some(code) = fault(&path) {
+                    let ok = if let Some(code) = fault(&path, attempt) {
                         reply(&mut stream, &format!("{code} Injected"), String::new(), b"")
                     } else {
                         match std::fs::read(root.join(path.trim_start_matches('/'))) {
@@ -477,6 +508,7 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
                             },
                         }
                     };
+                    busy.fetch_sub(1, Ordering::SeqCst);
                     if !ok {
                         return;
                     }
@@ -484,7 +516,12 @@ fn serve(root: PathBuf, fault: fn(&str) -> Option<u16>) -> Server {
             });
         }
     });
-    Server { url, requests }
+    Server {
+        url,
+        requests,
+        connections,
+        most_at_once,
+    }
 }
 
 #[test]
@@ -492,7 +529,7 @@ fn sixteen_tiles_over_http_equal_the_local_render() {
     let dir = scratch("http");
     let path = grid(&dir, 4);
     let local = stream(path.to_str().unwrap(), &options(200_000), &framing, 128);
-    let server = serve(dir.clone(), |_| None);
+    let server = serve(dir.clone(), |_, _| None);
     let url = format!("{}/grid.vpc", server.url);
     let remote = stream(&url, &options(200_000), &framing, 128);
     assert!(local.messages.is_empty(), "{:?}", local.messages);
@@ -505,6 +542,15 @@ fn sixteen_tiles_over_http_equal_the_local_render() {
     assert!(common::coverage(&local.frame) > 0.3);
     let requests = server.requests.lock().unwrap();
     assert_eq!(requests.len(), 17, "{requests:?}");
+    // Connections are kept alive and shared by the tiles: the .vpc's, and at most one per
+    // request in flight (4) for the tiles.
+    let total: u64 = requests.values().sum();
+    let connections = server.connections.load(Ordering::SeqCst);
+    assert!(
+        connections <= 5,
+        "{connections} connections for {total} requests"
+    );
+    assert!(server.most_at_once.load(Ordering::SeqCst) <= 4);
 }
 
 #[test]
@@ -512,7 +558,9 @@ fn a_missing_tile_and_a_failing_server_are_each_reported_once() {
     let dir = scratch("faults");
     grid(&dir, 2);
     std::fs::remove_file(dir.join("tiles/t01.copc.laz")).unwrap();
-    let server = serve(dir.clone(), |p| (p == "/tiles/t02.copc.laz").then_some(503));
+    let server = serve(dir.clone(), |p, _| {
+        (p == "/tiles/t02.copc.laz").then_some(503)
+    });
     let url = format!("{}/grid.vpc", server.url);
     let s = stream(&url, &options(u64::MAX), &framing, 96);
     let base = format!("{}/tiles", server.url);
@@ -646,5 +694,202 @@ fn the_viewer_measures_a_distance_between_points_of_two_tiles() {
     assert!(
         (distance - ends[0].distance(ends[1])).abs() < 1e-6,
         "{measure}"
+    );
+}
+
+/// A root of 100 points at `centre` (half size 1) with eight children of 100 points.
+fn two_levels(centre: DVec3) -> (surfel::stream::select::Hierarchy, surfel::scene::copc::Info) {
+    use surfel::scene::copc::{Entry, Info, Key, Node};
+    let node = |key| {
+        Entry::Node(Node {
+            key,
+            offset: 0,
+            bytes: 1,
+            points: 100,
+            entry_at: 0,
+        })
+    };
+    let mut h = surfel::stream::select::Hierarchy::default();
+    let mut entries = vec![node(Key::ROOT)];
+    entries.extend(Key::ROOT.children().map(node));
+    h.add_page(0, entries);
+    let info = Info {
+        center: centre,
+        halfsize: 1.0,
+        spacing: 0.5,
+        root: (0, 0),
+        gps_time: (0.0, 0.0),
+    };
+    (h, info)
+}
+
+#[test]
+fn every_visible_tile_root_is_drawn_before_any_tile_is_refined() {
+    use surfel::scene::copc::Key;
+    use surfel::stream::select::{select_forest, Budget, SelectView, Tree};
+    let (near, near_info) = two_levels(DVec3::ZERO);
+    let (far, far_info) = two_levels(DVec3::new(8.0, 0.0, 0.0));
+    let camera = Camera::look_at_up(
+        Up::Z,
+        Vec3::new(-3.0, 0.0, 2.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        1.0,
+    );
+    let view = SelectView {
+        view_proj: camera.projection(1.0) * camera.view(),
+        eye: camera.eye,
+        pixels_per_radian: 500.0,
+        error_px: 0.5,
+    };
+    let unit = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let unopened = |x: f64| Tree {
+        hierarchy: None,
+        info: &near_info,
+        bounds: (
+            DVec3::new(x - 1.0, -1.0, -1.0),
+            DVec3::new(x + 1.0, 1.0, 1.0),
+        ),
+    };
+    let trees = [
+        Tree {
+            hierarchy: Some(&near),
+            info: &near_info,
+            bounds: unit,
+        },
+        Tree {
+            hierarchy: Some(&far),
+            info: &far_info,
+            bounds: unit,
+        },
+        // Behind the eye, and ahead.
+        unopened(-29.0),
+        unopened(16.0),
+    ];
+    let budget = Budget {
+        points: 250,
+        slots: 1000,
+    };
+    let s = select_forest(&trees, DVec3::ZERO, &view, budget);
+    // The near tree's children outweigh the far root, yet the far root comes first; the next
+    // child exceeds the budget; the tree behind the eye is not opened, the one ahead is.
+    assert_eq!(s.nodes, [(0, Key::ROOT), (1, Key::ROOT)]);
+    assert_eq!(s.points, 200);
+    assert_eq!(s.open, [3]);
+}
+
+fn surfel(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_surfel"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("run surfel")
+}
+
+#[test]
+fn info_lists_the_tiles_of_a_vpc_and_bad_ones_are_clear_errors() {
+    let dir = scratch("info");
+    let path = grid(&dir, 2);
+    let o = surfel(&["info", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8(o.stdout).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[1],
+        "format            virtual point cloud (STAC ItemCollection)"
+    );
+    assert_eq!(lines[2], "tiles             4");
+    assert_eq!(lines[3], "points            25600");
+    // x and y from the tiles' proj:bbox (the sheet's z is between 95 and 105).
+    let bounds: Vec<&str> = lines[4].split_whitespace().collect();
+    assert_eq!(bounds[..3], ["bounds", "500000.250", "4000000.250"]);
+    assert_eq!(bounds[4..7], ["..", "500079.750", "4000079.750"]);
+    let z: Vec<f64> = [bounds[3], bounds[7]].map(|v| v.parse().unwrap()).to_vec();
+    assert!(95.0 <= z[0] && z[0] < z[1] && z[1] <= 105.0, "{z:?}");
+    assert_eq!(lines[5], "crs               none");
+    assert_eq!(lines.len(), 10);
+    assert!(lines[6].starts_with("  t00 "), "{}", lines[6]);
+    assert!(lines[6].contains("6400 points  application/vnd.laszip+copc  ./tiles/t00.copc.laz"));
+    let bad = dir.join("bad.vpc");
+    std::fs::write(
+        &bad,
+        "{\"type\": \"FeatureCollection\",\n \"features\": [{\"type\": \"Feature\"}]}",
+    )
+    .unwrap();
+    for command in ["info", "render"] {
+        let o = surfel(&[command, bad.to_str().unwrap()]);
+        assert!(!o.status.success());
+        let err = String::from_utf8(o.stderr).unwrap();
+        assert!(
+            err.contains(&format!("{}: feature 0: missing field `id`", bad.display())),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn requests_are_capped_and_retried_across_tiles() {
+    let dir = scratch("retries");
+    grid(&dir, 2);
+    // Every tile's first two requests fail with 503: each is retried.
+    let server = serve(dir.clone(), |p, attempt| {
+        (p.starts_with("/tiles/") && attempt < 2).then_some(503)
+    });
+    let url = format!("{}/grid.vpc", server.url);
+    let mut options = options(u64::MAX);
+    options.loader.threads = 4;
+    options.loader.http.connections = 1;
+    let s = stream(&url, &options, &framing, 96);
+    assert!(s.messages.is_empty(), "{:?}", s.messages);
+    assert_eq!(s.stats.drawn_points, 4 * 6400);
+    assert_eq!(server.most_at_once.load(Ordering::SeqCst), 1);
+}
+
+#[test]
+fn a_clip_box_spans_the_tiles() {
+    use surfel::scene::clip::{ClipBox, Filter};
+    let dir = scratch("clip");
+    let path = grid(&dir, 2);
+    // The same tiles 0 and 2 (x below 500,040) in a .vpc of their own.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut json: Value = serde_json::from_str(&text).unwrap();
+    let features = json["features"].as_array_mut().unwrap();
+    features.retain(|f| f["id"] == "t00" || f["id"] == "t02");
+    let left = dir.join("left.vpc");
+    std::fs::write(&left, serde_json::to_string(&json).unwrap()).unwrap();
+    // One view of the grid's centre, from file coordinates.
+    let camera = |s: &StreamedScene| {
+        let centre = (DVec3::new(500_040.0, 4_000_040.0, 100.0) - s.origin()).as_vec3();
+        Camera::look_at_up(Up::Z, centre + Vec3::new(0.0, -60.0, 90.0), centre, 1.0)
+    };
+    let filter = Filter {
+        clip: Some(ClipBox::aligned(
+            DVec3::new(499_990.0, 3_999_990.0, 0.0),
+            DVec3::new(500_040.0, 4_000_090.0, 200.0),
+        )),
+        ..Filter::default()
+    };
+    let clipped = stream_filtered(
+        path.to_str().unwrap(),
+        &options(u64::MAX),
+        &camera,
+        128,
+        Some(&filter),
+    );
+    let half = stream(left.to_str().unwrap(), &options(u64::MAX), &camera, 128);
+    assert_eq!(clipped.stats.drawn_points, 4 * 6400);
+    assert_eq!(half.stats.drawn_points, 2 * 6400);
+    let covered = |f: &Frame| (0..f.pixels()).filter(|&i| f.covered(i)).count();
+    assert!(
+        covered(&half.frame) > 128 * 128 / 10,
+        "{}",
+        covered(&half.frame)
+    );
+    let differ = (0..half.frame.pixels())
+        .filter(|&i| half.frame.covered(i) != clipped.frame.covered(i))
+        .count();
+    // The two scenes' origins differ: positions round differently in single precision.
+    assert!(
+        differ <= covered(&half.frame) / 100,
+        "{differ} pixels differ"
     );
 }
