@@ -7,7 +7,9 @@ use glam::{DVec3, Vec3};
 use surfel::scene::copc::{CopcFile, Entry, Info, Key, Node};
 use surfel::scene::{self, Cloud, Scalar};
 use surfel::stream::convert;
-use surfel::stream::select::{select, select_brute_force, Budget, Hierarchy, SelectView};
+use surfel::stream::select::{
+    select, select_brute_force, select_forest, Budget, Hierarchy, SelectView, Tree,
+};
 use surfel::stream::source::FileSource;
 
 use crate::common;
@@ -1172,5 +1174,76 @@ fn a_stopped_conversion_leaves_no_files() {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         assert_eq!(files, ["survey.ply"], "{}", input.display());
+    }
+}
+
+/// A forest of 5 x 5 octrees seen at a grazing angle from one corner, one tree not opened:
+/// the near trees alone could spend a small budget, yet every tree in view has its root drawn
+/// (or is to be opened) whatever the budget, and the rest of the budget goes below the roots.
+#[test]
+fn every_tree_in_view_has_its_root_drawn_whatever_the_budget() {
+    let (h, base) = octree(4);
+    let infos: Vec<Info> = (0..25)
+        .map(|k| Info {
+            center: DVec3::new(16.0 * (k % 5) as f64, 16.0 * (k / 5) as f64, 0.0),
+            ..base
+        })
+        .collect();
+    let trees: Vec<Tree> = infos
+        .iter()
+        .enumerate()
+        .map(|(k, info)| Tree {
+            hierarchy: (k != 18).then_some(&h),
+            info,
+            bounds: info.cube(Key::ROOT),
+        })
+        .collect();
+    let v = view(
+        Vec3::new(-12.0, -12.0, 6.0),
+        Vec3::new(64.0, 64.0, 0.0),
+        0.5,
+    );
+    let roots = |points: u64| {
+        let s = select_forest(
+            &trees,
+            DVec3::ZERO,
+            &v,
+            Budget {
+                points,
+                slots: u64::MAX,
+            },
+        );
+        let mut r: Vec<usize> = s
+            .nodes
+            .iter()
+            .filter(|(_, k)| *k == Key::ROOT)
+            .map(|(t, _)| *t)
+            .collect();
+        r.sort();
+        (s, r)
+    };
+    let (all, all_roots) = roots(u64::MAX);
+    assert!(all_roots.len() >= 10, "{all_roots:?}");
+    assert_eq!(all.open, [18]);
+    let root_points: u64 = all_roots.len() as u64 * h.nodes[&Key::ROOT].points;
+    for points in [1, root_points, root_points + 200_000] {
+        let (s, r) = roots(points);
+        assert_eq!(r, all_roots, "budget {points}");
+        assert_eq!(s.open, [18]);
+        assert!(
+            s.points <= points.max(root_points),
+            "budget {points}: {}",
+            s.points
+        );
+        let chosen: std::collections::HashSet<_> = s.nodes.iter().collect();
+        for (t, k) in &s.nodes {
+            assert!(*k == Key::ROOT || chosen.contains(&(*t, k.parent())));
+        }
+        if points > root_points {
+            assert!(
+                s.points > root_points,
+                "the budget left goes below the roots"
+            );
+        }
     }
 }
