@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU study on a lent H100/H200 machine, from the repository root after
 # `bash ../shared/gpu/stage.sh` (run with carry [".gl", ".gpu"]), in under 8 minutes:
-#   source .gpu/on-device.sh && OUT=docs/report-h100-study bash benches/gpu-study.sh
+#   source .gpu/on-device.sh && OUT=docs/reports/h100-study bash benches/gpu-study.sh
 # (a) `surfel render --timings` of `compute` and `points` at 1920x1080 on the staged dragon
 #     sampled to 10 M and 100 M points, beside the CUDA anchor (../shared/gpu/anchor.py);
 # (b) `surfel bench --report` of one method per family on the dragon sampled to 5 M points at
@@ -13,7 +13,7 @@
 # that would start after it is skipped, one still running at its end is stopped, and both are
 # recorded in steps.tsv. The exit status is 1 when a surfel step failed or was skipped.
 #
-# Output under $OUT (default ./gpu-study), laid out like docs/report-<gpu>/:
+# Output under $OUT (default ./gpu-study), laid out like docs/reports/<gpu>/:
 #   device.txt        nvidia-smi (when present) and surfel's Vulkan device report
 #   anchor.txt        the CUDA anchor's output, or why it did not run; anchor_N.json from it
 #   timings/M-N.json  `surfel render --timings` of method M on N points (images/M-N.png)

@@ -91,7 +91,7 @@ pub struct HprArgs {
 #[derive(Args, Debug)]
 pub struct HprStudyArgs {
     /// Output folder (report.md, results.json, charts).
-    #[arg(long, default_value = "docs/report-lavapipe-hpr")]
+    #[arg(long, default_value = "docs/reports/lavapipe-hpr")]
     pub out: PathBuf,
     /// Models as NAME=PATH (meshes give true visibility).
     #[arg(long = "model", value_name = "NAME=PATH", required = true)]

@@ -41,7 +41,7 @@ pub enum Radius {
     /// radius ≈ 2R, over 2δ), so R scales with D² / s: slanted or noisy surfaces (depth steps
     /// of a few spacings) stay visible, and back surfaces further behind are hidden. That is
     /// the dependence Mehra et al. 2010 derive for noisy samples; κ is calibrated against true
-    /// visibility (the meshes' depth buffers, `docs/report-lavapipe-hpr`): F1 peaks at
+    /// visibility (the meshes' depth buffers, `docs/reports/lavapipe-hpr`): F1 peaks at
     /// κ ≈ 19 on both the armadillo and the dragon. Mehra et al.'s per-point robust operator
     /// is not implemented. Raised to 1.01 × the farthest point's distance where that is
     /// larger.

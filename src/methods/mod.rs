@@ -110,6 +110,28 @@ impl Feature {
 }
 
 impl MethodInfo {
+    /// A method with no parameters, needs or features: a registration states only what
+    /// differs, `MethodInfo { needs_surfels: true, ..MethodInfo::new(name, summary, build) }`.
+    pub const fn new(
+        name: &'static str,
+        summary: &'static str,
+        build: fn(&mut BuildContext<'_>) -> Result<()>,
+    ) -> MethodInfo {
+        MethodInfo {
+            name,
+            summary,
+            params: &[],
+            needs_faces: false,
+            features: &[],
+            culls_batches: false,
+            needs_lod: false,
+            needs_hpr: false,
+            needs_normal_field: false,
+            needs_surfels: false,
+            build,
+        }
+    }
+
     /// Why the method cannot run on a device with `caps`, or `None` when it can.
     pub fn unsupported(&self, caps: &Capabilities) -> Option<String> {
         let missing: Vec<_> = self

@@ -33,22 +33,17 @@ const QUANTIZED: ParamSpec = ParamSpec {
 };
 
 pub const COMPUTE: MethodInfo = MethodInfo {
-    name: "compute",
-    summary: "compute rasterizer: nearest point per pixel by 64-bit atomicMin (Schütz et al. 2021)",
     params: &[QUANTIZED],
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
-    needs_surfels: false,
-    build: build_nearest,
+    ..MethodInfo::new(
+        "compute",
+        "compute rasterizer: nearest point per pixel by 64-bit atomicMin (Schütz et al. 2021)",
+        build_nearest,
+    )
 };
 
 pub const COMPUTE_HQ: MethodInfo = MethodInfo {
-    name: "compute-hq",
-    summary: "compute rasterizer, high quality: points near the front blended with atomics",
     params: &[
         QUANTIZED,
         ParamSpec {
@@ -59,14 +54,13 @@ pub const COMPUTE_HQ: MethodInfo = MethodInfo {
             doc: "relative depth range behind the nearest point that is blended",
         },
     ],
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
-    needs_surfels: false,
-    build: build_high_quality,
+    ..MethodInfo::new(
+        "compute-hq",
+        "compute rasterizer, high quality: points near the front blended with atomics",
+        build_high_quality,
+    )
 };
 
 /// Bytes of the high-quality accumulators per pixel: r, g, b, count, nx, ny, nz, unused.

@@ -52,9 +52,6 @@ use crate::gpu::Pipeline;
 use crate::graph::{bind, Access, Bind, BufferRange};
 
 pub const INFO: MethodInfo = MethodInfo {
-    name: "ewa",
-    summary: "EWA surface splatting: Gaussian resampling filters, ternary depth test, \
-              normalization and deferred lighting (000 ch. 3)",
     params: &[
         ParamSpec {
             name: "radius",
@@ -100,14 +97,15 @@ pub const INFO: MethodInfo = MethodInfo {
             doc: "half-width of a fragment's depth interval in standard deviations of its splat",
         },
     ],
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
-    culls_batches: false,
-    needs_lod: false,
-    needs_hpr: false,
     needs_normal_field: true,
     needs_surfels: true,
-    build,
+    ..MethodInfo::new(
+        "ewa",
+        "EWA surface splatting: Gaussian resampling filters, ternary depth test, \
+         normalization and deferred lighting (000 ch. 3)",
+        build,
+    )
 };
 
 /// The weight sum a pixel inside a uniformly sampled surface collects, in units of a kernel's

@@ -656,32 +656,26 @@ const MESH_PARAMS: &[ParamSpec] = &[
 ];
 
 pub const INFO: MethodInfo = MethodInfo {
-    name: "hpr",
-    summary:
-        "hidden point removal on the GPU (003 ch. 4), the visible points by the compute rasterizer",
     params: PARAMS,
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
-    culls_batches: false,
-    needs_lod: false,
     needs_hpr: true,
-    needs_normal_field: false,
-    needs_surfels: false,
-    build: build_points,
+    ..MethodInfo::new(
+        "hpr",
+        "hidden point removal on the GPU (003 ch. 4), the visible points by the compute rasterizer",
+        build_points,
+    )
 };
 
 pub const MESH_INFO: MethodInfo = MethodInfo {
-    name: "hpr-mesh",
-    summary: "HPR's partial surface reconstruction (003 4.4), drawn as triangles",
     params: MESH_PARAMS,
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
-    culls_batches: false,
-    needs_lod: false,
     needs_hpr: true,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_mesh,
+    ..MethodInfo::new(
+        "hpr-mesh",
+        "HPR's partial surface reconstruction (003 4.4), drawn as triangles",
+        build_mesh,
+    )
 };
 
 /// The settings of a method configuration; `density` is R / |C − C_e|² from the sampling

@@ -72,18 +72,16 @@ const PARAMS: &[ParamSpec] = &[
 ];
 
 pub const KERNEL3: MethodInfo = MethodInfo {
-    name: "kernel3",
-    summary: "pyramid with search kernels, 3 x 3: each splat stored in the level where the \
-              kernel spans it, every pixel searching every level (000 ch. 6)",
     params: PARAMS,
-    needs_faces: false,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
-    build: build3,
+    ..MethodInfo::new(
+        "kernel3",
+        "pyramid with search kernels, 3 x 3: each splat stored in the level where the kernel \
+         spans it, every pixel searching every level (000 ch. 6)",
+        build3,
+    )
 };
 
 pub const KERNEL5: MethodInfo = MethodInfo {

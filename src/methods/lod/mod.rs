@@ -98,45 +98,38 @@ const PARAMS: &[ParamSpec] = &[EPSILON, LEVELS, SHAPE, MAX_SIZE, BUDGET];
 const GEOMETRY_PARAMS: &[ParamSpec] = &[EPSILON, LEVELS, SHAPE, MAX_SIZE, BUDGET, CHUNK];
 
 pub const COMPUTE_INFO: MethodInfo = MethodInfo {
-    name: "lod-compute",
-    summary: "level of detail from object textures (000 ch. 7): compute selection, indirect draw",
     params: PARAMS,
-    needs_faces: false,
-    features: &[],
-    culls_batches: false,
     needs_lod: true,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_compute,
+    ..MethodInfo::new(
+        "lod-compute",
+        "level of detail from object textures (000 ch. 7): compute selection, indirect draw",
+        build_compute,
+    )
 };
 
 pub const MESH_INFO: MethodInfo = MethodInfo {
-    name: "lod-mesh",
-    summary: "level of detail from object textures (000 ch. 7): task-shader selection, mesh draw",
     params: PARAMS,
-    needs_faces: false,
     features: &[Feature::MeshShader],
-    culls_batches: false,
     needs_lod: true,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_mesh,
+    ..MethodInfo::new(
+        "lod-mesh",
+        "level of detail from object textures (000 ch. 7): task-shader selection, mesh draw",
+        build_mesh,
+    )
 };
 
 pub const GEOMETRY_INFO: MethodInfo = MethodInfo {
-    name: "lod-geometry",
-    summary: "level of detail from object textures (000 ch. 7): geometry-shader expansion",
     params: GEOMETRY_PARAMS,
-    needs_faces: false,
     features: &[Feature::GeometryShader, Feature::GeometryPoints],
-    culls_batches: false,
     needs_lod: true,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_geometry,
+    ..MethodInfo::new(
+        "lod-geometry",
+        "level of detail from object textures (000 ch. 7): geometry-shader expansion",
+        build_geometry,
+    )
 };
 
 /// Which expansion path a method draws with.

@@ -14,8 +14,6 @@ use crate::methods::{
 };
 
 pub const INFO: MethodInfo = MethodInfo {
-    name: "mesh",
-    summary: "ground truth: the input triangle mesh, supersampled s x s and resolved",
     params: &[ParamSpec {
         name: "samples",
         default: 4.0,
@@ -24,13 +22,11 @@ pub const INFO: MethodInfo = MethodInfo {
         doc: "supersampling factor per axis",
     }],
     needs_faces: true,
-    features: &[],
-    culls_batches: false,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
-    needs_surfels: false,
-    build,
+    ..MethodInfo::new(
+        "mesh",
+        "ground truth: the input triangle mesh, supersampled s x s and resolved",
+        build,
+    )
 };
 
 /// Linear HDR color of the supersampled pass.

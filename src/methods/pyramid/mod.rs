@@ -137,48 +137,41 @@ const LOD_PARAMS: &[ParamSpec] = &[
 ];
 
 pub const INFO: MethodInfo = MethodInfo {
-    name: "pyramid",
-    summary: "pyramid point renderer: one pixel per point, holes filled by an analysis/synthesis \
-              pyramid of ellipses, deferred Phong (000 ch. 4)",
     params: PARAMS,
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build,
+    ..MethodInfo::new(
+        "pyramid",
+        "pyramid point renderer: one pixel per point, holes filled by an analysis/synthesis \
+         pyramid of ellipses, deferred Phong (000 ch. 4)",
+        build,
+    )
 };
 
 pub const HYBRID_INFO: MethodInfo = MethodInfo {
-    name: "pyramid-hybrid",
-    summary: "pyramid point renderer with triangles: faces rasterized into level 0 with radius \
-              0, the other points projected beside them (000 5.2)",
     params: PARAMS,
-    needs_faces: false,
     features: &[Feature::Int64Atomics],
     culls_batches: true,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_hybrid,
+    ..MethodInfo::new(
+        "pyramid-hybrid",
+        "pyramid point renderer with triangles: faces rasterized into level 0 with radius \
+         0, the other points projected beside them (000 5.2)",
+        build_hybrid,
+    )
 };
 
 pub const LOD_INFO: MethodInfo = MethodInfo {
-    name: "pyramid-lod",
-    summary: "pyramid point renderer over the level of detail: the splats the object texture's \
-              selection chooses projected into level 0 with their colors (000 ch. 7)",
     params: LOD_PARAMS,
-    needs_faces: false,
-    features: &[],
-    culls_batches: false,
     needs_lod: true,
-    needs_hpr: false,
-    needs_normal_field: false,
     needs_surfels: true,
-    build: build_lod,
+    ..MethodInfo::new(
+        "pyramid-lod",
+        "pyramid point renderer over the level of detail: the splats the object texture's \
+         selection chooses projected into level 0 with their colors (000 ch. 7)",
+        build_lod,
+    )
 };
 
 /// Levels of a pyramid over a `width` x `height` base down to 1 x 1.

@@ -71,17 +71,9 @@ const fn info(
     params: &'static [ParamSpec],
 ) -> MethodInfo {
     MethodInfo {
-        name,
-        summary,
         params,
-        needs_faces: false,
-        features: &[],
-        culls_batches: false,
-        needs_lod: false,
-        needs_hpr: false,
-        needs_normal_field: false,
         needs_surfels: true,
-        build,
+        ..MethodInfo::new(name, summary, build)
     }
 }
 

@@ -12,8 +12,6 @@ use crate::methods::{
 };
 
 pub const INFO: MethodInfo = MethodInfo {
-    name: "points",
-    summary: "fixed-size points, one vertex per point, nearest depth wins (002 §5.2 method 1)",
     params: &[ParamSpec {
         name: "size",
         default: 1.0,
@@ -21,14 +19,11 @@ pub const INFO: MethodInfo = MethodInfo {
         max: 64.0,
         doc: "point size in pixels",
     }],
-    needs_faces: false,
-    features: &[],
-    culls_batches: false,
-    needs_lod: false,
-    needs_hpr: false,
-    needs_normal_field: false,
-    needs_surfels: false,
-    build,
+    ..MethodInfo::new(
+        "points",
+        "fixed-size points, one vertex per point, nearest depth wins (002 §5.2 method 1)",
+        build,
+    )
 };
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
