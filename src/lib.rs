@@ -17,6 +17,7 @@ pub mod post;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod source;
 pub mod stream;
 pub mod streams;
 pub mod suggest;

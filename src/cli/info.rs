@@ -31,7 +31,7 @@ pub struct InfoArgs {
 #[derive(Args, Debug)]
 pub struct HttpArgs {
     /// A `.vpc` URL: requests in flight at most.
-    #[arg(long, value_name = "N", default_value_t = crate::stream::source::DEFAULT_CONNECTIONS as u64,
+    #[arg(long, value_name = "N", default_value_t = crate::source::DEFAULT_CONNECTIONS as u64,
           value_parser = clap::value_parser!(u64).range(1..=256))]
     pub http_connections: u64,
 }
@@ -39,7 +39,7 @@ pub struct HttpArgs {
 /// `surfel info` of a virtual point cloud: its tiles as the `.vpc` lists them (no tile is
 /// read), total points, bounds and CRS.
 fn info_vpc(location: &str, http: &HttpArgs) -> Result<()> {
-    let options = crate::stream::source::HttpOptions {
+    let options = crate::source::HttpOptions {
         connections: http.http_connections as usize,
         ..Default::default()
     };

@@ -16,8 +16,8 @@ use crate::render::{Extras, Renderer, View};
 use crate::scene::compose;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
+use crate::source::{HttpOptions, DEFAULT_CONNECTIONS};
 use crate::stream::loader::LoaderOptions;
-use crate::stream::source::{HttpOptions, DEFAULT_CONNECTIONS};
 use crate::upload::streamed::{
     StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
 };
@@ -98,7 +98,7 @@ impl StreamArgs {
     /// Whether `file` is streamed.
     pub fn streams(&self, file: &std::path::Path) -> bool {
         let name = file.to_string_lossy();
-        self.stream || crate::stream::source::is_url(&name) || crate::stream::vpc::is_vpc(&name)
+        self.stream || crate::source::is_url(&name) || crate::stream::vpc::is_vpc(&name)
     }
 
     /// The streaming options for a method that needs normals and radii estimated with `k`

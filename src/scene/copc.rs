@@ -31,7 +31,7 @@ use super::error::LoadError;
 use super::guard;
 use super::las::ExtraField;
 use super::progress::Progress;
-use crate::stream::source::{ByteSource, FileSource};
+use crate::source::{ByteSource, FileSource};
 
 /// Bytes of one hierarchy entry: key (4 × i32), offset (u64), byte size (i32), point count (i32).
 const ENTRY_BYTES: usize = 32;
@@ -184,7 +184,7 @@ impl Decoded {
     }
 }
 
-fn source_error(e: crate::stream::source::SourceError) -> LoadError {
+fn source_error(e: crate::source::SourceError) -> LoadError {
     LoadError::whole("", e.message)
 }
 

@@ -25,12 +25,12 @@ use std::time::Instant;
 use glam::DVec3;
 
 use super::select::Hierarchy;
-use super::source::{self, ByteSource, HttpOptions, HttpPool};
 use super::vpc::{self, Encoding};
 use crate::gpu::layout::GpuBatch;
 use crate::scene::copc::{self, CopcFile, Entry, Info, Key, Node};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::{Cloud, LoadError, Scalar};
+use crate::source::{self, ByteSource, HttpOptions, HttpPool};
 use crate::streams::{Stream, StreamLayout};
 
 /// How nodes are prepared.

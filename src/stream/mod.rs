@@ -6,6 +6,5 @@ pub mod copc_write;
 pub mod loader;
 pub mod records;
 pub mod select;
-pub mod source;
 pub mod tiles;
 pub mod vpc;

@@ -17,7 +17,7 @@ use anyhow::{bail, Context};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
-use super::source::is_url;
+use crate::source::is_url;
 
 /// The STAC version written.
 pub const STAC_VERSION: &str = "1.0.0";
@@ -441,9 +441,9 @@ fn tile(location: &str, index: usize, feature: &Value) -> anyhow::Result<Tile> {
 }
 
 /// Reads and parses the `.vpc` at `location` (a path or an HTTP(S) URL).
-pub fn read(location: &str, http: &super::source::HttpOptions) -> anyhow::Result<Vpc> {
+pub fn read(location: &str, http: &crate::source::HttpOptions) -> anyhow::Result<Vpc> {
     let text = if is_url(location) {
-        let source = super::source::open(location, http).map_err(|e| anyhow::anyhow!(e))?;
+        let source = crate::source::open(location, http).map_err(|e| anyhow::anyhow!(e))?;
         if source.len() > MAX_BYTES {
             bail!(
                 "{location}: {} bytes; a virtual point cloud of at most {MAX_BYTES} bytes expected",

@@ -14,7 +14,6 @@ use glam::Vec3;
 use crate::color::Coloring;
 use crate::gpu::{Buffer, Context};
 use crate::lod::{self, Hierarchy, ObjectTexture};
-use crate::methods::lod::gpu::GpuLod;
 use crate::scene::{normal_field, Cloud, Up};
 use crate::streams::upload::{default_segment_points, DEFAULT_CHUNK_BYTES};
 use crate::streams::{upload as upload_streams, GpuStreams, StreamLayout};
@@ -276,6 +275,43 @@ pub fn upload(
             coloring,
         },
     ))
+}
+
+/// An object texture uploaded: its patches (`GpuLodPatch`) and vertices (`GpuLodVertex`).
+pub struct GpuLod {
+    pub patches: Arc<Buffer>,
+    pub vertices: Arc<Buffer>,
+    pub patch_count: u32,
+    /// The object texture's levels (`ObjectTexture::levels`): the counters' per-level words
+    /// a path writes.
+    pub levels: u32,
+    /// The longest list a view selects (`ObjectTexture::max_selected`).
+    pub max_selected: u32,
+}
+
+impl GpuLod {
+    pub fn upload(ctx: &Arc<Context>, texture: &ObjectTexture) -> Result<GpuLod> {
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let patches = texture.gpu_patches();
+        let vertices = texture.gpu_vertices();
+        Ok(GpuLod {
+            patches: Arc::new(Buffer::with_data(
+                ctx,
+                "lod.patches",
+                bytemuck::cast_slice(&patches),
+                usage,
+            )?),
+            vertices: Arc::new(Buffer::with_data(
+                ctx,
+                "lod.vertices",
+                bytemuck::cast_slice(&vertices),
+                usage,
+            )?),
+            patch_count: patches.len() as u32,
+            levels: texture.levels,
+            max_selected: texture.max_selected(),
+        })
+    }
 }
 
 /// Builds the object texture of `cloud` (`lod::DEFAULT_LEVELS` levels) and uploads it.

@@ -15,11 +15,12 @@ use surfel::gpu::{Buffer, Context, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
 use surfel::methods::lod::gpu::{
-    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, GpuLod, LodInputs,
-    COUNTER_BYTES, GEOMETRY_VERTEX_COMPONENTS, PER_LEVEL_OFFSET, THRESHOLD_OFFSET,
+    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, LodInputs, COUNTER_BYTES,
+    GEOMETRY_VERTEX_COMPONENTS, PER_LEVEL_OFFSET, THRESHOLD_OFFSET,
 };
 use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use surfel::scene::Cloud;
+use surfel::upload::GpuLod;
 use surfel::upload::UploadOptions;
 
 const SIZE: f32 = 512.0;

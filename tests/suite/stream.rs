@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 use surfel::scene::copc::{CopcFile, Entry, Info, Key, Node};
 use surfel::scene::{self, Cloud, Scalar};
+use surfel::source::FileSource;
 use surfel::stream::convert;
 use surfel::stream::select::{
     select, select_brute_force, select_forest, Budget, Hierarchy, SelectView, Tree,
 };
-use surfel::stream::source::FileSource;
 
 use crate::common;
 
@@ -446,8 +446,8 @@ mod gpu {
     use surfel::methods::MethodConfig;
     use surfel::render::{Extras, Renderer, View};
     use surfel::scene::{Camera, Up};
+    use surfel::source::HttpOptions;
     use surfel::stream::loader::LoaderOptions;
-    use surfel::stream::source::HttpOptions;
     use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 
     use super::*;

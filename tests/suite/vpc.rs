@@ -14,8 +14,8 @@ use surfel::frame::Frame;
 use surfel::methods::MethodConfig;
 use surfel::render::{Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Scalar, Up};
+use surfel::source::HttpOptions;
 use surfel::stream::loader::LoaderOptions;
-use surfel::stream::source::HttpOptions;
 use surfel::stream::{convert, vpc};
 use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 

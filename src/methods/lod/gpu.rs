@@ -27,12 +27,12 @@ use crate::gpu::layout::{
     SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_SQUARES, SPLAT_SHADING_FLAT, SPLAT_SPEC_RASTER,
     SPLAT_SPEC_SHADING,
 };
-use crate::gpu::{Binding, Blend, Buffer, Context, GeometryOutput, GraphicsDesc, Pipeline};
+use crate::gpu::{Binding, Blend, Context, GeometryOutput, GraphicsDesc, Pipeline};
 use crate::graph::{
     bind, Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, PassBuilder, Stages,
 };
-use crate::lod::ObjectTexture;
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use crate::upload::GpuLod;
 
 /// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
 /// after the list's `VkDrawIndirectCommand`.
@@ -55,43 +55,6 @@ pub const DEFAULT_GEOMETRY_CHUNK: u32 = 32;
 
 /// Bytes of the selection's counters.
 pub const COUNTER_BYTES: u64 = THRESHOLD_OFFSET + 16 + 4 * LOD_BUDGET_BINS as u64;
-
-/// An object texture uploaded: its patches (`GpuLodPatch`) and vertices (`GpuLodVertex`).
-pub struct GpuLod {
-    pub patches: Arc<Buffer>,
-    pub vertices: Arc<Buffer>,
-    pub patch_count: u32,
-    /// The object texture's levels (`ObjectTexture::levels`): the counters' per-level words
-    /// a path writes.
-    pub levels: u32,
-    /// The longest list a view selects (`ObjectTexture::max_selected`).
-    pub max_selected: u32,
-}
-
-impl GpuLod {
-    pub fn upload(ctx: &Arc<Context>, texture: &ObjectTexture) -> Result<GpuLod> {
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let patches = texture.gpu_patches();
-        let vertices = texture.gpu_vertices();
-        Ok(GpuLod {
-            patches: Arc::new(Buffer::with_data(
-                ctx,
-                "lod.patches",
-                bytemuck::cast_slice(&patches),
-                usage,
-            )?),
-            vertices: Arc::new(Buffer::with_data(
-                ctx,
-                "lod.vertices",
-                bytemuck::cast_slice(&vertices),
-                usage,
-            )?),
-            patch_count: patches.len() as u32,
-            levels: texture.levels,
-            max_selected: texture.max_selected(),
-        })
-    }
-}
 
 /// What a path writes.
 #[derive(Clone, Copy, Debug)]
