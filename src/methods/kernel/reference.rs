@@ -7,7 +7,7 @@
 use glam::{IVec2, Vec2, Vec3};
 
 use crate::gpu::layout::PRIMITIVE_POINT;
-use crate::methods::pyramid::reference::{ellipse_distance2, pixel_centre, Blend, Level, Texel};
+use crate::methods::pyramid::reference::{ellipse_distance2, parent, pixel_centre, Level, Texel};
 
 /// The level a splat of projected radius `radius` (level-0 pixels) is stored in for a
 /// `kernel` × `kernel` search: the least l with kernel · 2^l ≥ 2 · radius, at most `top`.
@@ -53,40 +53,13 @@ pub fn analysis(level0: Level, kernel: u32) -> Vec<Level> {
         for y in 0..h as i32 {
             for x in 0..w as i32 {
                 let p = IVec2::new(x, y);
-                out.set(p, merged(child, p, out.size(), level, kernel, top));
+                let travels = |t: &Texel| kernel_level(t.radius, kernel, top) >= level;
+                out.set(p, parent(child, p, out.size(), level, travels));
             }
         }
         levels.push(out);
     }
     levels
-}
-
-fn merged(child: &Level, p: IVec2, size: IVec2, level: u32, kernel: u32, top: u32) -> Texel {
-    let lo = 2 * p;
-    let last = child.size() - 1;
-    let hi = IVec2::new(
-        if p.x == size.x - 1 { last.x } else { lo.x + 1 },
-        if p.y == size.y - 1 { last.y } else { lo.y + 1 },
-    )
-    .min(last);
-    let travelling: Vec<(IVec2, Texel)> = (lo.y..=hi.y)
-        .flat_map(|y| (lo.x..=hi.x).map(move |x| IVec2::new(x, y)))
-        .map(|c| (c, child.at(c)))
-        .filter(|(_, t)| !t.is_empty() && kernel_level(t.radius, kernel, top) >= level)
-        .collect();
-    let Some(front) =
-        travelling
-            .iter()
-            .map(|(_, t)| *t)
-            .reduce(|f, t| if t.depth < f.depth { t } else { f })
-    else {
-        return Texel::default();
-    };
-    let mut blend = Blend::default();
-    for (c, t) in travelling.iter().filter(|(_, t)| t.overlaps(&front)) {
-        blend.add(t, pixel_centre(*c, level - 1) + t.disp, 1.0);
-    }
-    blend.finish(&front, pixel_centre(p, level))
 }
 
 /// What the interpolation passes accumulate per level-0 pixel (the three RGBA32F images at

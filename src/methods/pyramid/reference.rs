@@ -176,7 +176,7 @@ pub fn analysis(level0: Level) -> Vec<Level> {
         for y in 0..h as i32 {
             for x in 0..w as i32 {
                 let p = IVec2::new(x, y);
-                out.set(p, parent(child, p, out.size(), level));
+                out.set(p, parent(child, p, out.size(), level, |_| true));
             }
         }
         levels.push(out);
@@ -184,7 +184,16 @@ pub fn analysis(level0: Level) -> Vec<Level> {
     levels
 }
 
-pub(crate) fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel {
+/// Texel `p` of `level` (of `size`) from its children in `child` (the last row and column
+/// take the odd remainder): the average of the children `moves` lets up whose depth intervals
+/// overlap the front-most one's (ch. 4).
+pub(crate) fn parent(
+    child: &Level,
+    p: IVec2,
+    size: IVec2,
+    level: u32,
+    moves: impl Fn(&Texel) -> bool,
+) -> Texel {
     let lo = 2 * p;
     let last = child.size() - 1;
     let hi = IVec2::new(
@@ -195,7 +204,7 @@ pub(crate) fn parent(child: &Level, p: IVec2, size: IVec2, level: u32) -> Texel 
     let children: Vec<(IVec2, Texel)> = (lo.y..=hi.y)
         .flat_map(|y| (lo.x..=hi.x).map(move |x| IVec2::new(x, y)))
         .map(|c| (c, child.at(c)))
-        .filter(|(_, t)| !t.is_empty())
+        .filter(|(_, t)| !t.is_empty() && moves(t))
         .collect();
     let Some(front) =
         children
