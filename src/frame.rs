@@ -1,5 +1,7 @@
-//! A rendered frame read back from the GPU (what metrics compare) and the image size every
-//! front end parses.
+//! A rendered frame read back from the GPU (what metrics compare), its PNG writer and the
+//! image size every front end parses.
+
+use std::path::Path;
 
 /// Largest image edge the renderer accepts (keeps lavapipe tests and typos bounded).
 pub const MAX_EDGE: u32 = 8192;
@@ -59,6 +61,38 @@ impl Frame {
     /// Coverage mask: a pixel is covered when the method wrote a finite depth to it.
     pub fn covered(&self, i: usize) -> bool {
         self.depth[i].is_finite()
+    }
+}
+
+/// The channels of a frame's color a PNG keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channels {
+    /// Red, green and blue: an opaque image, alpha dropped (what a window shows).
+    Rgb,
+    /// Red, green, blue and alpha as stored.
+    Rgba,
+}
+
+/// Writes `frame`'s color plane to `path` as a PNG of `channels`; the caller names the file in
+/// its error.
+pub fn write_png(path: &Path, frame: &Frame, channels: Channels) -> image::ImageResult<()> {
+    let (w, h) = (frame.width, frame.height);
+    match channels {
+        Channels::Rgb => {
+            let rgb: Vec<u8> = frame
+                .color
+                .iter()
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            image::save_buffer(path, &rgb, w, h, image::ExtendedColorType::Rgb8)
+        }
+        Channels::Rgba => image::save_buffer(
+            path,
+            bytemuck::cast_slice(&frame.color),
+            w,
+            h,
+            image::ExtendedColorType::Rgba8,
+        ),
     }
 }
 

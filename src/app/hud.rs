@@ -251,6 +251,63 @@ fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
+/// The GPU time lines: the frame's total (or that the new graph is being measured), then each
+/// pass (`expanded`) or each family's total.
+fn pass_lines(s: &Stats<'_>) -> Vec<HudLine> {
+    let mut out = Vec::new();
+    // A new graph's passes are shown once its own first frame is timed, never another's.
+    let passes: &[(String, f64)] = if s.measuring { &[] } else { s.passes };
+    let total: f64 = passes.iter().map(|(_, ms)| ms).sum();
+    out.push(HudLine::new(
+        if s.measuring || passes.is_empty() {
+            let name = s.method.split(':').next().unwrap_or(s.method);
+            format!("GPU: measuring {name}...")
+        } else {
+            format!("GPU {total:.2} ms per frame")
+        },
+        HudLine::TEXT,
+    ));
+    if s.expanded {
+        for (name, ms) in passes {
+            out.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
+        }
+    } else {
+        for (name, ms, n) in family_totals(passes) {
+            let passes = if n == 1 {
+                String::new()
+            } else {
+                format!(" ({n} passes, U lists them)")
+            };
+            out.push(HudLine::new(
+                format!("  {name}  {ms:.2} ms{passes}"),
+                HudLine::DIM,
+            ));
+        }
+    }
+    out
+}
+
+/// The points line: the cloud's points and what the method projects of them.
+fn points_text(s: &Stats<'_>) -> String {
+    match &s.projected {
+        Projected::InView(n) => format!(
+            "points {}, {} projected (batches in view)",
+            thousands(s.points),
+            thousands(*n)
+        ),
+        Projected::All => format!("points {}, all projected", thousands(s.points)),
+        Projected::LevelOfDetail(Some(counts)) => format!(
+            "points {}, {} samples projected (level of detail)",
+            thousands(s.points),
+            thousands(counts.iter().sum())
+        ),
+        Projected::LevelOfDetail(None) => format!(
+            "points {}, level of detail: waiting for the sample counts",
+            thousands(s.points)
+        ),
+    }
+}
+
 impl Hud {
     /// The statistics lines for `s`.
     pub fn new(s: &Stats<'_>, help: bool) -> Self {
@@ -261,58 +318,11 @@ impl Hud {
             .map(|l| HudLine::new(l, HudLine::HEADING))
             .collect();
         stats.push(HudLine::new(elide(s.file, LINE_CHARS), HudLine::DIM));
-        // A new graph's passes are shown once its own first frame is timed, never another's.
-        let passes: &[(String, f64)] = if s.measuring { &[] } else { s.passes };
-        let total: f64 = passes.iter().map(|(_, ms)| ms).sum();
-        stats.push(HudLine::new(
-            if s.measuring || passes.is_empty() {
-                let name = s.method.split(':').next().unwrap_or(s.method);
-                format!("GPU: measuring {name}...")
-            } else {
-                format!("GPU {total:.2} ms per frame")
-            },
-            HudLine::TEXT,
-        ));
-        if s.expanded {
-            for (name, ms) in passes {
-                stats.push(HudLine::new(format!("  {name}  {ms:.2} ms"), HudLine::DIM));
-            }
-        } else {
-            for (name, ms, n) in family_totals(passes) {
-                let passes = if n == 1 {
-                    String::new()
-                } else {
-                    format!(" ({n} passes, U lists them)")
-                };
-                stats.push(HudLine::new(
-                    format!("  {name}  {ms:.2} ms{passes}"),
-                    HudLine::DIM,
-                ));
-            }
-        }
+        stats.extend(pass_lines(s));
         // Batch-culling methods project the points of the batches inside the frustum (counted
         // on the host with the shader's own test); level of detail projects the samples it
         // counted per level on the GPU; the others project every point.
-        stats.push(HudLine::new(
-            match &s.projected {
-                Projected::InView(n) => format!(
-                    "points {}, {} projected (batches in view)",
-                    thousands(s.points),
-                    thousands(*n)
-                ),
-                Projected::All => format!("points {}, all projected", thousands(s.points)),
-                Projected::LevelOfDetail(Some(counts)) => format!(
-                    "points {}, {} samples projected (level of detail)",
-                    thousands(s.points),
-                    thousands(counts.iter().sum())
-                ),
-                Projected::LevelOfDetail(None) => format!(
-                    "points {}, level of detail: waiting for the sample counts",
-                    thousands(s.points)
-                ),
-            },
-            HudLine::TEXT,
-        ));
+        stats.push(HudLine::new(points_text(s), HudLine::TEXT));
         if let Projected::LevelOfDetail(Some(counts)) = &s.projected {
             stats.extend(histogram(counts, counts.iter().sum()));
         }

@@ -141,6 +141,47 @@ fn numbers<T: std::str::FromStr>(arg: &str) -> Option<Vec<T>> {
     arg.split_whitespace().map(|t| t.parse().ok()).collect()
 }
 
+/// A `clip` command: `word` is its first argument, `rest` the others, `arg` all of them.
+fn parse_clip(word: &str, rest: &str, arg: &str) -> Result<Tool, String> {
+    match word {
+        "box" => match numbers::<f64>(rest).as_deref() {
+            Some([x0, y0, z0, x1, y1, z1]) => {
+                let b = ClipBox::aligned([*x0, *y0, *z0].into(), [*x1, *y1, *z1].into());
+                b.check().map(|()| Tool::ClipBox(b))
+            }
+            _ => Err(format!(
+                "expected `clip box X0 Y0 Z0 X1 Y1 Z1`, got {rest:?}"
+            )),
+        },
+        "oriented" => match numbers::<f64>(rest).as_deref() {
+            Some([cx, cy, cz, hx, hy, hz, angles @ ..])
+                if angles.len() == 1 || angles.len() == 3 =>
+            {
+                let b = ClipBox {
+                    centre: [*cx, *cy, *cz],
+                    half: [*hx, *hy, *hz],
+                    rotation: [
+                        angles[0],
+                        *angles.get(1).unwrap_or(&0.0),
+                        *angles.get(2).unwrap_or(&0.0),
+                    ],
+                    keep: Keep::Inside,
+                };
+                b.check().map(|()| Tool::ClipBox(b))
+            }
+            _ => Err(format!(
+                "expected `clip oriented CX CY CZ HX HY HZ YAW [PITCH ROLL]`, got {rest:?}"
+            )),
+        },
+        "inside" if rest.is_empty() => Ok(Tool::ClipKeep(Keep::Inside)),
+        "outside" if rest.is_empty() => Ok(Tool::ClipKeep(Keep::Outside)),
+        "off" if rest.is_empty() => Ok(Tool::ClipOff),
+        _ => Err(format!(
+            "expected `clip box|oriented|inside|outside|off`, got {arg:?}"
+        )),
+    }
+}
+
 fn parse_tool(command: &str, arg: &str) -> Result<Tool, String> {
     let (word, rest) = arg.split_once(char::is_whitespace).unwrap_or((arg, ""));
     let rest = rest.trim();
@@ -182,43 +223,7 @@ fn parse_tool(command: &str, arg: &str) -> Result<Tool, String> {
                 "expected `locate X Y Z` in file coordinates, got {arg:?}"
             )),
         },
-        "clip" => match word {
-            "box" => match numbers::<f64>(rest).as_deref() {
-                Some([x0, y0, z0, x1, y1, z1]) => {
-                    let b = ClipBox::aligned([*x0, *y0, *z0].into(), [*x1, *y1, *z1].into());
-                    b.check().map(|()| Tool::ClipBox(b))
-                }
-                _ => Err(format!(
-                    "expected `clip box X0 Y0 Z0 X1 Y1 Z1`, got {rest:?}"
-                )),
-            },
-            "oriented" => match numbers::<f64>(rest).as_deref() {
-                Some([cx, cy, cz, hx, hy, hz, angles @ ..])
-                    if angles.len() == 1 || angles.len() == 3 =>
-                {
-                    let b = ClipBox {
-                        centre: [*cx, *cy, *cz],
-                        half: [*hx, *hy, *hz],
-                        rotation: [
-                            angles[0],
-                            *angles.get(1).unwrap_or(&0.0),
-                            *angles.get(2).unwrap_or(&0.0),
-                        ],
-                        keep: Keep::Inside,
-                    };
-                    b.check().map(|()| Tool::ClipBox(b))
-                }
-                _ => Err(format!(
-                    "expected `clip oriented CX CY CZ HX HY HZ YAW [PITCH ROLL]`, got {rest:?}"
-                )),
-            },
-            "inside" if rest.is_empty() => Ok(Tool::ClipKeep(Keep::Inside)),
-            "outside" if rest.is_empty() => Ok(Tool::ClipKeep(Keep::Outside)),
-            "off" if rest.is_empty() => Ok(Tool::ClipOff),
-            _ => Err(format!(
-                "expected `clip box|oriented|inside|outside|off`, got {arg:?}"
-            )),
-        },
+        "clip" => parse_clip(word, rest, arg),
         "filter" => {
             let classes = || {
                 numbers::<u8>(rest)

@@ -7,7 +7,7 @@ use anyhow::{bail, Context as _, Result};
 use clap::Args;
 
 use super::{context, InputArgs};
-use crate::frame::Size;
+use crate::frame::{write_png, Channels, Size};
 use crate::scene::camera::parse_vec3;
 use crate::scene::{load_prepared, Cloud};
 use crate::upload::{upload, UploadOptions};
@@ -485,14 +485,8 @@ fn render_hpr_png(cloud: &Cloud, view: &crate::eval::hpr_view::HprView, out: &Pa
         "compute"
     };
     let frame = crate::eval::hpr_view::render_once(cloud, view, method)?;
-    image::save_buffer(
-        out,
-        bytemuck::cast_slice(&frame.color),
-        view.width,
-        view.height,
-        image::ColorType::Rgba8,
-    )
-    .with_context(|| format!("{}: cannot write", out.display()))
+    write_png(out, &frame, Channels::Rgba)
+        .with_context(|| format!("{}: cannot write", out.display()))
 }
 
 pub(super) fn hpr_study(a: HprStudyArgs) -> Result<()> {

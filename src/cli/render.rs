@@ -349,7 +349,7 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     }
     .context("renderer returned no frame")?;
     drop(renderer);
-    write_png(&ctx, &mut frame, settings.post.background, &a.out)?;
+    write_composited(&ctx, &mut frame, settings.post.background, &a.out)?;
     eprintln!(
         "{}: {} points, {} -> {}",
         file.display(),
@@ -521,7 +521,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         .context("renderer returned no frame")?;
     let stats = streamed.stats();
     drop(renderer);
-    write_png(&ctx, &mut frame, settings.post.background, &a.out)?;
+    write_composited(&ctx, &mut frame, settings.post.background, &a.out)?;
     eprintln!(
         "first pixel after {first_pixel_s:.2} s; refined in {refine_s:.2} s: {} of {} selected points drawn from {} nodes, {:.1} MB read, {} -> {}",
         stats.drawn_points,
@@ -550,7 +550,7 @@ fn max_rss_bytes() -> u64 {
 
 /// Composites `frame` over `background` and writes it to `out`, after failing on any
 /// validation error the finished renderer left (call it once the renderer is dropped).
-fn write_png(
+fn write_composited(
     ctx: &crate::gpu::Context,
     frame: &mut crate::frame::Frame,
     background: crate::post::Background,
@@ -560,12 +560,6 @@ fn write_png(
     if ctx.validation && ctx.validation_errors() > 0 {
         bail!("{} Vulkan validation errors", ctx.validation_errors());
     }
-    image::save_buffer(
-        out,
-        bytemuck::cast_slice(&frame.color),
-        frame.width,
-        frame.height,
-        image::ExtendedColorType::Rgba8,
-    )
-    .with_context(|| format!("{}: cannot write PNG", out.display()))
+    crate::frame::write_png(out, frame, crate::frame::Channels::Rgba)
+        .with_context(|| format!("{}: cannot write PNG", out.display()))
 }
