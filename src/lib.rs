@@ -9,7 +9,6 @@ pub mod frame;
 pub mod gpu;
 pub mod graph;
 pub mod hpr;
-pub mod lines;
 pub mod lod;
 pub mod methods;
 pub mod overlay;

@@ -16,7 +16,7 @@ pub struct ConvertLinesArgs {
 }
 
 pub(super) fn convert_lines(a: ConvertLinesArgs) -> Result<()> {
-    use crate::lines;
+    use crate::scene::lines;
     if crate::scene::format_extension(&a.mesh) != "obj" {
         bail!(
             "{}: expected an .obj mesh (polygons and materials)",

@@ -14,6 +14,7 @@ pub mod input;
 pub mod knn;
 pub mod las;
 pub mod lights;
+pub mod lines;
 pub mod morton;
 pub mod normal_field;
 pub mod obj;
@@ -90,8 +91,8 @@ pub fn load_with(path: &Path, options: &ReadOptions) -> Result<Cloud, LoadError>
     check_regular(path)?;
     let survey = matches!(extension.as_str(), "las" | "laz" | "copc.laz");
     let mut cloud = match extension.as_str() {
-        "ply" if crate::lines::is_line_model(path) => {
-            crate::lines::load(path).map(|m| m.to_cloud())
+        "ply" if crate::scene::lines::is_line_model(path) => {
+            crate::scene::lines::load(path).map(|m| m.to_cloud())
         }
         "ply" => ply::load(path),
         "obj" => obj::load(path),

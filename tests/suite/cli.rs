@@ -1013,7 +1013,7 @@ fn convert_lines_prints_counts_and_writes_a_line_model() {
     ] {
         assert!(text.contains(line), "{line:?} in {text}");
     }
-    let model = surfel::lines::load(&out).expect("reload");
+    let model = surfel::scene::lines::load(&out).expect("reload");
     assert!(!model.polylines.is_empty());
     // Other PLY readers see the vertices and the kept triangles.
     let cloud = surfel::scene::load(&out).expect("load as PLY");

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use surfel::lines::{self, LineKind, LineModel};
+use surfel::scene::lines::{self, LineKind, LineModel};
 use surfel::scene::obj::{self, PolygonMesh};
 
 fn plant(name: &str) -> PathBuf {
