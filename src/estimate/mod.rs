@@ -35,9 +35,9 @@ use crate::gpu::layout::{
     BINDING_KNN_TABLE, BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GRAPH_K, KNN_GROUP, KNN_MAX_K,
     KNN_SPEC_K,
 };
-use crate::gpu::{Binding, Buffer, Context, Pipeline};
+use crate::gpu::{Buffer, Context};
 use crate::graph::{Access, Bind, BufferRange, GraphBuilder, Stages};
-use crate::methods::common::sort::{add_sort, compute_pass, SortPipelines};
+use crate::methods::common::sort::{add_sort, RadixSort};
 use crate::scene::knn::{finite_indices, GridFrame};
 use crate::scene::orient::{Graph, GRAPH_K};
 use crate::scene::preprocess::{self, PreprocessOptions};
@@ -75,60 +75,23 @@ impl EstimateOn {
     }
 }
 
-/// The pipelines of the GPU estimate for one neighbourhood size.
-pub struct KnnPipelines {
+/// The GPU estimate for one neighbourhood size, checked against the device.
+pub struct GpuKnn {
     k: usize,
-    key: Arc<Pipeline>,
-    cells: Arc<Pipeline>,
-    query: Arc<Pipeline>,
-    sort: SortPipelines,
+    sort: RadixSort,
 }
 
-impl KnnPipelines {
-    /// Creates the pipelines for `k` neighbours (1..=`KNN_MAX_K`); fails where the device
-    /// lacks what the radix sort needs.
-    pub fn new(ctx: &Arc<Context>, k: usize) -> Result<Self> {
+impl GpuKnn {
+    /// For `k` neighbours (1..=`KNN_MAX_K`); fails where the device lacks what the radix sort
+    /// needs.
+    pub fn new(ctx: &Context, k: usize) -> Result<Self> {
         anyhow::ensure!(
             (1..=KNN_MAX_K as usize).contains(&k),
             "the GPU estimate keeps 1 to {KNN_MAX_K} neighbours per point, not {k}"
         );
-        let pipeline = |shader: &str, bindings: &[u32], spec: &[(u32, u32)]| {
-            let bindings: Vec<_> = bindings.iter().map(|&b| Binding::storage(b)).collect();
-            Pipeline::compute_specialized(ctx, shader, &bindings, spec).map(Arc::new)
-        };
-        Ok(KnnPipelines {
+        Ok(GpuKnn {
             k,
-            key: pipeline(
-                "estimate/key.comp",
-                &[
-                    BINDING_KNN_POSITIONS,
-                    BINDING_SORT_KEYS,
-                    BINDING_SORT_VALUES,
-                ],
-                &[],
-            )?,
-            cells: pipeline(
-                "estimate/cells.comp",
-                &[
-                    BINDING_KNN_POSITIONS,
-                    BINDING_SORT_KEYS,
-                    BINDING_SORT_VALUES,
-                    BINDING_KNN_TABLE,
-                    BINDING_KNN_SORTED,
-                ],
-                &[],
-            )?,
-            query: pipeline(
-                "estimate/query.comp",
-                &[
-                    BINDING_KNN_TABLE,
-                    BINDING_KNN_SORTED,
-                    BINDING_KNN_OUT,
-                    BINDING_KNN_GRAPH,
-                ],
-                &[(KNN_SPEC_K, k as u32)],
-            )?,
-            sort: SortPipelines::new(ctx)?,
+            sort: RadixSort::new(ctx)?,
         })
     }
 }
@@ -136,9 +99,8 @@ impl KnnPipelines {
 /// Seconds of each step of [`estimate`], and how many points the CPU finished.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GpuTimes {
-    /// Pipeline creation.
-    pub prepare_s: f64,
-    /// The grid's frame, the upload, the graph's compilation, submission and read-back.
+    /// The grid's frame, the upload, the graph's compilation (its pipelines included),
+    /// submission and read-back.
     pub gpu_s: f64,
     /// Radii, their floor and the unresolved points on the CPU.
     pub finish_s: f64,
@@ -152,7 +114,7 @@ pub struct GpuTimes {
 /// neighbours of every resolved point, the orientation's graph.
 pub fn nearest_on_gpu(
     ctx: &Arc<Context>,
-    pipelines: &KnnPipelines,
+    knn: &GpuKnn,
     positions: &[Vec3],
     sensor: Option<Vec3>,
 ) -> Result<(Vec<Vec4>, Graph)> {
@@ -166,7 +128,7 @@ pub fn nearest_on_gpu(
     }
     let count = n as u32;
     let finite = finite_indices(positions);
-    let frame = GridFrame::new(positions, &finite, pipelines.k);
+    let frame = GridFrame::new(positions, &finite, knn.k);
     let mean = preprocess::centroid(positions);
     let hash_bits = count.next_power_of_two().trailing_zeros().clamp(1, 31);
     let params = KnnParams {
@@ -177,7 +139,6 @@ pub fn nearest_on_gpu(
         hash_bits,
         ..Default::default()
     };
-    let push = bytemuck::bytes_of(&params);
     let mut g = GraphBuilder::new();
     let upload = Buffer::with_data(
         ctx,
@@ -198,24 +159,22 @@ pub fn nearest_on_gpu(
     let read = Access::StorageRead(Stages::Compute);
     let write = Access::StorageWrite(Stages::Compute);
     let groups = count.div_ceil(KNN_GROUP);
-    compute_pass(
-        &mut g,
+    g.compute(
         "estimate.key",
-        &pipelines.key,
+        "estimate/key.comp",
         &[
             Bind::buffer(BINDING_KNN_POSITIONS, input, read),
             Bind::buffer(BINDING_SORT_KEYS, keys, write),
             Bind::buffer(BINDING_SORT_VALUES, values, write),
         ],
-        push,
-        groups,
-    );
-    let (keys, values) = add_sort(&mut g, &pipelines.sort, keys, values, count, hash_bits);
+    )
+    .push(&params)
+    .dispatch(u64::from(groups));
+    let (keys, values) = add_sort(&mut g, &knn.sort, keys, values, count, hash_bits);
     g.fill_buffer("estimate.clear", table, BufferRange::WHOLE, 0);
-    compute_pass(
-        &mut g,
+    g.compute(
         "estimate.cells",
-        &pipelines.cells,
+        "estimate/cells.comp",
         &[
             Bind::buffer(BINDING_KNN_POSITIONS, input, read),
             Bind::buffer(BINDING_SORT_KEYS, keys, read),
@@ -223,22 +182,22 @@ pub fn nearest_on_gpu(
             Bind::buffer(BINDING_KNN_TABLE, table, write),
             Bind::buffer(BINDING_KNN_SORTED, sorted, write),
         ],
-        push,
-        groups,
-    );
-    compute_pass(
-        &mut g,
+    )
+    .push(&params)
+    .dispatch(u64::from(groups));
+    g.compute(
         "estimate.query",
-        &pipelines.query,
+        "estimate/query.comp",
         &[
             Bind::buffer(BINDING_KNN_TABLE, table, read),
             Bind::buffer(BINDING_KNN_SORTED, sorted, read),
             Bind::buffer(BINDING_KNN_OUT, out, write),
             Bind::buffer(BINDING_KNN_GRAPH, graph, write),
         ],
-        push,
-        groups,
-    );
+    )
+    .spec(&[(KNN_SPEC_K, knn.k as u32)])
+    .push(&params)
+    .dispatch(u64::from(groups));
     let host = Arc::new(Buffer::readback(ctx, "estimate.readback", n64 * 16)?);
     let host_id = g.import_buffer("estimate.readback", host.clone());
     let region = [vk::BufferCopy {
@@ -297,20 +256,18 @@ pub fn estimate(
         }));
     }
     let start = Instant::now();
-    let pipelines = KnnPipelines::new(ctx, k)?;
-    let prepared = Instant::now();
+    let knn = GpuKnn::new(ctx, k)?;
     let sensor = cloud
         .sensors
         .first()
         .map(|s| s.position)
         .filter(|s| s.is_finite());
-    let (result, graph) = nearest_on_gpu(ctx, &pipelines, &cloud.positions, sensor)
+    let (result, graph) = nearest_on_gpu(ctx, &knn, &cloud.positions, sensor)
         .context("estimating normals and radii on the GPU")?;
     let ran = Instant::now();
     let unresolved = preprocess::complete_from(cloud, options, &result, graph);
     Ok(Some(GpuTimes {
-        prepare_s: (prepared - start).as_secs_f64(),
-        gpu_s: (ran - prepared).as_secs_f64(),
+        gpu_s: (ran - start).as_secs_f64(),
         finish_s: ran.elapsed().as_secs_f64(),
         unresolved,
     }))

@@ -61,7 +61,7 @@ pub struct GeometryOutput {
 }
 
 /// One binding of the push-descriptor set 0.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Binding {
     pub binding: u32,
     pub ty: vk::DescriptorType,
@@ -261,14 +261,14 @@ pub enum Blend {
     Alpha,
 }
 
-/// Everything that defines a graphics pipeline.
-#[derive(Clone, Debug)]
-pub struct GraphicsDesc<'a> {
+/// Everything that defines a graphics pipeline but its bindings (which come from the pass's
+/// bind list).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GraphicsDesc {
     /// Shader paths; vertex or mesh (+ optional task/geometry) and fragment.
-    pub shaders: &'a [&'a str],
-    pub bindings: &'a [Binding],
-    pub color_formats: &'a [vk::Format],
-    pub blends: &'a [Blend],
+    pub shaders: Vec<&'static str>,
+    pub color_formats: Vec<vk::Format>,
+    pub blends: Vec<Blend>,
     pub depth_format: Option<vk::Format>,
     pub depth_test: bool,
     pub depth_write: bool,
@@ -278,41 +278,49 @@ pub struct GraphicsDesc<'a> {
     pub cull: vk::CullModeFlags,
     /// Specialization constants `(constant_id, value)` for every stage (GLSL
     /// `layout(constant_id = N) const uint X = default;`); ids a stage lacks are ignored.
-    pub specialization: &'a [(u32, u32)],
+    pub specialization: Vec<(u32, u32)>,
     /// The geometry stage's declared output vertices and invocations, when not its own.
     pub geometry_output: Option<GeometryOutput>,
 }
 
-impl Default for GraphicsDesc<'_> {
+impl Default for GraphicsDesc {
     /// No shaders or attachments; no depth; triangles, no culling, no specialization.
     fn default() -> Self {
         Self {
-            shaders: &[],
-            bindings: &[],
-            color_formats: &[],
-            blends: &[],
+            shaders: Vec::new(),
+            color_formats: Vec::new(),
+            blends: Vec::new(),
             depth_format: None,
             depth_test: false,
             depth_write: false,
             depth_compare: vk::CompareOp::ALWAYS,
             topology: vk::PrimitiveTopology::TRIANGLE_LIST,
             cull: vk::CullModeFlags::NONE,
-            specialization: &[],
+            specialization: Vec::new(),
             geometry_output: None,
         }
     }
 }
 
+/// The stages of the shaders at `paths` (by extension; unknown ones are reported when the
+/// pipeline is created).
+pub fn stages_of(paths: &[&str]) -> vk::ShaderStageFlags {
+    paths
+        .iter()
+        .filter_map(|p| stage_of(p).ok())
+        .fold(vk::ShaderStageFlags::empty(), |a, s| a | s)
+}
+
 impl Pipeline {
     /// A graphics pipeline for dynamic rendering with viewport/scissor dynamic.
-    pub fn graphics(ctx: &Arc<Context>, desc: &GraphicsDesc<'_>) -> Result<Self> {
+    pub fn graphics(ctx: &Arc<Context>, desc: &GraphicsDesc, bindings: &[Binding]) -> Result<Self> {
         let mut stages = vk::ShaderStageFlags::empty();
-        for p in desc.shaders {
+        for p in &desc.shaders {
             stages |= stage_of(p)?;
         }
-        let (set_layout, layout) = layouts(ctx, desc.bindings, stages)?;
-        let modules = Modules::load(ctx, desc.shaders, desc.geometry_output)?;
-        let specialization = Specialization::new(desc.specialization);
+        let (set_layout, layout) = layouts(ctx, bindings, stages)?;
+        let modules = Modules::load(ctx, &desc.shaders, desc.geometry_output)?;
+        let specialization = Specialization::new(&desc.specialization);
         let spec_info = specialization.info();
         let stage_infos = desc
             .shaders
@@ -374,7 +382,7 @@ impl Pipeline {
         let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let mut rendering = vk::PipelineRenderingCreateInfo::default()
-            .color_attachment_formats(desc.color_formats)
+            .color_attachment_formats(&desc.color_formats)
             .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
         let is_mesh = stages.contains(vk::ShaderStageFlags::MESH_EXT);
         let mut info = vk::GraphicsPipelineCreateInfo::default()

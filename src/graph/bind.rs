@@ -2,20 +2,9 @@
 //! the pass's access to it; from one list of them come the pipeline layout entries
 //! ([`layout`]), the pass's accesses ([`PassBuilder::binds`](super::PassBuilder::binds)) and
 //! the descriptors pushed when it records ([`PassContext::bind_all`](super::PassContext::bind_all)).
-//!
-//! ```ignore
-//! let binds = [
-//!     Bind::constants(BINDING_FRAME, frame),
-//!     Bind::reads(BINDING_SEGMENTS, segments),
-//!     Bind::writes(BINDING_OUTPUT, output),
-//!     Bind::unused(BINDING_MASK),
-//! ];
-//! let pipeline = Pipeline::compute(ctx, "family/pass.comp", &bind::compute_layout(&binds))?;
-//! g.pass("family.pass").binds(&binds).record(move |ctx| {
-//!     ctx.bind_all(&pipeline, &binds);
-//!     ctx.dispatch_groups(groups);
-//! });
-//! ```
+//! [`GraphBuilder::compute`](super::GraphBuilder::compute) and
+//! [`GraphBuilder::draw`](super::GraphBuilder::draw) do all three from one expression
+//! (`graph::pass`).
 
 use ash::vk;
 

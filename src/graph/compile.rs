@@ -15,7 +15,7 @@ use super::{
     Access, BufferId, BufferSource, GraphBuilder, ImageId, ImageSource, PassDecl, Subresource,
 };
 use crate::gpu::memory::create_view;
-use crate::gpu::{Buffer, Context, Image, ImageDesc, Profiler};
+use crate::gpu::{Buffer, Context, Image, ImageDesc, Pipeline, Profiler};
 
 pub(super) enum ImageSlot {
     Owned(Image),
@@ -137,6 +137,8 @@ pub(super) struct CompiledPass {
     pub steady: BarrierBatch,
     /// Index of the pass's timestamp scope (regular passes only).
     pub scope: Option<usize>,
+    /// The pipeline of a `compute` or `draw` pass.
+    pub pipeline: Option<Arc<Pipeline>>,
 }
 
 /// An executable graph: resources allocated, barriers derived, scopes assigned.
@@ -320,9 +322,18 @@ impl GraphBuilder {
             let view = unsafe { create_view(&ctx.device, raw, &desc, base, count)? };
             graph.range_views.insert((id, base, count), view);
         }
+        let pipelines = super::pass::create_pipelines(
+            ctx,
+            self.passes
+                .iter()
+                .map(|p| (p.name.as_str(), p.program.as_ref())),
+        )?;
         let mut scope = 0;
-        for (decl, (first, steady)) in self.passes.into_iter().zip(barriers) {
+        for ((decl, (first, steady)), pipeline) in
+            self.passes.into_iter().zip(barriers).zip(pipelines)
+        {
             let pass = CompiledPass {
+                pipeline,
                 label: CString::new(decl.name.replace('\0', " ")).unwrap_or_default(),
                 first: BarrierBatch::new(&graph, &first),
                 steady: BarrierBatch::new(&graph, &steady),

@@ -4,23 +4,24 @@
 //! synchronization2, owns transient images and buffers, wraps each pass in a timestamp scope
 //! and a debug label, and prints its schedule.
 //!
-//! A pass reads like a small function: its bindings, declared once (`bind::Bind`), give the
-//! pipeline layout, the pass's accesses and the descriptors it pushes.
+//! A pass is one expression: its shader(s) and bindings, declared once (`bind::Bind`), give
+//! the pipeline (created when the graph compiles, one per distinct program), the pass's
+//! accesses and the descriptors it pushes (`pass.rs`).
 //! ```ignore
 //! let binds = [
 //!     Bind::buffer(BINDING_FRAME, frame, Access::UniformRead(Stages::Graphics)),
 //!     Bind::buffer(BINDING_POINTS, points, Access::StorageRead(Stages::Vertex)),
 //! ];
-//! g.pass("project")
-//!     .binds(&binds)
-//!     .buffer_range(args, BufferRange::new(0, 16), Access::IndirectRead)
+//! g.draw("project", desc, &binds)
+//!     .declare(|p| p.buffer_range(args, BufferRange::new(0, 16), Access::IndirectRead))
 //!     .color(color, Load::Clear([0.0; 4]))
 //!     .depth(depth, Load::Clear([0.0; 4]))
-//!     .record(move |ctx| {
-//!         ctx.bind_all(&pipeline, &binds);
-//!         ctx.draw_indirect(args, 0, 1, 16);
-//!     });
+//!     .draw(move |ctx| ctx.draw_indirect(args, 0, 1, 16));
+//! g.compute("resolve", "family/resolve.comp", &resolve_binds)
+//!     .push(&params)
+//!     .dispatch_grid(groups);
 //! ```
+//! Transfers and transitions use `pass(name)` with explicit accesses and a `record` closure.
 //!
 //! Stages: `validate.rs` (declarations) and culling, `derive.rs` (barriers per pass for the
 //! first and the steady-state frame, on top of the pure state machine in `sync.rs`),
@@ -30,6 +31,7 @@
 pub mod bind;
 mod compile;
 mod derive;
+pub mod pass;
 mod record;
 pub mod sync;
 mod validate;
@@ -44,6 +46,7 @@ use crate::gpu::{Buffer, Image, ImageDesc};
 pub use bind::Bind;
 pub use compile::CompiledGraph;
 pub use derive::{Barrier, BarrierTarget};
+pub use pass::{Binds, ComputePass, DrawPass};
 pub use record::{Descriptor, PassContext, Sampler};
 pub use sync::{Access, StageSupport, Stages};
 
@@ -237,6 +240,8 @@ pub(crate) struct PassDecl {
     pub on_demand: bool,
     /// The placeholder buffer of the pass's `Bind::unused` bindings.
     pub unused: Option<BufferId>,
+    /// The pipeline the graph creates for the pass (`compute` and `draw` passes).
+    pub program: Option<pass::Program>,
     pub record: RecordFn,
 }
 
@@ -406,6 +411,7 @@ impl GraphBuilder {
                 depth: None,
                 on_demand: false,
                 unused: None,
+                program: None,
                 record: Box::new(|_| {}),
             }),
         }

@@ -55,6 +55,7 @@ impl CompiledGraph {
                 cmd,
                 graph: self,
                 pass: &pass.decl,
+                pipeline: pass.pipeline.as_deref(),
                 extent,
             });
             if extent.width > 0 {
@@ -194,6 +195,7 @@ pub struct PassContext<'a> {
     pub(crate) cmd: vk::CommandBuffer,
     graph: &'a CompiledGraph,
     pass: &'a PassDecl,
+    pub(super) pipeline: Option<&'a Pipeline>,
     /// Render area of the pass's attachments (zero for compute/transfer passes).
     pub extent: vk::Extent2D,
 }
@@ -255,6 +257,10 @@ fn mips_declared(
 }
 
 impl PassContext<'_> {
+    pub(super) fn pass_name(&self) -> &str {
+        &self.pass.name
+    }
+
     pub fn image(&self, id: ImageId) -> vk::Image {
         self.graph.image_raw(id)
     }

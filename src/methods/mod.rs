@@ -355,6 +355,11 @@ pub struct BuildContext<'a> {
 }
 
 impl BuildContext<'_> {
+    /// Workgroups of `group` x `group` pixels covering the frame.
+    pub fn pixel_groups(&self, group: u32) -> (u32, u32) {
+        (self.width.div_ceil(group), self.height.div_ceil(group))
+    }
+
     /// The bindings of a draw whose vertex shader reads the point streams: the frame block
     /// (every graphics stage) and the segment table.
     pub fn draw_binds(&self) -> [Bind; 3] {

@@ -14,10 +14,8 @@ use gpu_allocator::MemoryLocation;
 
 use super::{atlas, layout, Mark, Panel, CAPACITY};
 use crate::gpu::layout::{GpuGlyph, BINDING_FRAME, BINDING_OVERLAY_ATLAS, BINDING_OVERLAY_GLYPHS};
-use crate::gpu::{Blend, Buffer, Context, GraphicsDesc, Pipeline};
-use crate::graph::{
-    bind, Access, Bind, BufferId, CompiledGraph, GraphBuilder, ImageId, Load, Stages,
-};
+use crate::gpu::{Blend, Buffer, Context, GraphicsDesc};
+use crate::graph::{Access, Bind, BufferId, CompiledGraph, GraphBuilder, ImageId, Load, Stages};
 
 /// The overlay of one renderer: per frame slot a quad buffer, and the quad count of the frame
 /// being recorded.
@@ -79,28 +77,17 @@ impl OverlayPass {
                 Access::StorageRead(Stages::Fragment),
             ),
         ];
-        let pipeline = Pipeline::graphics(
-            ctx,
-            &GraphicsDesc {
-                shaders: &["overlay/text.vert", "overlay/text.frag"],
-                bindings: &bind::layout(
-                    &binds,
-                    vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-                ),
-                color_formats: &[g.desc(color).format],
-                blends: &[Blend::Alpha],
-                ..GraphicsDesc::default()
-            },
-        )?;
+        let desc = GraphicsDesc {
+            shaders: vec!["overlay/text.vert", "overlay/text.frag"],
+            color_formats: vec![g.desc(color).format],
+            blends: vec![Blend::Alpha],
+            ..GraphicsDesc::default()
+        };
         let count = Arc::new(AtomicU32::new(0));
         let quads = count.clone();
-        g.pass("overlay.text")
-            .binds(&binds)
+        g.draw("overlay.text", desc, &binds)
             .color(color, Load::Load)
-            .record(move |ctx| {
-                ctx.bind_all(&pipeline, &binds);
-                ctx.draw(6, quads.load(Ordering::Relaxed));
-            });
+            .draw(move |ctx| ctx.draw(6, quads.load(Ordering::Relaxed)));
         Ok(Self {
             slots: buffers,
             glyphs,

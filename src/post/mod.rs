@@ -11,9 +11,6 @@
 //! shades and `post.background` when it only composites. With neither requested no pass is
 //! added and the method's color is presented and read back as it is.
 
-use std::sync::Arc;
-
-use anyhow::Result;
 use ash::vk;
 use glam::Vec4;
 
@@ -22,8 +19,8 @@ use crate::gpu::layout::{
     PostParams, BINDING_INPUT0, BINDING_INPUT1, BINDING_OUTPUT0, POST_GROUP, POST_SPEC_BACKGROUND,
     POST_SPEC_EDL,
 };
-use crate::gpu::{Context, ImageDesc, Pipeline};
-use crate::graph::{bind, Access, Bind, GraphBuilder, ImageId, Stages};
+use crate::gpu::ImageDesc;
+use crate::graph::{Access, Bind, GraphBuilder, ImageId, Stages};
 use crate::methods::{Targets, COLOR_FORMAT};
 pub use crate::scene::appearance::{
     Background, Edl, DEFAULT_RADIUS, DEFAULT_STRENGTH, EDL_DEFAULT_ARG, MAX_STRENGTH, RADIUS_RANGE,
@@ -120,15 +117,14 @@ pub fn composite(frame: &mut Frame, background: Background) {
 /// Adds the post pass of `options` reading `targets` and returns the color image to present
 /// and read back: `targets.color` itself when `options` adds no pass.
 pub fn build(
-    ctx: &Arc<Context>,
     g: &mut GraphBuilder,
     targets: Targets,
     width: u32,
     height: u32,
     options: &PostOptions,
-) -> Result<ImageId> {
+) -> ImageId {
     if options.is_none() {
-        return Ok(targets.color);
+        return targets.color;
     }
     let edl = options.edl.is_some();
     let background = options.background != Background::Transparent;
@@ -154,24 +150,15 @@ pub fn build(
             Access::StorageWrite(Stages::Compute),
         ),
     ];
-    let pipeline = Arc::new(Pipeline::compute_specialized(
-        ctx,
-        "post/post.comp",
-        &bind::compute_layout(&binds),
-        &[
+    let name = if edl { "post.edl" } else { "post.background" };
+    g.compute(name, "post/post.comp", &binds)
+        .spec(&[
             (POST_SPEC_EDL, u32::from(edl)),
             (POST_SPEC_BACKGROUND, u32::from(background)),
-        ],
-    )?);
-    let push = options.params();
-    g.pass(if edl { "post.edl" } else { "post.background" })
-        .binds(&binds)
-        .record(move |ctx| {
-            ctx.bind_all(&pipeline, &binds);
-            ctx.push(&pipeline, bytemuck::bytes_of(&push));
-            ctx.dispatch(width.div_ceil(POST_GROUP), height.div_ceil(POST_GROUP), 1);
-        });
-    Ok(color)
+        ])
+        .push(&options.params())
+        .dispatch_grid((width.div_ceil(POST_GROUP), height.div_ceil(POST_GROUP)));
+    color
 }
 
 #[cfg(test)]

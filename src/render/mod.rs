@@ -281,7 +281,7 @@ impl Renderer {
             .transpose()?;
         // The post stage's color (or the method's, without post-processing) is what is shown.
         let shown = Targets {
-            color: post::build(ctx, &mut g, targets, width, height, &extras.post)?,
+            color: post::build(&mut g, targets, width, height, &extras.post),
             ..targets
         };
         let overlay = if extras.overlay {

@@ -10,7 +10,7 @@ use crate::common;
 use std::path::PathBuf;
 
 use glam::Vec3;
-use surfel::estimate::{self, KnnPipelines};
+use surfel::estimate::{self, GpuKnn};
 use surfel::rng::SplitMix64;
 use surfel::scene::preprocess::{self, PreprocessOptions};
 use surfel::scene::{self, Cloud};
@@ -133,7 +133,7 @@ fn gpu_leaves_outliers_and_non_finite_points_to_the_cpu() {
 #[test]
 fn gpu_estimate_rejects_what_it_cannot_hold() {
     let ctx = common::context();
-    let error = KnnPipelines::new(&ctx, 33).err().expect("k = 33 refused");
+    let error = GpuKnn::new(&ctx, 33).err().expect("k = 33 refused");
     assert_eq!(
         error.to_string(),
         "the GPU estimate keeps 1 to 32 neighbours per point, not 33"

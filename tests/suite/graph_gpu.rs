@@ -366,11 +366,12 @@ fn mesh_shader_quads_cover_exactly_their_half_of_the_target() {
             Pipeline::graphics(
                 &ctx,
                 &GraphicsDesc {
-                    shaders: &["test/quad.mesh", "test/flat.frag"],
-                    color_formats: &[format],
-                    specialization: &[(0, shift)],
+                    shaders: vec!["test/quad.mesh", "test/flat.frag"],
+                    color_formats: vec![format],
+                    specialization: vec![(0, shift)],
                     ..Default::default()
                 },
+                &[],
             )
             .expect("mesh pipeline"),
         )
@@ -644,10 +645,11 @@ fn indirect_draws_read_their_arguments_and_count_from_buffers() {
         Pipeline::graphics(
             &ctx,
             &GraphicsDesc {
-                shaders: &["test/quad.vert", "test/flat.frag"],
-                color_formats: &[format],
+                shaders: vec!["test/quad.vert", "test/flat.frag"],
+                color_formats: vec![format],
                 ..Default::default()
             },
+            &[],
         )
         .expect("pipeline"),
     );

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use ash::vk;
 use surfel::gpu::{Buffer, Context};
 use surfel::graph::{Access, BufferId, GraphBuilder};
-use surfel::methods::common::sort::{add_segmented_max, add_sort, SortPipelines};
+use surfel::methods::common::sort::{add_segmented_max, add_sort, RadixSort};
 
 /// A small deterministic generator (64-bit LCG, high bits out).
 struct Lcg(u64);
@@ -97,13 +97,7 @@ fn pairs(rng: &mut Lcg, count: usize) -> (Vec<u32>, Vec<u64>) {
 
 /// Sorts `count` random pairs by each of `key_bits` on the GPU and compares with a stable CPU
 /// sort by the same bits.
-fn check_sort(
-    ctx: &Arc<Context>,
-    p: &SortPipelines,
-    rng: &mut Lcg,
-    count: usize,
-    key_bits: &[u32],
-) {
+fn check_sort(ctx: &Arc<Context>, p: &RadixSort, rng: &mut Lcg, count: usize, key_bits: &[u32]) {
     for &key_bits in key_bits {
         let (keys, values) = pairs(rng, count);
         let mut g = GraphBuilder::new();
@@ -143,12 +137,11 @@ fn check_sort(
 #[test]
 fn radix_sort_matches_a_stable_cpu_sort() {
     let ctx = common::context();
-    let p = SortPipelines::new(&ctx).expect("sort pipelines");
+    let p = RadixSort::new(&ctx).expect("radix sort");
     let mut rng = Lcg(7);
     for count in [0, 1, 1000, 100_003] {
         check_sort(&ctx, &p, &mut rng, count, &[5, 16, 24, 32]);
     }
-    drop(p);
     common::assert_clean(&ctx);
 }
 
@@ -156,20 +149,19 @@ fn radix_sort_matches_a_stable_cpu_sort() {
 fn radix_sort_scans_block_sums_in_more_than_one_chunk() {
     use surfel::gpu::layout::{SCAN_GROUP, SCAN_ITEMS, SORT_GROUP, SORT_ITEMS, SORT_RADIX};
     let ctx = common::context();
-    let p = SortPipelines::new(&ctx).expect("sort pipelines");
+    let p = RadixSort::new(&ctx).expect("radix sort");
     // Just over one chunk of block sums: the single scan workgroup carries a running total.
     let chunk = (SCAN_GROUP * SCAN_ITEMS) as usize;
     let tiles = chunk * chunk / SORT_RADIX as usize + 3;
     let count = tiles * (SORT_GROUP * SORT_ITEMS) as usize - 5;
     check_sort(&ctx, &p, &mut Lcg(3), count, &[8]);
-    drop(p);
     common::assert_clean(&ctx);
 }
 
 #[test]
 fn segmented_max_matches_the_cpu_per_key_maximum() {
     let ctx = common::context();
-    let p = SortPipelines::new(&ctx).expect("sort pipelines");
+    RadixSort::new(&ctx).expect("64-bit atomics");
     let mut rng = Lcg(11);
     // Sorted keys with gaps: a segment filling exactly the first 256-element tile, then
     // segments of one element, a few elements, or hundreds to thousands (crossing tiles).
@@ -204,7 +196,7 @@ fn segmented_max_matches_the_cpu_per_key_maximum() {
     let key_in = input(&ctx, &mut g, "keys", &bytes(keys));
     let value_in = input(&ctx, &mut g, "values", &bytes(&values));
     let out = input(&ctx, &mut g, "maxima", &bytes(&initial));
-    add_segmented_max(&mut g, &p, key_in, value_in, count as u32, out);
+    add_segmented_max(&mut g, key_in, value_in, count as u32, out);
     let host = read_back(&ctx, &mut g, out, slots as u64 * 8);
     g.compile(&ctx)
         .expect("compile")
@@ -214,6 +206,5 @@ fn segmented_max_matches_the_cpu_per_key_maximum() {
     for (s, (value, want)) in got.iter().zip(&expected).enumerate() {
         assert_eq!(value, want, "key {s}");
     }
-    drop(p);
     common::assert_clean(&ctx);
 }

@@ -12,8 +12,8 @@ use glam::{Mat4, Vec2, Vec3, Vec4};
 use surfel::gpu::layout::{
     FrameBlock, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP, PYRAMID_SPEC_COLOR,
 };
-use surfel::gpu::{Binding, Buffer, Pipeline};
-use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
+use surfel::gpu::Buffer;
+use surfel::graph::{Access, Bind, GraphBuilder, Stages};
 use surfel::methods::kernel::reference::{self, searched_levels};
 use surfel::methods::kernel::KernelPyramid;
 use surfel::methods::pyramid::reference::{Level, Texel};
@@ -64,54 +64,20 @@ fn gpu_levels(level0: &Level, kernel: u32) -> Vec<Level> {
     let levels = kp.pyramid.levels;
     assert_eq!(levels, searched_levels(w, h, kernel));
     let params = kp.params(1.0);
-    let compute = vk::ShaderStageFlags::COMPUTE;
-    let mut bindings = vec![Binding::new(
-        BINDING_INPUT0,
-        vk::DescriptorType::STORAGE_BUFFER,
-        compute,
-    )];
-    bindings.extend((0..3).map(|k| {
-        Binding::new(
-            BINDING_PYRAMID_OUT + k,
-            vk::DescriptorType::STORAGE_IMAGE,
-            compute,
-        )
-    }));
-    let writer = Arc::new(
-        Pipeline::compute_specialized(
-            &ctx,
-            "test/pyramid_level0.comp",
-            &bindings,
-            &[(PYRAMID_SPEC_COLOR, 1)],
-        )
-        .expect("pipeline"),
-    );
     let first = kp.level0();
-    let mut pass = g
-        .pass("test.level0")
-        .buffer(input, Access::StorageRead(Stages::Compute));
-    for image in first.images() {
-        pass = pass.image_mips(image, 0, 1, Access::StorageWrite(Stages::Compute));
-    }
     let c = first.c.expect("colors");
-    pass.record(move |ctx| {
-        ctx.bind(
-            &writer,
-            &[
-                Descriptor::Buffer(BINDING_INPUT0, input),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT, first.a, 0),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT + 1, first.b, 0),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT + 2, c, 0),
-            ],
-        );
-        ctx.push(&writer, bytemuck::bytes_of(&params));
-        ctx.dispatch(w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP), 1);
-    });
-    kp.add_analysis(&ctx, &mut g, frame, params, levels - 1)
-        .expect("analysis");
-    let result = kp
-        .add_interpolation(&ctx, &mut g, frame, params)
-        .expect("interpolation");
+    let mut binds = vec![Bind::reads(BINDING_INPUT0, input)];
+    binds.extend(first.binds(
+        BINDING_PYRAMID_OUT,
+        0,
+        Access::StorageWrite(Stages::Compute),
+    ));
+    g.compute("test.level0", "test/pyramid_level0.comp", &binds)
+        .spec(&[(PYRAMID_SPEC_COLOR, 1)])
+        .push(&params)
+        .dispatch_grid((w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP)));
+    kp.add_analysis(&mut g, frame, params, levels - 1);
+    let result = kp.add_interpolation(&mut g, frame, params);
     assert_eq!(result.a, first.a);
 
     let extents: Vec<(u32, u32)> = (0..levels)

@@ -15,8 +15,8 @@ use surfel::gpu::{Buffer, Context, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
 use surfel::methods::lod::gpu::{
-    add_compute, add_geometry, add_mesh, DrawOptions, DrawTargets, LodInputs, COUNTER_BYTES,
-    GEOMETRY_VERTEX_COMPONENTS, PER_LEVEL_OFFSET, THRESHOLD_OFFSET,
+    add_draw, DrawOptions, DrawTargets, LodInputs, Path, COUNTER_BYTES, GEOMETRY_VERTEX_COMPONENTS,
+    PER_LEVEL_OFFSET, THRESHOLD_OFFSET,
 };
 use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use surfel::scene::Cloud;
@@ -56,14 +56,6 @@ fn readback(
 
 fn words(buffer: &Buffer) -> Vec<u32> {
     bytemuck::cast_slice(buffer.mapped().expect("mapped")).to_vec()
-}
-
-/// An expansion path under test.
-#[derive(Clone, Copy, Debug)]
-enum Path {
-    Compute,
-    Mesh,
-    Geometry,
 }
 
 /// What one path emitted for a view.
@@ -122,16 +114,12 @@ fn emitted(
         ),
     };
     let options = DrawOptions {
+        path,
         max_point_size: 4.0,
         record: true,
         ..options
     };
-    let add = match path {
-        Path::Compute => add_compute,
-        Path::Mesh => add_mesh,
-        Path::Geometry => add_geometry,
-    };
-    let selection = add(ctx, &mut g, "lod", lod, inputs, options, targets)?;
+    let selection = add_draw(ctx, &mut g, "lod", lod, inputs, options, targets)?;
     let list_bytes = u64::from(lod.max_selected) * 4;
     let list = readback(ctx, &mut g, "list", selection.list, list_bytes);
     let counters = readback(ctx, &mut g, "counts", selection.counters, COUNTER_BYTES);

@@ -12,8 +12,8 @@ use glam::{Mat4, Vec2, Vec3, Vec4};
 use surfel::gpu::layout::{
     FrameBlock, PyramidParams, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP,
 };
-use surfel::gpu::{Binding, Buffer, Context, Pipeline};
-use surfel::graph::{Access, Descriptor, GraphBuilder, Stages};
+use surfel::gpu::{Buffer, Context};
+use surfel::graph::{Access, Bind, GraphBuilder, Stages};
 use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
 use surfel::scene::{pack, Camera, Cloud};
@@ -69,52 +69,18 @@ fn gpu_levels(level0: &Level, single: bool, synthesize: bool, falloff: f32) -> V
         radius_scale: 1.0,
         falloff,
     };
-    let compute = vk::ShaderStageFlags::COMPUTE;
-    let mut bindings = vec![Binding::new(
-        BINDING_INPUT0,
-        vk::DescriptorType::STORAGE_BUFFER,
-        compute,
-    )];
-    bindings.extend((0..3).map(|k| {
-        Binding::new(
-            BINDING_PYRAMID_OUT + k,
-            vk::DescriptorType::STORAGE_IMAGE,
-            compute,
-        )
-    }));
-    let writer = Arc::new(
-        Pipeline::compute_specialized(
-            &ctx,
-            "test/pyramid_level0.comp",
-            &bindings,
-            &specialization(true, false, false),
-        )
-        .expect("pipeline"),
-    );
     let first = pyramid.holder(0);
-    let mut pass = g
-        .pass("test.level0")
-        .buffer(input, Access::StorageRead(Stages::Compute));
-    for image in first.images() {
-        pass = pass.image_mips(image, 0, 1, Access::StorageWrite(Stages::Compute));
-    }
-    let c = first.c.expect("colors");
-    pass.record(move |ctx| {
-        ctx.bind(
-            &writer,
-            &[
-                Descriptor::Buffer(BINDING_INPUT0, input),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT, first.a, 0),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT + 1, first.b, 0),
-                Descriptor::StorageImage(BINDING_PYRAMID_OUT + 2, c, 0),
-            ],
-        );
-        ctx.push(&writer, bytemuck::bytes_of(&params));
-        ctx.dispatch(w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP), 1);
-    });
-    pyramid
-        .add_analysis(&ctx, &mut g, frame, params, levels - 1)
-        .expect("analysis");
+    let mut binds = vec![Bind::reads(BINDING_INPUT0, input)];
+    binds.extend(first.binds(
+        BINDING_PYRAMID_OUT,
+        0,
+        Access::StorageWrite(Stages::Compute),
+    ));
+    g.compute("test.level0", "test/pyramid_level0.comp", &binds)
+        .spec(&specialization(true, false, false))
+        .push(&params)
+        .dispatch_grid((w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP)));
+    pyramid.add_analysis(&mut g, frame, params, levels - 1);
     // Where each level ends up: analysed level l in holder(l); synthesized level l in the
     // image synthesis of l wrote (holder(l + 1) for the pair, holder(l) for one image).
     let place = |l: u32| {
@@ -125,9 +91,7 @@ fn gpu_levels(level0: &Level, single: bool, synthesize: bool, falloff: f32) -> V
         }
     };
     if synthesize {
-        let result = pyramid
-            .add_synthesis(&ctx, &mut g, frame, params)
-            .expect("synthesis");
+        let result = pyramid.add_synthesis(&mut g, frame, params);
         assert_eq!(result.a, place(0).a);
     }
     let extents: Vec<(u32, u32)> = (0..levels)

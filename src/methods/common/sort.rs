@@ -23,8 +23,6 @@
 //! The segmented maximum (`segmax.comp`) reduces each tile in shared memory and combines the
 //! segments that cross tile boundaries with 64-bit atomics.
 
-use std::sync::Arc;
-
 use anyhow::{bail, Result};
 use ash::vk;
 
@@ -33,7 +31,7 @@ use crate::gpu::layout::{
     BINDING_SORT_VALUES, BINDING_SORT_VALUES_OUT, SCAN_GROUP, SCAN_ITEMS, SEGMAX_GROUP,
     SORT_DIGIT_BITS, SORT_GROUP, SORT_ITEMS, SORT_RADIX, SORT_SPEC_SUBGROUPS,
 };
-use crate::gpu::{Binding, Context, Pipeline};
+use crate::gpu::Context;
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
 
 /// Elements per tile of the count and scatter passes.
@@ -41,21 +39,18 @@ const TILE: u32 = SORT_GROUP * SORT_ITEMS;
 /// Histogram entries per block of the reduce and downsweep passes.
 const SCAN_BLOCK: u32 = SCAN_GROUP * SCAN_ITEMS;
 
-/// The compute pipelines of `add_sort` and `add_segmented_max`.
-pub struct SortPipelines {
-    count: Arc<Pipeline>,
-    reduce: Arc<Pipeline>,
-    scan: Arc<Pipeline>,
-    downsweep: Arc<Pipeline>,
-    scatter: Arc<Pipeline>,
-    segmax: Arc<Pipeline>,
+/// What the device gives `add_sort` and `add_segmented_max`: the scatter's subgroups per
+/// workgroup.
+#[derive(Clone, Copy, Debug)]
+pub struct RadixSort {
+    subgroups: u32,
 }
 
-impl SortPipelines {
-    /// Creates the pipelines; fails when the device lacks what they need: subgroup ballots in
-    /// compute shaders with subgroups of at most `SORT_GROUP` invocations, enough shared memory
-    /// for the scatter's per-subgroup digit counts, and 64-bit buffer atomics.
-    pub fn new(ctx: &Arc<Context>) -> Result<Self> {
+impl RadixSort {
+    /// Fails when the device lacks what the passes need: subgroup ballots in compute shaders
+    /// with subgroups of at most `SORT_GROUP` invocations, enough shared memory for the
+    /// scatter's per-subgroup digit counts, and 64-bit buffer atomics.
+    pub fn new(ctx: &Context) -> Result<Self> {
         let caps = &ctx.caps;
         if !caps.subgroup_ballot_compute {
             bail!(
@@ -89,89 +84,19 @@ impl SortPipelines {
                 caps.device_name
             );
         }
-        let pipeline = |shader: &str, bindings: &[u32], specialization: &[(u32, u32)]| {
-            let bindings: Vec<_> = bindings.iter().map(|&b| Binding::storage(b)).collect();
-            Pipeline::compute_specialized(ctx, shader, &bindings, specialization).map(Arc::new)
-        };
-        Ok(Self {
-            count: pipeline(
-                "common/sort_count.comp",
-                &[BINDING_SORT_KEYS, BINDING_SORT_HIST],
-                &[],
-            )?,
-            reduce: pipeline(
-                "common/sort_reduce.comp",
-                &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
-                &[],
-            )?,
-            scan: pipeline("common/sort_scan.comp", &[BINDING_SORT_SUMS], &[])?,
-            downsweep: pipeline(
-                "common/sort_downsweep.comp",
-                &[BINDING_SORT_HIST, BINDING_SORT_SUMS],
-                &[],
-            )?,
-            scatter: pipeline(
-                "common/sort_scatter.comp",
-                &[
-                    BINDING_SORT_KEYS,
-                    BINDING_SORT_VALUES,
-                    BINDING_SORT_KEYS_OUT,
-                    BINDING_SORT_VALUES_OUT,
-                    BINDING_SORT_HIST,
-                ],
-                &[(SORT_SPEC_SUBGROUPS, subgroups)],
-            )?,
-            segmax: pipeline(
-                "hpr/segmax.comp",
-                &[
-                    BINDING_SORT_KEYS,
-                    BINDING_SORT_VALUES,
-                    BINDING_SORT_VALUES_OUT,
-                ],
-                &[],
-            )?,
-        })
+        Ok(Self { subgroups })
     }
 }
 
 /// Push constants of every sort shader (`Push` in `glsl/hpr/sort.glsl`).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::NoUninit)]
+#[repr(C)]
 struct Push {
     count: u32,
     shift: u32,
     mask: u32,
     tiles: u32,
     blocks: u32,
-}
-
-impl Push {
-    fn bytes(self) -> Vec<u8> {
-        [self.count, self.shift, self.mask, self.tiles, self.blocks]
-            .iter()
-            .flat_map(|w| w.to_le_bytes())
-            .collect()
-    }
-}
-
-/// Declares a compute pass binding `pipeline` to `binds`, pushing `push` and dispatching
-/// `groups` workgroups (folded into rows: the shader derives its index from
-/// `gl_NumWorkGroups.x`).
-pub(crate) fn compute_pass(
-    g: &mut GraphBuilder,
-    name: &str,
-    pipeline: &Arc<Pipeline>,
-    binds: &[Bind],
-    push: &[u8],
-    groups: u32,
-) {
-    let binds = binds.to_vec();
-    let pipeline = pipeline.clone();
-    let push = push.to_vec();
-    g.pass(name).binds(&binds).record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        ctx.push(&pipeline, &push);
-        ctx.dispatch_groups(u64::from(groups));
-    });
 }
 
 /// Declares a stable LSD radix sort of the first `count` (key, value) pairs of `keys` (`u32`
@@ -183,7 +108,7 @@ pub(crate) fn compute_pass(
 /// are already sorted: no passes, the inputs are returned.
 pub fn add_sort(
     g: &mut GraphBuilder,
-    p: &SortPipelines,
+    sort: &RadixSort,
     keys: BufferId,
     values: BufferId,
     count: u32,
@@ -221,51 +146,46 @@ pub fn add_sort(
             tiles,
             blocks,
         };
-        compute_pass(
-            g,
+        g.compute(
             &format!("sort.count.{digit}"),
-            &p.count,
+            "common/sort_count.comp",
             &[
                 Bind::buffer(BINDING_SORT_KEYS, src.0, read),
                 Bind::buffer(BINDING_SORT_HIST, hist, write),
             ],
-            &push.bytes(),
-            tiles,
-        );
-        compute_pass(
-            g,
+        )
+        .push(&push)
+        .dispatch(u64::from(tiles));
+        g.compute(
             &format!("sort.reduce.{digit}"),
-            &p.reduce,
+            "common/sort_reduce.comp",
             &[
                 Bind::buffer(BINDING_SORT_HIST, hist, read),
                 Bind::buffer(BINDING_SORT_SUMS, sums, write),
             ],
-            &push.bytes(),
-            blocks,
-        );
-        compute_pass(
-            g,
+        )
+        .push(&push)
+        .dispatch(u64::from(blocks));
+        g.compute(
             &format!("sort.scan.{digit}"),
-            &p.scan,
+            "common/sort_scan.comp",
             &[Bind::buffer(BINDING_SORT_SUMS, sums, read_write)],
-            &push.bytes(),
-            1,
-        );
-        compute_pass(
-            g,
+        )
+        .push(&push)
+        .dispatch(1);
+        g.compute(
             &format!("sort.downsweep.{digit}"),
-            &p.downsweep,
+            "common/sort_downsweep.comp",
             &[
                 Bind::buffer(BINDING_SORT_HIST, hist, read_write),
                 Bind::buffer(BINDING_SORT_SUMS, sums, read),
             ],
-            &push.bytes(),
-            blocks,
-        );
-        compute_pass(
-            g,
+        )
+        .push(&push)
+        .dispatch(u64::from(blocks));
+        g.compute(
             &format!("sort.scatter.{digit}"),
-            &p.scatter,
+            "common/sort_scatter.comp",
             &[
                 Bind::buffer(BINDING_SORT_KEYS, src.0, read),
                 Bind::buffer(BINDING_SORT_VALUES, src.1, read),
@@ -273,9 +193,10 @@ pub fn add_sort(
                 Bind::buffer(BINDING_SORT_VALUES_OUT, dst.1, write),
                 Bind::buffer(BINDING_SORT_HIST, hist, read),
             ],
-            &push.bytes(),
-            tiles,
-        );
+        )
+        .spec(&[(SORT_SPEC_SUBGROUPS, sort.subgroups)])
+        .push(&push)
+        .dispatch(u64::from(tiles));
         std::mem::swap(&mut src, &mut dst);
     }
     src
@@ -285,10 +206,9 @@ pub fn add_sort(
 /// ascending) and `values` (`u64`), writes `out[s] = max(values[i] for keys[i] == s)` (`u64`
 /// per possible key) for every key `s` present. The caller clears `out` to 0 before (the
 /// segments crossing tile boundaries combine with `atomicMax`); keys without elements keep
-/// their value.
+/// their value. Needs 64-bit buffer atomics (`RadixSort::new` checks them).
 pub fn add_segmented_max(
     g: &mut GraphBuilder,
-    p: &SortPipelines,
     keys: BufferId,
     values: BufferId,
     count: u32,
@@ -305,16 +225,15 @@ pub fn add_segmented_max(
         blocks: 0,
     };
     let read = Access::StorageRead(Stages::Compute);
-    compute_pass(
-        g,
+    g.compute(
         "sort.segmax",
-        &p.segmax,
+        "hpr/segmax.comp",
         &[
             Bind::buffer(BINDING_SORT_KEYS, keys, read),
             Bind::buffer(BINDING_SORT_VALUES, values, read),
             Bind::updates(BINDING_SORT_VALUES_OUT, out),
         ],
-        &push.bytes(),
-        count.div_ceil(SEGMAX_GROUP),
-    );
+    )
+    .push(&push)
+    .dispatch(u64::from(count.div_ceil(SEGMAX_GROUP)));
 }

@@ -10,8 +10,6 @@
 //!   every point within a relative depth `tolerance` of it then adds its albedo and normal with
 //!   atomics; the resolve averages and shades them.
 
-use std::sync::Arc;
-
 use anyhow::Result;
 use ash::vk;
 
@@ -21,8 +19,7 @@ use crate::gpu::layout::{
     BINDING_VISIBILITY, RASTER_SPEC_CULL, RASTER_SPEC_MODE, RASTER_SPEC_QUANTIZED,
     RASTER_SPEC_SKIP, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
-use crate::gpu::Pipeline;
-use crate::graph::{bind, Bind, BufferId, BufferRange};
+use crate::graph::{Bind, Binds, BufferId, BufferRange};
 
 const QUANTIZED: ParamSpec = ParamSpec {
     name: "quantized",
@@ -88,11 +85,7 @@ pub struct ProjectOptions {
 }
 
 /// Declares clear, visibility (and accumulation) passes of `b`'s point streams.
-pub fn project(
-    b: &mut BuildContext<'_>,
-    prefix: &str,
-    options: ProjectOptions,
-) -> Result<Projection> {
+pub fn project(b: &mut BuildContext<'_>, prefix: &str, options: ProjectOptions) -> Projection {
     let ProjectOptions {
         high_quality,
         cull,
@@ -117,7 +110,7 @@ pub fn project(
         visibility
     };
     let (frame, segments, batches) = (b.frame, b.segments, b.batches);
-    let visibility_binds = vec![
+    let visibility_binds = Binds::from([
         Bind::constants(BINDING_FRAME, frame),
         Bind::reads(BINDING_SEGMENTS, segments),
         Bind::reads(BINDING_BATCHES, batches),
@@ -128,21 +121,14 @@ pub fn project(
             Some(mask) => Bind::reads(BINDING_FACE_VERTICES, mask),
             None => Bind::unused(BINDING_FACE_VERTICES),
         },
-    ];
-    let layout = bind::compute_layout(&visibility_binds);
-    let raster = |mode: u32| {
-        Pipeline::compute_specialized(
-            b.ctx,
-            "compute/raster.comp",
-            &layout,
-            &[
-                (RASTER_SPEC_MODE, mode),
-                (RASTER_SPEC_QUANTIZED, quantized),
-                (RASTER_SPEC_CULL, u32::from(cull)),
-                (RASTER_SPEC_SKIP, u32::from(skip.is_some())),
-            ],
-        )
-        .map(Arc::new)
+    ]);
+    let spec = |mode: u32| {
+        [
+            (RASTER_SPEC_MODE, mode),
+            (RASTER_SPEC_QUANTIZED, quantized),
+            (RASTER_SPEC_CULL, u32::from(cull)),
+            (RASTER_SPEC_SKIP, u32::from(skip.is_some())),
+        ]
     };
     // Empty pixels hold the largest key; the accumulators start at zero.
     b.graph.fill_buffer(
@@ -161,31 +147,23 @@ pub fn project(
     }
     // One workgroup per batch.
     let batch_count = u64::from(b.scene.streams.batch_count);
-    let push = tolerance.to_le_bytes();
-    let nearest = raster(0)?;
-    let mut accumulate_binds = visibility_binds.clone();
-    accumulate_binds[3] = Bind::reads(BINDING_VISIBILITY, visibility);
-    accumulate_binds[4] = Bind::updates(BINDING_ACCUM, accum);
+    let shader = "compute/raster.comp";
     b.graph
-        .pass(&format!("{prefix}.project"))
-        .binds(&visibility_binds)
-        .record(move |ctx| {
-            ctx.bind_all(&nearest, &visibility_binds);
-            ctx.push(&nearest, &push);
-            ctx.dispatch_groups(batch_count);
-        });
+        .compute(&format!("{prefix}.project"), shader, &visibility_binds)
+        .spec(&spec(0))
+        .push(&tolerance)
+        .dispatch(batch_count);
     if high_quality {
-        let blend = raster(1)?;
+        let accumulate_binds = visibility_binds
+            .with(Bind::reads(BINDING_VISIBILITY, visibility))
+            .with(Bind::updates(BINDING_ACCUM, accum));
         b.graph
-            .pass(&format!("{prefix}.accumulate"))
-            .binds(&accumulate_binds)
-            .record(move |ctx| {
-                ctx.bind_all(&blend, &accumulate_binds);
-                ctx.push(&blend, &push);
-                ctx.dispatch_groups(batch_count);
-            });
+            .compute(&format!("{prefix}.accumulate"), shader, &accumulate_binds)
+            .spec(&spec(1))
+            .push(&tolerance)
+            .dispatch(batch_count);
     }
-    Ok(Projection { visibility, accum })
+    Projection { visibility, accum }
 }
 
 fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
@@ -201,15 +179,13 @@ fn build(b: &mut BuildContext<'_>, high_quality: bool) -> Result<()> {
             high_quality,
             ..Default::default()
         },
-    )?;
+    );
     let binds = resolve_binds(b, projection, high_quality);
-    add_resolve(
-        b,
-        &format!("{prefix}.resolve"),
-        "compute/resolve.comp",
-        &[(RESOLVE_SPEC_HIGH_QUALITY, u32::from(high_quality))],
-        binds,
-    )?;
+    let groups = b.pixel_groups(RESOLVE_GROUP);
+    b.graph
+        .compute(&format!("{prefix}.resolve"), "compute/resolve.comp", &binds)
+        .spec(&[(RESOLVE_SPEC_HIGH_QUALITY, u32::from(high_quality))])
+        .dispatch_grid(groups);
     Ok(())
 }
 
@@ -220,8 +196,8 @@ pub(crate) fn resolve_binds(
     b: &BuildContext<'_>,
     projection: Projection,
     reads_accum: bool,
-) -> Vec<Bind> {
-    let mut binds = vec![
+) -> Binds {
+    let mut binds = Binds::from([
         Bind::constants(BINDING_FRAME, b.frame),
         Bind::reads(BINDING_SEGMENTS, b.segments),
         Bind::reads(BINDING_VISIBILITY, projection.visibility),
@@ -230,35 +206,11 @@ pub(crate) fn resolve_binds(
         } else {
             Bind::unused(BINDING_ACCUM)
         },
-    ];
-    binds.extend(b.targets.compute_writes());
+    ]);
+    for bind in b.targets.compute_writes() {
+        binds.push(bind);
+    }
     binds
-}
-
-/// Adds the resolve pass `name`: one thread per pixel of `shader` specialized with
-/// `specialization`, bound to `binds` (`resolve_binds`).
-pub(crate) fn add_resolve(
-    b: &mut BuildContext<'_>,
-    name: &str,
-    shader: &str,
-    specialization: &[(u32, u32)],
-    binds: Vec<Bind>,
-) -> Result<()> {
-    let resolve = Pipeline::compute_specialized(
-        b.ctx,
-        shader,
-        &bind::compute_layout(&binds),
-        specialization,
-    )?;
-    let groups = (
-        b.width.div_ceil(RESOLVE_GROUP),
-        b.height.div_ceil(RESOLVE_GROUP),
-    );
-    b.graph.pass(name).binds(&binds).record(move |ctx| {
-        ctx.bind_all(&resolve, &binds);
-        ctx.dispatch(groups.0, groups.1, 1);
-    });
-    Ok(())
 }
 
 fn build_nearest(b: &mut BuildContext<'_>) -> Result<()> {

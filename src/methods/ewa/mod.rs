@@ -36,20 +36,17 @@
 //! of per-splat ellipses). Every point is set up each frame (no batch culling: a batch's box
 //! does not bound its splats' footprints).
 
-use std::sync::Arc;
-
 use anyhow::Result;
 use ash::vk;
 
-use super::compute::{add_resolve, resolve_binds, Projection};
+use super::compute::{resolve_binds, Projection};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::layout::{
     EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_SEGMENTS,
     BINDING_VISIBILITY, EWA_SPEC_COVERAGE, EWA_SPEC_LARGE, EWA_SPEC_MODE, EWA_SPEC_SHADED,
-    EWA_SPEC_SHADE_FRAGMENTS, EWA_WEIGHT_SCALE,
+    EWA_SPEC_SHADE_FRAGMENTS, EWA_WEIGHT_SCALE, RESOLVE_GROUP,
 };
-use crate::gpu::Pipeline;
-use crate::graph::{bind, Access, Bind, BufferRange};
+use crate::graph::{Bind, Binds, BufferRange};
 
 pub const INFO: MethodInfo = MethodInfo {
     params: &[
@@ -148,35 +145,17 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     // large splats' list, but every variant of the shader declares it writable, so every
     // splat pass declares it read-write (synchronization validation tracks the shader's static
     // access).
-    let visibility_binds = vec![
+    let visibility_binds = Binds::from([
         Bind::constants(BINDING_FRAME, frame),
         Bind::reads(BINDING_SEGMENTS, segments),
         Bind::reads(BINDING_BATCHES, batches),
         Bind::updates(BINDING_VISIBILITY, visibility),
         Bind::unused(BINDING_ACCUM),
         Bind::updates(BINDING_EWA_LARGE, large),
-    ];
-    let mut accumulate_binds = visibility_binds.clone();
-    accumulate_binds[3] = Bind::reads(BINDING_VISIBILITY, visibility);
-    accumulate_binds[4] = Bind::updates(BINDING_ACCUM, accum);
-    let layout = bind::compute_layout(&visibility_binds);
-    let splat = |mode: u32, large: bool| {
-        Pipeline::compute_specialized(
-            b.ctx,
-            "ewa/splat.comp",
-            &layout,
-            &[
-                (EWA_SPEC_MODE, mode),
-                (EWA_SPEC_LARGE, u32::from(large)),
-                (EWA_SPEC_SHADE_FRAGMENTS, shade_fragments),
-            ],
-        )
-        .map(Arc::new)
-    };
-    let visibility_small = splat(0, false)?;
-    let visibility_large = splat(0, true)?;
-    let accumulate_small = splat(1, false)?;
-    let accumulate_large = splat(1, true)?;
+    ]);
+    let accumulate_binds = visibility_binds
+        .with(Bind::reads(BINDING_VISIBILITY, visibility))
+        .with(Bind::updates(BINDING_ACCUM, accum));
     let coverage = 0.5 * full_weight(params.radius, params.cutoff) * EWA_WEIGHT_SCALE as f32;
     // Empty pixels hold the largest key; the accumulators start at zero.
     b.graph
@@ -188,42 +167,40 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         .update_buffer("ewa.clear-large", large, 0, bytemuck::bytes_of(&empty));
     // One workgroup per batch; the large splats' dispatch arguments come from the list.
     let batch_count = u64::from(b.scene.streams.batch_count);
-    let args = BufferRange::new(0, 12);
-    for (name, pipeline, accumulates, listed) in [
-        ("ewa.visibility", visibility_small, false, false),
-        ("ewa.visibility-large", visibility_large, false, true),
-        ("ewa.accumulate", accumulate_small, true, false),
-        ("ewa.accumulate-large", accumulate_large, true, true),
+    for (name, mode, listed) in [
+        ("ewa.visibility", 0, false),
+        ("ewa.visibility-large", 0, true),
+        ("ewa.accumulate", 1, false),
+        ("ewa.accumulate-large", 1, true),
     ] {
-        let binds = if accumulates {
-            accumulate_binds.clone()
+        let binds = if mode == 1 {
+            &accumulate_binds
         } else {
-            visibility_binds.clone()
+            &visibility_binds
         };
-        let mut pass = b.graph.pass(name).binds(&binds);
+        let pass = b
+            .graph
+            .compute(name, "ewa/splat.comp", binds)
+            .spec(&[
+                (EWA_SPEC_MODE, mode),
+                (EWA_SPEC_LARGE, u32::from(listed)),
+                (EWA_SPEC_SHADE_FRAGMENTS, shade_fragments),
+            ])
+            .push(&params);
         if listed {
-            pass = pass.buffer_range(large, args, Access::IndirectRead);
+            pass.dispatch_indirect(large, 0);
+        } else {
+            pass.dispatch(batch_count);
         }
-        pass.record(move |ctx| {
-            ctx.bind_all(&pipeline, &binds);
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            if listed {
-                ctx.dispatch_indirect(large, 0);
-            } else {
-                ctx.dispatch_groups(batch_count);
-            }
-        });
     }
     let binds = resolve_binds(b, Projection { visibility, accum }, true);
-    add_resolve(
-        b,
-        "ewa.resolve",
-        "ewa/resolve.comp",
-        &[
+    let groups = b.pixel_groups(RESOLVE_GROUP);
+    b.graph
+        .compute("ewa.resolve", "ewa/resolve.comp", &binds)
+        .spec(&[
             (EWA_SPEC_COVERAGE, coverage.to_bits()),
             (EWA_SPEC_SHADED, shade_fragments),
-        ],
-        binds,
-    )?;
+        ])
+        .dispatch_grid(groups);
     Ok(())
 }

@@ -34,11 +34,12 @@ use crate::gpu::layout::{
     BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
     BINDING_HPR_VALUES, BINDING_SEGMENTS, HPR_COMPLETE_LEVELS, HPR_GROUP, HPR_SECTOR_ATOMIC,
     HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE, HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH,
-    HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_SPEC_HIGH_QUALITY,
+    HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
-use crate::gpu::{Buffer, Context, Pipeline};
-use crate::graph::{bind, Access, Bind, BufferId, BufferRange, GraphBuilder, Stages};
+use crate::gpu::{Buffer, Context};
+use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, GraphBuilder, Stages};
 use crate::hpr::approx::Propagation;
+use crate::methods::common::sort::{add_segmented_max, add_sort, RadixSort};
 use crate::upload::GpuScene;
 
 /// Points per thread of the sphere reduction (`ITEMS` in `glsl/hpr/sphere.comp`).
@@ -47,44 +48,6 @@ const SPHERE_ITEMS: u32 = 16;
 /// The workgroups covering `threads` threads (folded into rows by `dispatch_groups`).
 fn groups(threads: u64) -> u64 {
     threads.div_ceil(u64::from(HPR_GROUP)).max(1)
-}
-
-/// How a pass launches.
-#[derive(Clone, Copy, Debug)]
-enum Launch {
-    /// `n` workgroups.
-    Groups(u64),
-    /// `n` workgroups in x alone (the sphere reduction's shader reads only x).
-    Row(u32),
-    /// The propagation rounds' indirect dispatch in the frame state.
-    Indirect(BufferId),
-}
-
-/// Adds `name`: `pipeline` bound to `binds`, the push constants `push` where given, one
-/// dispatch.
-fn add_pass(
-    g: &mut GraphBuilder,
-    name: &str,
-    pipeline: Arc<Pipeline>,
-    binds: Vec<Bind>,
-    push: Option<Vec<u8>>,
-    launch: Launch,
-) {
-    let mut pass = g.pass(name).binds(&binds);
-    if let Launch::Indirect(state) = launch {
-        pass = pass.buffer_range(state, dispatch_range(), Access::IndirectRead);
-    }
-    pass.record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        if let Some(push) = &push {
-            ctx.push(&pipeline, push);
-        }
-        match launch {
-            Launch::Groups(n) => ctx.dispatch_groups(n),
-            Launch::Row(n) => ctx.dispatch(n, 1, 1),
-            Launch::Indirect(state) => ctx.dispatch_indirect(state, dispatch_range().offset),
-        }
-    });
 }
 
 /// How the GPU approximation runs.
@@ -136,20 +99,6 @@ pub struct Hpr {
     pub extremes: Option<BufferId>,
     /// One bit per point, set for hidden points.
     pub hidden: BufferId,
-}
-
-fn pipeline(
-    ctx: &Arc<Context>,
-    shader: &str,
-    binds: &[Bind],
-    spec: &[(u32, u32)],
-) -> Result<Arc<Pipeline>> {
-    Ok(Arc::new(Pipeline::compute_specialized(
-        ctx,
-        shader,
-        &bind::compute_layout(binds),
-        spec,
-    )?))
 }
 
 /// The bounding sphere of `scene`'s points (centre xyz, radius bits): a 16-byte device buffer
@@ -217,7 +166,7 @@ fn reduce_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
         ("hpr.sphere.centre", HPR_SPHERE_CENTRE, 1),
         ("hpr.sphere.radius", HPR_SPHERE_RADIUS, partial_count),
     ] {
-        let binds = vec![
+        let binds = [
             Bind::reads(BINDING_FRAME, frame),
             if mode == HPR_SPHERE_CENTRE {
                 Bind::unused(BINDING_SEGMENTS)
@@ -231,9 +180,11 @@ fn reduce_sphere(ctx: &Arc<Context>, scene: &GpuScene) -> Result<Arc<Buffer>> {
             },
             Bind::updates(BINDING_HPR_PARTIALS, partials),
         ];
-        let p = pipeline(ctx, "hpr/sphere.comp", &binds, &[(HPR_SPEC_MODE, mode)])?;
-        let push = bytemuck::bytes_of(&params).to_vec();
-        add_pass(&mut g, name, p, binds, Some(push), Launch::Row(size));
+        // The shader reads only x.
+        g.compute(name, "hpr/sphere.comp", &binds)
+            .spec(&[(HPR_SPEC_MODE, mode)])
+            .push(&params)
+            .dispatch_grid((size, 1));
     }
     g.compile(ctx)?.run_once(ctx)?;
     Ok(sphere)
@@ -251,18 +202,12 @@ pub struct Inputs {
 /// Declares the per-frame HPR passes on `g` (module docs).
 pub fn add(
     g: &mut GraphBuilder,
-    ctx: &Arc<Context>,
+    ctx: &Context,
     point_count: u32,
     inputs: Inputs,
     settings: &Settings,
 ) -> Result<Hpr> {
-    let Inputs {
-        frame,
-        segments,
-        sphere,
-    } = inputs;
     let s_max = settings.sqrt_k_max.max(1);
-    let k_max = u64::from(s_max) * u64::from(s_max);
     let params = HprParams {
         sqrt_k_max: s_max,
         point_count,
@@ -275,199 +220,191 @@ pub fn add(
         u64::from(point_count.div_ceil(32).max(1)) * 4,
         usage,
     );
-    let push = bytemuck::bytes_of(&params).to_vec();
-
-    let binds = vec![
-        Bind::reads(BINDING_FRAME, frame),
-        Bind::reads(BINDING_HPR_SPHERE, sphere),
+    let binds = [
+        Bind::reads(BINDING_FRAME, inputs.frame),
+        Bind::reads(BINDING_HPR_SPHERE, inputs.sphere),
         Bind::writes(BINDING_HPR_FRAME, state),
     ];
-    let frame_pass = pipeline(ctx, "hpr/frame.comp", &binds, &[])?;
-    let one = Launch::Row(1);
-    add_pass(g, "hpr.frame", frame_pass, binds, Some(push.clone()), one);
+    g.compute("hpr.frame", "hpr/frame.comp", &binds)
+        .push(&params)
+        .dispatch(1);
     g.fill_buffer("hpr.clear.hidden", hidden, BufferRange::WHOLE, u32::MAX);
-    if params.complete_side > 0 && !settings.extremes {
-        add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
-        return Ok(Hpr {
-            state,
-            extremes: None,
-            hidden,
-        });
-    }
-    let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
-    let occupied = g.buffer("hpr.empty", k_max * 4, usage);
-    let ping = g.buffer("hpr.extremes.a", k_max * 4, usage);
-    g.fill_buffer("hpr.clear.max", max64, BufferRange::WHOLE, 0);
-    g.fill_buffer("hpr.clear.empty", occupied, BufferRange::WHOLE, 0);
-
-    // Per point: sector, DIST and the sort-free extreme, or the sort's keys and values.
-    let mode = if settings.sort {
-        HPR_SECTOR_SORT
-    } else {
-        HPR_SECTOR_ATOMIC
-    };
-    let n = u64::from(point_count);
-    // The sort outputs are dead code in the sort-free variant and the 64-bit extremes in the
-    // sort variant (statically present).
-    let mut binds = vec![
-        Bind::reads(BINDING_FRAME, frame),
-        Bind::reads(BINDING_SEGMENTS, segments),
-        Bind::reads(BINDING_HPR_FRAME, state),
-        Bind::unused(BINDING_HPR_MAX),
-        Bind::writes(BINDING_HPR_EMPTY, occupied),
-        Bind::unused(BINDING_HPR_KEYS),
-        Bind::unused(BINDING_HPR_VALUES),
-    ];
-    let (keys, values) = if settings.sort {
-        let keys = g.buffer("hpr.keys", n.max(1) * 4, usage);
-        let values = g.buffer("hpr.values", n.max(1) * 8, usage);
-        binds[5] = Bind::writes(BINDING_HPR_KEYS, keys);
-        binds[6] = Bind::updates(BINDING_HPR_VALUES, values);
-        (keys, values)
-    } else {
-        binds[3] = Bind::updates(BINDING_HPR_MAX, max64);
-        (occupied, max64)
-    };
-    let sector = pipeline(ctx, "hpr/sector.comp", &binds, &[(HPR_SPEC_MODE, mode)])?;
-    add_pass(
-        g,
-        "hpr.sector",
-        sector,
-        binds,
-        Some(push.clone()),
-        Launch::Groups(groups(n)),
-    );
-    if settings.sort {
-        // Sector ids run to k_max (the sentinel of points at the eye).
-        let key_bits = (32 - (k_max as u32).leading_zeros()).max(1);
-        let pipelines = crate::methods::common::sort::SortPipelines::new(ctx)?;
-        let (sorted_keys, sorted_values) = crate::methods::common::sort::add_sort(
-            g,
-            &pipelines,
-            keys,
-            values,
-            point_count,
-            key_bits,
-        );
-        crate::methods::common::sort::add_segmented_max(
-            g,
-            &pipelines,
-            sorted_keys,
-            sorted_values,
-            point_count,
-            max64,
-        );
-    }
-
-    // Propagation: a pass gathering into `dst` from the 64-bit extremes (`src` None) or from
-    // `src`; the adaptive round's change flag is a store in every variant.
-    let gather_binds = |src: Option<BufferId>, dst: BufferId| {
-        vec![
-            Bind::reads(BINDING_FRAME, frame),
-            Bind::reads(BINDING_SEGMENTS, segments),
-            Bind::updates(BINDING_HPR_FRAME, state),
-            match src {
-                None => Bind::reads(BINDING_HPR_MAX, max64),
-                Some(_) => Bind::unused(BINDING_HPR_MAX),
-            },
-            match src {
-                None => Bind::unused(BINDING_HPR_SRC),
-                Some(src) => Bind::reads(BINDING_HPR_SRC, src),
-            },
-            Bind::writes(BINDING_HPR_DST, dst),
-            Bind::reads(BINDING_HPR_EMPTY, occupied),
-        ]
-    };
-    let propagate = |reach: u32, from_max: bool, adaptive: bool| {
-        pipeline(
-            ctx,
-            "hpr/propagate.comp",
-            &gather_binds(None, ping),
-            &[
-                (HPR_SPEC_REACH, reach),
-                (HPR_SPEC_FROM_MAX, u32::from(from_max)),
-                (HPR_SPEC_ADAPTIVE, u32::from(adaptive)),
-            ],
-        )
-    };
-    let sectors = Launch::Groups(groups(k_max));
-    let add_gather = |g: &mut GraphBuilder,
-                      name: &str,
-                      pipeline: Arc<Pipeline>,
-                      src: Option<BufferId>,
-                      dst: BufferId,
-                      indirect: bool| {
-        let launch = if indirect {
-            Launch::Indirect(state)
-        } else {
-            sectors
-        };
-        let binds = gather_binds(src, dst);
-        add_pass(g, name, pipeline, binds, Some(push.clone()), launch);
-    };
-    let result = match settings.propagation {
-        Propagation::Fixed(m) => {
-            add_gather(
-                g,
-                "hpr.gather",
-                propagate(m.max(1) / 2, true, false)?,
-                None,
-                ping,
-                false,
-            );
-            ping
-        }
-        Propagation::Adaptive { max_rounds } => {
-            add_gather(
-                g,
-                "hpr.extract",
-                propagate(0, true, false)?,
-                None,
-                ping,
-                false,
-            );
-            let round = propagate(1, false, true)?;
-            let advance_binds = vec![Bind::updates(BINDING_HPR_FRAME, state)];
-            let advance = pipeline(ctx, "hpr/advance.comp", &advance_binds, &[])?;
-            let pong = g.buffer("hpr.extremes.b", k_max * 4, usage);
-            let (mut src, mut dst) = (ping, pong);
-            for r in 0..max_rounds.max(1) {
-                add_gather(
-                    g,
-                    &format!("hpr.round.{r}"),
-                    round.clone(),
-                    Some(src),
-                    dst,
-                    true,
-                );
-                let (name, binds) = (format!("hpr.advance.{r}"), advance_binds.clone());
-                add_pass(g, &name, advance.clone(), binds, None, one);
-                std::mem::swap(&mut src, &mut dst);
-            }
-            src
-        }
-    };
-
-    if params.complete_side > 0 {
-        add_complete(g, ctx, &params, (frame, segments, state), hidden)?;
-        return Ok(Hpr {
-            state,
-            extremes: Some(result),
-            hidden,
-        });
-    }
-    let binds = vec![
-        Bind::updates(BINDING_HPR_FRAME, state),
-        Bind::reads(BINDING_HPR_SRC, result),
-        Bind::updates(BINDING_HPR_MASK, hidden),
-    ];
-    let visible = pipeline(ctx, "hpr/visible.comp", &binds, &[])?;
-    add_pass(g, "hpr.visible", visible, binds, None, sectors);
-    Ok(Hpr {
+    let mut hpr = Hpr {
         state,
-        extremes: Some(result),
+        extremes: None,
         hidden,
-    })
+    };
+    if params.complete_side == 0 || settings.extremes {
+        let sectors = Sectors::add(g, ctx, &params, inputs, state, settings.sort)?;
+        let extremes = sectors.propagate(g, &params, inputs, state, settings.propagation);
+        hpr.extremes = Some(extremes);
+        if params.complete_side == 0 {
+            let binds = [
+                Bind::updates(BINDING_HPR_FRAME, state),
+                Bind::reads(BINDING_HPR_SRC, extremes),
+                Bind::updates(BINDING_HPR_MASK, hidden),
+            ];
+            g.compute("hpr.visible", "hpr/visible.comp", &binds)
+                .dispatch(groups(sectors.k_max));
+            return Ok(hpr);
+        }
+    }
+    add_complete(
+        g,
+        ctx,
+        &params,
+        (inputs.frame, inputs.segments, state),
+        hidden,
+    )?;
+    Ok(hpr)
+}
+
+/// The per-sector buffers after `hpr.sector` (and the sort): the 64-bit extremes and the
+/// occupied sectors.
+#[derive(Clone, Copy)]
+struct Sectors {
+    k_max: u64,
+    max64: BufferId,
+    occupied: BufferId,
+}
+
+impl Sectors {
+    /// Clears the sector buffers and declares `hpr.sector` (one thread per point: flip,
+    /// sector, DIST) with the sort-free 64-bit extreme per sector, or the sort's keys and
+    /// values and then the radix sort and the segmented maximum.
+    fn add(
+        g: &mut GraphBuilder,
+        ctx: &Context,
+        params: &HprParams,
+        inputs: Inputs,
+        state: BufferId,
+        sort: bool,
+    ) -> Result<Self> {
+        let s_max = u64::from(params.sqrt_k_max);
+        let k_max = s_max * s_max;
+        let usage = vk::BufferUsageFlags::empty();
+        let max64 = g.buffer("hpr.max64", (k_max + 1) * 8, usage);
+        let occupied = g.buffer("hpr.empty", k_max * 4, usage);
+        g.fill_buffer("hpr.clear.max", max64, BufferRange::WHOLE, 0);
+        g.fill_buffer("hpr.clear.empty", occupied, BufferRange::WHOLE, 0);
+        let point_count = params.point_count;
+        let n = u64::from(point_count);
+        // The sort outputs are dead code in the sort-free variant and the 64-bit extremes in
+        // the sort variant (statically present).
+        let binds = Binds::from([
+            Bind::reads(BINDING_FRAME, inputs.frame),
+            Bind::reads(BINDING_SEGMENTS, inputs.segments),
+            Bind::reads(BINDING_HPR_FRAME, state),
+            Bind::unused(BINDING_HPR_MAX),
+            Bind::writes(BINDING_HPR_EMPTY, occupied),
+            Bind::unused(BINDING_HPR_KEYS),
+            Bind::unused(BINDING_HPR_VALUES),
+        ]);
+        let (mode, binds, sorted) = if sort {
+            let radix = RadixSort::new(ctx)?;
+            let keys = g.buffer("hpr.keys", n.max(1) * 4, usage);
+            let values = g.buffer("hpr.values", n.max(1) * 8, usage);
+            let binds = binds
+                .with(Bind::writes(BINDING_HPR_KEYS, keys))
+                .with(Bind::updates(BINDING_HPR_VALUES, values));
+            (HPR_SECTOR_SORT, binds, Some((radix, keys, values)))
+        } else {
+            let binds = binds.with(Bind::updates(BINDING_HPR_MAX, max64));
+            (HPR_SECTOR_ATOMIC, binds, None)
+        };
+        g.compute("hpr.sector", "hpr/sector.comp", &binds)
+            .spec(&[(HPR_SPEC_MODE, mode)])
+            .push(params)
+            .dispatch(groups(n));
+        if let Some((radix, keys, values)) = sorted {
+            // Sector ids run to k_max (the sentinel of points at the eye).
+            let key_bits = (32 - (k_max as u32).leading_zeros()).max(1);
+            let (keys, values) = add_sort(g, &radix, keys, values, point_count, key_bits);
+            add_segmented_max(g, keys, values, point_count, max64);
+        }
+        Ok(Self {
+            k_max,
+            max64,
+            occupied,
+        })
+    }
+
+    /// Propagation: fixed (`hpr.gather`, one m × m gather from the 64-bit extremes) or
+    /// adaptive (`hpr.extract`, then rounds of a 3 × 3 gather ping-ponging between two
+    /// buffers, each followed by `hpr.advance`); returns the buffer of the final extremes.
+    fn propagate(
+        self,
+        g: &mut GraphBuilder,
+        params: &HprParams,
+        inputs: Inputs,
+        state: BufferId,
+        propagation: Propagation,
+    ) -> BufferId {
+        let ping = g.buffer(
+            "hpr.extremes.a",
+            self.k_max * 4,
+            vk::BufferUsageFlags::empty(),
+        );
+        // A pass gathering into `dst` from the 64-bit extremes (`src` None) or from `src`; the
+        // adaptive round's change flag is a store in every variant.
+        let gather = |g: &mut GraphBuilder,
+                      name: &str,
+                      (reach, adaptive): (u32, bool),
+                      src: Option<BufferId>,
+                      dst: BufferId| {
+            let binds = [
+                Bind::reads(BINDING_FRAME, inputs.frame),
+                Bind::reads(BINDING_SEGMENTS, inputs.segments),
+                Bind::updates(BINDING_HPR_FRAME, state),
+                match src {
+                    None => Bind::reads(BINDING_HPR_MAX, self.max64),
+                    Some(_) => Bind::unused(BINDING_HPR_MAX),
+                },
+                match src {
+                    None => Bind::unused(BINDING_HPR_SRC),
+                    Some(src) => Bind::reads(BINDING_HPR_SRC, src),
+                },
+                Bind::writes(BINDING_HPR_DST, dst),
+                Bind::reads(BINDING_HPR_EMPTY, self.occupied),
+            ];
+            let pass = g
+                .compute(name, "hpr/propagate.comp", &binds)
+                .spec(&[
+                    (HPR_SPEC_REACH, reach),
+                    (HPR_SPEC_FROM_MAX, u32::from(src.is_none())),
+                    (HPR_SPEC_ADAPTIVE, u32::from(adaptive)),
+                ])
+                .push(params);
+            if adaptive {
+                pass.dispatch_indirect(state, dispatch_offset());
+            } else {
+                pass.dispatch(groups(self.k_max));
+            }
+        };
+        match propagation {
+            Propagation::Fixed(m) => {
+                gather(g, "hpr.gather", (m.max(1) / 2, false), None, ping);
+                ping
+            }
+            Propagation::Adaptive { max_rounds } => {
+                gather(g, "hpr.extract", (0, false), None, ping);
+                let pong = g.buffer(
+                    "hpr.extremes.b",
+                    self.k_max * 4,
+                    vk::BufferUsageFlags::empty(),
+                );
+                let (mut src, mut dst) = (ping, pong);
+                for r in 0..max_rounds.max(1) {
+                    gather(g, &format!("hpr.round.{r}"), (1, true), Some(src), dst);
+                    let binds = [Bind::updates(BINDING_HPR_FRAME, state)];
+                    g.compute(&format!("hpr.advance.{r}"), "hpr/advance.comp", &binds)
+                        .dispatch(1);
+                    std::mem::swap(&mut src, &mut dst);
+                }
+                src
+            }
+        }
+    }
 }
 
 /// The complete visible set's passes (beyond 003; `hpr::prefilter` is their CPU reference):
@@ -477,7 +414,7 @@ pub fn add(
 /// hidden and counts it.
 fn add_complete(
     g: &mut GraphBuilder,
-    ctx: &Arc<Context>,
+    ctx: &Context,
     params: &HprParams,
     (frame, segments, state): (BufferId, BufferId, BufferId),
     hidden: BufferId,
@@ -493,47 +430,44 @@ fn add_complete(
     let cells: u64 = (0..HPR_COMPLETE_LEVELS).map(|l| (side >> l).pow(2)).sum();
     let nearest = g.buffer("hpr.complete", cells * 8, vk::BufferUsageFlags::empty());
     g.fill_buffer("hpr.complete.clear", nearest, BufferRange::WHOLE, u32::MAX);
-    let push = bytemuck::bytes_of(params).to_vec();
-    let points = Launch::Groups(groups(u64::from(params.point_count)));
-    let binds = vec![
+    let points = groups(u64::from(params.point_count));
+    let binds = [
         Bind::reads(BINDING_FRAME, frame),
         Bind::reads(BINDING_SEGMENTS, segments),
         Bind::reads(BINDING_HPR_FRAME, state),
         Bind::updates(BINDING_HPR_COMPLETE, nearest),
     ];
-    let extremes = pipeline(ctx, "hpr/complete_extremes.comp", &binds, &[])?;
-    let name = "hpr.complete.nearest";
-    add_pass(g, name, extremes, binds, Some(push.clone()), points);
+    g.compute("hpr.complete.nearest", "hpr/complete_extremes.comp", &binds)
+        .push(params)
+        .dispatch(points);
     for level in 1..HPR_COMPLETE_LEVELS {
-        let binds = vec![Bind::updates(BINDING_HPR_COMPLETE, nearest)];
-        let spec = [(HPR_SPEC_MODE, level)];
-        let reduce = pipeline(ctx, "hpr/complete_reduce.comp", &binds, &spec)?;
-        let launch = Launch::Groups(groups((side >> level).pow(2)));
+        let binds = [Bind::updates(BINDING_HPR_COMPLETE, nearest)];
         let name = format!("hpr.complete.reduce.{level}");
-        add_pass(g, &name, reduce, binds, Some(push.clone()), launch);
+        g.compute(&name, "hpr/complete_reduce.comp", &binds)
+            .spec(&[(HPR_SPEC_MODE, level)])
+            .push(params)
+            .dispatch(groups((side >> level).pow(2)));
     }
-    let binds = vec![
+    let binds = [
         Bind::reads(BINDING_FRAME, frame),
         Bind::reads(BINDING_SEGMENTS, segments),
         Bind::updates(BINDING_HPR_FRAME, state),
         Bind::reads(BINDING_HPR_COMPLETE, nearest),
         Bind::updates(BINDING_HPR_MASK, hidden),
     ];
-    let classify = pipeline(ctx, "hpr/complete_classify.comp", &binds, &[])?;
-    add_pass(
-        g,
+    g.compute(
         "hpr.complete.classify",
-        classify,
-        binds,
-        Some(push),
-        points,
-    );
+        "hpr/complete_classify.comp",
+        &binds,
+    )
+    .push(params)
+    .dispatch(points);
     Ok(())
 }
 
-/// Bytes of `HprFrame` holding the propagation rounds' indirect dispatch.
-fn dispatch_range() -> BufferRange {
-    BufferRange::new(std::mem::offset_of!(HprFrame, groups_x) as u64, 12)
+/// The offset in `HprFrame` of the propagation rounds' indirect dispatch.
+fn dispatch_offset() -> u64 {
+    std::mem::offset_of!(HprFrame, groups_x) as u64
 }
 
 /// Bytes of `HprFrame` holding the reconstruction's indexed indirect draw.
@@ -545,7 +479,6 @@ pub fn draw_range() -> BufferRange {
 /// 2 (√k_max − 1)² triangles, counted in `HprFrame::index_count`.
 pub fn add_triangulation(
     g: &mut GraphBuilder,
-    ctx: &Arc<Context>,
     inputs: Inputs,
     hpr: &Hpr,
     settings: &Settings,
@@ -564,17 +497,16 @@ pub fn add_triangulation(
     let extremes = hpr
         .extremes
         .context("the reconstruction triangulates the sector extremes, which were skipped")?;
-    let binds = vec![
+    let binds = [
         Bind::reads(BINDING_FRAME, inputs.frame),
         Bind::reads(BINDING_SEGMENTS, inputs.segments),
         Bind::updates(BINDING_HPR_FRAME, hpr.state),
         Bind::reads(BINDING_HPR_SRC, extremes),
         Bind::writes(BINDING_HPR_TRIANGLES, indices),
     ];
-    let triangulate = pipeline(ctx, "hpr/triangulate.comp", &binds, &[])?;
-    let push = bytemuck::bytes_of(&params).to_vec();
-    let launch = Launch::Groups(groups(blocks));
-    add_pass(g, "hpr.triangulate", triangulate, binds, Some(push), launch);
+    g.compute("hpr.triangulate", "hpr/triangulate.comp", &binds)
+        .push(&params)
+        .dispatch(groups(blocks));
     Ok(indices)
 }
 
@@ -747,20 +679,19 @@ fn build_points(b: &mut BuildContext<'_>) -> Result<()> {
             skip: Some(hpr.hidden),
             ..Default::default()
         },
-    )?;
+    );
     let binds = compute::resolve_binds(b, projection, false);
-    compute::add_resolve(
-        b,
-        "hpr.points.resolve",
-        "compute/resolve.comp",
-        &[(RESOLVE_SPEC_HIGH_QUALITY, 0)],
-        binds,
-    )
+    let groups = b.pixel_groups(RESOLVE_GROUP);
+    b.graph
+        .compute("hpr.points.resolve", "compute/resolve.comp", &binds)
+        .spec(&[(RESOLVE_SPEC_HIGH_QUALITY, 0)])
+        .dispatch_grid(groups);
+    Ok(())
 }
 
 fn build_mesh(b: &mut BuildContext<'_>) -> Result<()> {
     let (hpr, inputs, settings) = add_for_method(b)?;
-    let indices = add_triangulation(b.graph, b.ctx, inputs, &hpr, &settings)?;
+    let indices = add_triangulation(b.graph, inputs, &hpr, &settings)?;
     if b.config.get("pyramid") >= 0.5 {
         let args = (hpr.state, draw_range().offset);
         return super::pyramid::build_over_triangles(b, indices, args, hpr.hidden);
@@ -842,7 +773,7 @@ pub fn evaluate(
         outputs.push((extremes, s_max * s_max * 4));
     }
     if triangulate {
-        let indices = add_triangulation(&mut g, ctx, inputs, &hpr, settings)?;
+        let indices = add_triangulation(&mut g, inputs, &hpr, settings)?;
         let s = s_max.max(2);
         outputs.push((indices, (s - 1) * (s - 1) * 24));
     }

@@ -36,8 +36,6 @@
 
 pub mod reference;
 
-use std::sync::Arc;
-
 use anyhow::Result;
 use ash::vk;
 
@@ -45,11 +43,11 @@ use crate::gpu::layout::{
     PyramidParams, BINDING_FRAME, BINDING_KERNEL_ACCUM, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
     PYRAMID_SPEC_KERNEL,
 };
-use crate::gpu::{Context, ImageDesc, Pipeline};
-use crate::graph::{bind, Access, Bind, BufferId, GraphBuilder, Stages};
+use crate::gpu::ImageDesc;
+use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
 use crate::methods::compute::ProjectOptions;
 use crate::methods::pyramid::{
-    add_level0, add_shade, dispatch, groups, specialization, Group, Passes, Pyramid,
+    add_level0, add_shade, groups, specialization, Group, Passes, Pyramid,
 };
 use crate::methods::{BuildContext, Feature, MethodConfig, MethodInfo, ParamSpec};
 use reference::searched_levels;
@@ -176,30 +174,28 @@ impl KernelPyramid {
     /// Declares the analysis passes `kernel.analysis.L` of levels 1..=`top`.
     pub fn add_analysis(
         &self,
-        ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
         frame: BufferId,
         params: PyramidParams,
         top: u32,
-    ) -> Result<()> {
+    ) {
         let analysis = Passes {
             shader: "kernel/analysis.comp",
             spec: &self.spec,
             prefix: "kernel",
         };
         self.pyramid
-            .add_analysis_with(ctx, graph, frame, params, top, analysis)
+            .add_analysis_with(graph, frame, params, top, analysis);
     }
 
     /// Declares the interpolation passes of every level searched and the resolve into level 0
     /// (after a full analysis); returns the group holding the result.
     pub fn add_interpolation(
         &self,
-        ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
         frame: BufferId,
         params: PyramidParams,
-    ) -> Result<Group> {
+    ) -> Group {
         let compute = Stages::Compute;
         let (width, height) = (self.pyramid.width, self.pyramid.height);
         let source = self.level0();
@@ -215,23 +211,16 @@ impl KernelPyramid {
             binds.extend(self.accum.binds(BINDING_KERNEL_ACCUM, 0, sums));
             binds
         };
-        let interpolate = Arc::new(Pipeline::compute_specialized(
-            ctx,
-            "kernel/interpolate.comp",
-            &bind::compute_layout(&interpolate_binds(0)),
-            &self.spec,
-        )?);
         for level in 0..self.pyramid.levels {
-            let pass = graph.pass(&format!("kernel.interpolate.{level}"));
-            let push = PyramidParams { level, ..params };
-            let binds = interpolate_binds(level);
-            dispatch(
-                pass,
-                interpolate.clone(),
-                binds,
-                push,
-                groups(width, height, 0),
-            );
+            graph
+                .compute(
+                    &format!("kernel.interpolate.{level}"),
+                    "kernel/interpolate.comp",
+                    &interpolate_binds(level),
+                )
+                .spec(&self.spec)
+                .push(&PyramidParams { level, ..params })
+                .dispatch_grid(groups(width, height, 0));
         }
 
         let mut binds = vec![Bind::constants(BINDING_FRAME, frame)];
@@ -240,16 +229,12 @@ impl KernelPyramid {
                 .binds(BINDING_KERNEL_ACCUM, 0, Access::StorageRead(compute)),
         );
         binds.extend(source.binds(BINDING_PYRAMID_OUT, 0, Access::StorageWrite(compute)));
-        let resolve = Arc::new(Pipeline::compute_specialized(
-            ctx,
-            "kernel/resolve.comp",
-            &bind::compute_layout(&binds),
-            &self.spec,
-        )?);
-        let pass = graph.pass("kernel.resolve");
-        let push = PyramidParams { level: 0, ..params };
-        dispatch(pass, resolve, binds, push, groups(width, height, 0));
-        Ok(source)
+        graph
+            .compute("kernel.resolve", "kernel/resolve.comp", &binds)
+            .spec(&self.spec)
+            .push(&PyramidParams { level: 0, ..params })
+            .dispatch_grid(groups(width, height, 0));
+        source
     }
 }
 
@@ -286,13 +271,14 @@ fn build(b: &mut BuildContext<'_>, kernel: u32) -> Result<()> {
         cull,
         ..Default::default()
     };
-    add_level0(b, "kernel", kp.level0(), &spec, params, options)?;
+    add_level0(b, "kernel", kp.level0(), &spec, params, options);
     let levels = kp.pyramid.levels;
     let shown = (show >= 0.0).then(|| (show as u32).min(levels - 1));
-    kp.add_analysis(b.ctx, b.graph, b.frame, params, shown.unwrap_or(levels - 1))?;
+    kp.add_analysis(b.graph, b.frame, params, shown.unwrap_or(levels - 1));
     let source = match shown {
         Some(level) => (kp.pyramid.holder(level), level),
-        None => (kp.add_interpolation(b.ctx, b.graph, b.frame, params)?, 0),
+        None => (kp.add_interpolation(b.graph, b.frame, params), 0),
     };
-    add_shade(b, "kernel", source, &spec, params)
+    add_shade(b, "kernel", source, &spec, params);
+    Ok(())
 }

@@ -15,8 +15,6 @@
 //! level. With a point budget (`DrawOptions::budget`, `add_budget`) two passes before the path
 //! raise the threshold the levels are chosen with until the frame's samples fit.
 
-use std::sync::Arc;
-
 use anyhow::{bail, Result};
 use ash::vk;
 
@@ -27,9 +25,9 @@ use crate::gpu::layout::{
     SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_SQUARES, SPLAT_SHADING_FLAT, SPLAT_SPEC_RASTER,
     SPLAT_SPEC_SHADING,
 };
-use crate::gpu::{Binding, Blend, Context, GeometryOutput, GraphicsDesc, Pipeline};
+use crate::gpu::{Blend, Context, GeometryOutput, GraphicsDesc};
 use crate::graph::{
-    bind, Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, PassBuilder, Stages,
+    bind, Access, Bind, Binds, BufferId, BufferRange, DrawPass, GraphBuilder, ImageId, Load, Stages,
 };
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use crate::upload::GpuLod;
@@ -97,9 +95,21 @@ impl LodInputs {
     }
 }
 
+/// How the selected points reach the screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Path {
+    /// A selection pass writes the list; one indirect draw of it.
+    Compute,
+    /// Task and mesh shaders choose levels and emit the points.
+    Mesh,
+    /// A geometry shader chooses the level and emits the points.
+    Geometry,
+}
+
 /// How a path draws.
 #[derive(Clone, Copy, Debug)]
 pub struct DrawOptions {
+    pub path: Path,
     /// The threshold ε of the projected error, in pixels.
     pub epsilon: f32,
     /// Color by level (thesis Fig. 7.4) rather than with the base color.
@@ -121,10 +131,11 @@ pub struct DrawOptions {
 }
 
 impl DrawOptions {
-    /// Threshold `epsilon`, the base color, squares, no budget, points up to 16 pixels,
+    /// The compute path, threshold `epsilon`, the base color, squares, no budget, points up to 16 pixels,
     /// `DEFAULT_GEOMETRY_CHUNK` vertices per geometry invocation.
     pub fn new(epsilon: f32) -> DrawOptions {
         DrawOptions {
+            path: Path::Compute,
             epsilon,
             color_levels: false,
             discs: false,
@@ -147,7 +158,7 @@ pub struct DrawTargets {
 
 impl DrawTargets {
     /// `pass` drawing into the targets, all cleared.
-    fn cleared(self, pass: PassBuilder<'_>) -> PassBuilder<'_> {
+    fn cleared(self, pass: DrawPass<'_>) -> DrawPass<'_> {
         pass.color(self.color, Load::Clear([0.0; 4]))
             .color(self.depth, Load::Clear([0.0; 4]))
             .color(self.normal, Load::Clear([0.0; 4]))
@@ -193,30 +204,25 @@ fn draw_params(lod: &GpuLod, options: &DrawOptions) -> LodParams {
 /// Declares `name`: one dispatch of `shader` with one thread per patch, reading the frame
 /// and the patches, updating the counters and, when given, writing the list.
 fn add_patch_pass(
-    ctx: &Arc<Context>,
     graph: &mut GraphBuilder,
     name: &str,
     (shader, params): (&str, LodParams),
     lod: &GpuLod,
     (frame, patches, counters): (BufferId, BufferId, BufferId),
     list: Option<BufferId>,
-) -> Result<()> {
-    let mut binds = vec![
+) {
+    let mut binds = Binds::from([
         Bind::constants(BINDING_FRAME, frame),
         Bind::reads(BINDING_LOD_PATCHES, patches),
         Bind::updates(BINDING_LOD_COUNTERS, counters),
-    ];
+    ]);
     if let Some(list) = list {
         binds.push(Bind::writes(BINDING_LOD_LIST, list));
     }
-    let pipeline = Pipeline::compute(ctx, shader, &bind::compute_layout(&binds))?;
-    let groups = u64::from(lod.patch_count.div_ceil(LOD_GROUP));
-    graph.pass(name).binds(&binds).record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        ctx.push(&pipeline, bytemuck::bytes_of(&params));
-        ctx.dispatch_groups(groups);
-    });
-    Ok(())
+    graph
+        .compute(name, shader, &binds)
+        .push(&params)
+        .dispatch(u64::from(lod.patch_count.div_ceil(LOD_GROUP)));
 }
 
 /// The point budget: declares `{prefix}.budget.bins`, which sorts the samples every
@@ -227,7 +233,6 @@ fn add_patch_pass(
 /// the patch count is refused: every patch in view draws at least its representative. Nothing
 /// either when the budget holds every patch's finest level.
 pub fn add_budget(
-    ctx: &Arc<Context>,
     graph: &mut GraphBuilder,
     prefix: &str,
     inputs: (BufferId, BufferId, BufferId),
@@ -255,34 +260,26 @@ pub fn add_budget(
         ..Default::default()
     };
     add_patch_pass(
-        ctx,
         graph,
         &format!("{prefix}.budget.bins"),
         ("lod/budget_bins.comp", params),
         lod,
         (frame, patches, counters),
         None,
-    )?;
-    let binds = [Bind::updates(BINDING_LOD_COUNTERS, counters)];
-    let threshold = Pipeline::compute(
-        ctx,
-        "lod/budget_threshold.comp",
-        &bind::compute_layout(&binds),
-    )?;
+    );
     graph
-        .pass(&format!("{prefix}.budget.threshold"))
-        .binds(&binds)
-        .record(move |ctx| {
-            ctx.bind_all(&threshold, &binds);
-            ctx.push(&threshold, bytemuck::bytes_of(&params));
-            ctx.dispatch(1, 1, 1);
-        });
+        .compute(
+            &format!("{prefix}.budget.threshold"),
+            "lod/budget_threshold.comp",
+            &[Bind::updates(BINDING_LOD_COUNTERS, counters)],
+        )
+        .push(&params)
+        .dispatch(1);
     Ok(())
 }
 
-/// `new_selection` with threshold `epsilon`, then the point budget's passes (`add_budget`).
+/// The counters and list of `new_selection`, then the point budget's passes (`add_budget`).
 fn budgeted_selection(
-    ctx: &Arc<Context>,
     graph: &mut GraphBuilder,
     prefix: &str,
     list_entries: Option<u32>,
@@ -292,158 +289,80 @@ fn budgeted_selection(
 ) -> Result<Selection> {
     let selection = new_selection(graph, prefix, list_entries, epsilon);
     let inputs = (frame, patches, selection.counters);
-    add_budget(ctx, graph, prefix, inputs, lod, epsilon, budget)?;
+    add_budget(graph, prefix, inputs, lod, epsilon, budget)?;
     Ok(selection)
 }
 
 /// Declares the reset of the counters, the point budget's passes (`add_budget`) and the
 /// selection pass over `patches` (the graph's id of `lod.patches`) for the camera in `frame`,
 /// the threshold `epsilon` in pixels and `budget` samples (0: none).
-#[allow(clippy::too_many_arguments)]
 pub fn add_select(
-    ctx: &Arc<Context>,
     graph: &mut GraphBuilder,
     prefix: &str,
-    frame: BufferId,
-    patches: BufferId,
+    (frame, patches): (BufferId, BufferId),
     lod: &GpuLod,
-    epsilon: f32,
-    budget: u32,
+    (epsilon, budget): (f32, u32),
 ) -> Result<Selection> {
+    let entries = Some(lod.max_selected);
     let selection = budgeted_selection(
-        ctx,
         graph,
         prefix,
-        Some(lod.max_selected),
+        entries,
         lod,
         (frame, patches),
         (epsilon, budget),
     )?;
-    let Selection { list, counters } = selection;
     let params = LodParams {
         epsilon,
         patch_count: lod.patch_count,
         ..Default::default()
     };
     add_patch_pass(
-        ctx,
         graph,
         &format!("{prefix}.select"),
         ("lod/select.comp", params),
         lod,
-        (frame, patches, counters),
-        Some(list),
-    )?;
+        (frame, patches, selection.counters),
+        Some(selection.list),
+    );
     Ok(selection)
 }
 
-/// A points pipeline drawing into the standard targets with reversed-Z depth, rasterized and
-/// shaded by `splat/flat.frag` (squares or discs).
-fn draw_pipeline(
-    ctx: &Arc<Context>,
-    shaders: &[&str],
-    bindings: &[Binding],
-    options: &DrawOptions,
-) -> Result<Arc<Pipeline>> {
-    Ok(Arc::new(Pipeline::graphics(
-        ctx,
-        &GraphicsDesc {
-            shaders,
-            bindings,
-            color_formats: &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-            blends: &[Blend::Replace; 3],
-            depth_format: Some(ZBUFFER_FORMAT),
-            depth_test: true,
-            depth_write: true,
-            depth_compare: vk::CompareOp::GREATER,
-            topology: vk::PrimitiveTopology::POINT_LIST,
-            cull: vk::CullModeFlags::NONE,
-            specialization: &[
-                (LOD_SPEC_COLOR_LEVELS, u32::from(options.color_levels)),
-                (LOD_SPEC_RECORD, u32::from(options.record)),
-                (LOD_SPEC_GEOMETRY_CHUNK, options.geometry_chunk),
-                (
-                    SPLAT_SPEC_RASTER,
-                    if options.discs {
-                        SPLAT_RASTER_PERSPECTIVE
-                    } else {
-                        SPLAT_RASTER_SQUARES
-                    },
-                ),
-                (SPLAT_SPEC_SHADING, SPLAT_SHADING_FLAT),
-            ],
-            geometry_output: shaders
-                .iter()
-                .any(|s| s.ends_with(".geom"))
-                .then(|| GeometryOutput {
-                    vertices: options.geometry_chunk,
-                    invocations: LOD_PATCH_VERTICES / options.geometry_chunk,
-                }),
-        },
-    )?))
-}
-
-/// The compute path: `add_select`, then one indirect draw of the list into `targets`.
-pub fn add_compute(
-    ctx: &Arc<Context>,
-    graph: &mut GraphBuilder,
-    prefix: &str,
-    lod: &GpuLod,
-    inputs: LodInputs,
-    options: DrawOptions,
-    targets: DrawTargets,
-) -> Result<Selection> {
-    let LodInputs {
-        frame,
-        patches,
-        vertices,
-    } = inputs;
-    let selection = add_select(
-        ctx,
-        graph,
-        prefix,
-        frame,
-        patches,
-        lod,
-        options.epsilon,
-        options.budget,
-    )?;
-    let Selection { list, counters } = selection;
-    let vertex_read = Access::StorageRead(Stages::Vertex);
-    let binds = [
-        Bind::buffer(BINDING_FRAME, frame, Access::UniformRead(Stages::Graphics)),
-        Bind::buffer(BINDING_LOD_VERTICES, vertices, vertex_read),
-        Bind::buffer(BINDING_LOD_LIST, list, vertex_read),
-    ];
-    let pipeline = draw_pipeline(
-        ctx,
-        &["lod/points.vert", "splat/flat.frag"],
-        &bind::layout(
-            &binds,
-            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-        ),
-        &options,
-    )?;
-    let params = draw_params(lod, &options);
-    let pass = graph
-        .pass(&format!("{prefix}.draw"))
-        .binds(&binds)
-        .buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
-    targets.cleared(pass).record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        ctx.push(&pipeline, bytemuck::bytes_of(&params));
-        ctx.draw_indirect(counters, 0, 1, 16);
-    });
-    Ok(selection)
-}
-
-/// How an expansion draw launches its patches.
-#[derive(Clone, Copy)]
-enum Launch {
-    /// Task workgroups, folded into rows past `bind::MAX_GROUPS`.
-    MeshTasks(u64),
-    /// One vertex per patch.
-    Vertices(u32),
+/// The points pipeline state of every path: the standard targets with reversed-Z depth,
+/// rasterized and shaded by `splat/flat.frag` (squares or discs).
+fn draw_desc(shaders: &[&'static str], options: &DrawOptions) -> GraphicsDesc {
+    GraphicsDesc {
+        shaders: shaders.to_vec(),
+        color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+        blends: vec![Blend::Replace; 3],
+        depth_format: Some(ZBUFFER_FORMAT),
+        depth_test: true,
+        depth_write: true,
+        depth_compare: vk::CompareOp::GREATER,
+        topology: vk::PrimitiveTopology::POINT_LIST,
+        specialization: vec![
+            (LOD_SPEC_COLOR_LEVELS, u32::from(options.color_levels)),
+            (LOD_SPEC_RECORD, u32::from(options.record)),
+            (LOD_SPEC_GEOMETRY_CHUNK, options.geometry_chunk),
+            (
+                SPLAT_SPEC_RASTER,
+                if options.discs {
+                    SPLAT_RASTER_PERSPECTIVE
+                } else {
+                    SPLAT_RASTER_SQUARES
+                },
+            ),
+            (SPLAT_SPEC_SHADING, SPLAT_SHADING_FLAT),
+        ],
+        geometry_output: shaders
+            .iter()
+            .any(|s| s.ends_with(".geom"))
+            .then(|| GeometryOutput {
+                vertices: options.geometry_chunk,
+                invocations: LOD_PATCH_VERTICES / options.geometry_chunk,
+            }),
+        ..Default::default()
+    }
 }
 
 /// The bindings of the mesh and geometry paths' draw: the frame, the patches and the vertices
@@ -487,82 +406,8 @@ fn expansion_binds(
     ]
 }
 
-/// Declares `{prefix}.draw` for the mesh and geometry paths: `pipeline` bound to `binds`
-/// (`expansion_binds`), drawing into the cleared `targets`.
-fn add_expansion_draw(
-    graph: &mut GraphBuilder,
-    prefix: &str,
-    (pipeline, params): (Arc<Pipeline>, LodParams),
-    launch: Launch,
-    binds: [Bind; 5],
-    t: DrawTargets,
-) {
-    let pass = graph.pass(&format!("{prefix}.draw")).binds(&binds);
-    t.cleared(pass).record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        ctx.push(&pipeline, bytemuck::bytes_of(&params));
-        match launch {
-            Launch::MeshTasks(groups) => {
-                let (x, y) = bind::fold_groups(groups);
-                ctx.draw_mesh_tasks(x, y, 1)
-            }
-            Launch::Vertices(n) => ctx.draw(n, 1),
-        }
-    });
-}
-
-/// The mesh path: task workgroups of `LOD_TASK_GROUP` patches choose levels and launch one
-/// mesh workgroup per patch, drawing into `targets`. The counters hold the vertices emitted
-/// per level; with `options.record` the list holds every emitted index and the first counter
-/// their number (otherwise the list is the counters buffer again, never written).
-pub fn add_mesh(
-    ctx: &Arc<Context>,
-    graph: &mut GraphBuilder,
-    prefix: &str,
-    lod: &GpuLod,
-    inputs: LodInputs,
-    options: DrawOptions,
-    targets: DrawTargets,
-) -> Result<Selection> {
-    let selection = budgeted_selection(
-        ctx,
-        graph,
-        prefix,
-        options.record.then_some(lod.max_selected),
-        lod,
-        (inputs.frame, inputs.patches),
-        (options.epsilon, options.budget),
-    )?;
-    let binds = expansion_binds(inputs, selection, Stages::Mesh, options.record);
-    let stages = vk::ShaderStageFlags::TASK_EXT
-        | vk::ShaderStageFlags::MESH_EXT
-        | vk::ShaderStageFlags::FRAGMENT;
-    let pipeline = draw_pipeline(
-        ctx,
-        &["lod/select.task", "lod/points.mesh", "splat/flat.frag"],
-        &bind::layout(&binds, stages),
-        &options,
-    )?;
-    let params = draw_params(lod, &options);
-    let launch = Launch::MeshTasks(u64::from(lod.patch_count.div_ceil(LOD_TASK_GROUP)));
-    add_expansion_draw(graph, prefix, (pipeline, params), launch, binds, targets);
-    Ok(selection)
-}
-
-/// The geometry path: one vertex per patch; the geometry shader chooses the level and emits
-/// its vertices (at most `LOD_PATCH_VERTICES`, `options.geometry_chunk` per invocation),
-/// drawing into `targets`. The counters and the
-/// list are as `add_mesh`'s.
-pub fn add_geometry(
-    ctx: &Arc<Context>,
-    graph: &mut GraphBuilder,
-    prefix: &str,
-    lod: &GpuLod,
-    inputs: LodInputs,
-    options: DrawOptions,
-    targets: DrawTargets,
-) -> Result<Selection> {
-    let chunk = options.geometry_chunk;
+/// Fails where the device cannot run the geometry path with `chunk` vertices per invocation.
+fn check_geometry(ctx: &Context, chunk: u32) -> Result<()> {
     if !chunk.is_power_of_two() || chunk > LOD_PATCH_VERTICES {
         bail!(
             "the geometry path's vertices per invocation must be a power of two up to \
@@ -588,27 +433,85 @@ pub fn add_geometry(
             ctx.caps.max_geometry_shader_invocations
         );
     }
-    let selection = budgeted_selection(
-        ctx,
-        graph,
-        prefix,
-        options.record.then_some(lod.max_selected),
-        lod,
-        (inputs.frame, inputs.patches),
-        (options.epsilon, options.budget),
-    )?;
-    let binds = expansion_binds(inputs, selection, Stages::Graphics, options.record);
-    let pipeline = draw_pipeline(
-        ctx,
-        &["lod/patch.vert", "lod/expand.geom", "splat/flat.frag"],
-        &bind::layout(
-            &binds,
-            vk::ShaderStageFlags::GEOMETRY | vk::ShaderStageFlags::FRAGMENT,
-        ),
-        &options,
-    )?;
+    Ok(())
+}
+
+/// Declares `options.path`'s passes drawing `lod` into the cleared `targets`: the
+/// counters' reset, the point budget's passes, then
+/// * `Path::Compute`: the selection pass and one indirect draw of the list;
+/// * `Path::Mesh`: task workgroups of `LOD_TASK_GROUP` patches choose levels and launch one
+///   mesh workgroup per patch;
+/// * `Path::Geometry`: one vertex per patch; the geometry shader chooses the level and emits
+///   its vertices (at most `LOD_PATCH_VERTICES`, `options.geometry_chunk` per invocation).
+///
+/// The mesh and geometry paths count the vertices emitted per level; with `options.record`
+/// their list holds every emitted index and the first counter their number (otherwise the
+/// list is the counters buffer again, never written).
+pub fn add_draw(
+    ctx: &Context,
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    lod: &GpuLod,
+    inputs: LodInputs,
+    options: DrawOptions,
+    targets: DrawTargets,
+) -> Result<Selection> {
+    if options.path == Path::Geometry {
+        check_geometry(ctx, options.geometry_chunk)?;
+    }
+    let sources = (inputs.frame, inputs.patches);
+    let threshold = (options.epsilon, options.budget);
+    let selection = if options.path == Path::Compute {
+        add_select(graph, prefix, sources, lod, threshold)?
+    } else {
+        let entries = options.record.then_some(lod.max_selected);
+        budgeted_selection(graph, prefix, entries, lod, sources, threshold)?
+    };
+    let Selection { list, counters } = selection;
     let params = draw_params(lod, &options);
-    let launch = Launch::Vertices(lod.patch_count);
-    add_expansion_draw(graph, prefix, (pipeline, params), launch, binds, targets);
+    let name = format!("{prefix}.draw");
+    match options.path {
+        Path::Compute => {
+            let vertex_read = Access::StorageRead(Stages::Vertex);
+            let binds = [
+                Bind::buffer(
+                    BINDING_FRAME,
+                    inputs.frame,
+                    Access::UniformRead(Stages::Graphics),
+                ),
+                Bind::buffer(BINDING_LOD_VERTICES, inputs.vertices, vertex_read),
+                Bind::buffer(BINDING_LOD_LIST, list, vertex_read),
+            ];
+            let desc = draw_desc(&["lod/points.vert", "splat/flat.frag"], &options);
+            targets
+                .cleared(graph.draw(&name, desc, &binds))
+                .push(&params)
+                .declare(|p| {
+                    p.buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead)
+                })
+                .draw(move |ctx| ctx.draw_indirect(counters, 0, 1, 16));
+        }
+        Path::Mesh => {
+            let binds = expansion_binds(inputs, selection, Stages::Mesh, options.record);
+            let shaders = ["lod/select.task", "lod/points.mesh", "splat/flat.frag"];
+            let groups = u64::from(lod.patch_count.div_ceil(LOD_TASK_GROUP));
+            targets
+                .cleared(graph.draw(&name, draw_desc(&shaders, &options), &binds))
+                .push(&params)
+                .draw(move |ctx| {
+                    let (x, y) = bind::fold_groups(groups);
+                    ctx.draw_mesh_tasks(x, y, 1)
+                });
+        }
+        Path::Geometry => {
+            let binds = expansion_binds(inputs, selection, Stages::Graphics, options.record);
+            let shaders = ["lod/patch.vert", "lod/expand.geom", "splat/flat.frag"];
+            let patches = lod.patch_count;
+            targets
+                .cleared(graph.draw(&name, draw_desc(&shaders, &options), &binds))
+                .push(&params)
+                .draw(move |ctx| ctx.draw(patches, 1));
+        }
+    }
     Ok(selection)
 }

@@ -2,11 +2,11 @@
 //!
 //! * `lod-compute`: a compute pre-pass chooses each patch's level and writes the list of the
 //!   chosen vertices and an indirect draw's arguments; one indirect draw pulls them through
-//!   the list (`crate::methods::lod::gpu::add_compute`).
+//!   the list (`crate::methods::lod::gpu::add_draw`, `Path::Compute`).
 //! * `lod-mesh`: a task shader chooses the levels, one mesh workgroup per patch emits the
-//!   chosen level's vertices (`crate::methods::lod::gpu::add_mesh`).
+//!   chosen level's vertices (`Path::Mesh`).
 //! * `lod-geometry`: the thesis' path (§7.2): one vertex per patch, the geometry shader chooses
-//!   the level and emits its vertices (`crate::methods::lod::gpu::add_geometry`).
+//!   the level and emits its vertices (`Path::Geometry`).
 //!
 //! All three draw each sample as a perspective-correct disc (or, with `shape=0`, a square of
 //! its projected diameter), honour the point budget (`budget`) and publish their selection's
@@ -21,7 +21,7 @@ use crate::gpu::ImageDesc;
 use crate::methods::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 pub mod gpu;
 
-use gpu::{DrawOptions, DrawTargets, LodInputs, DEFAULT_GEOMETRY_CHUNK};
+use gpu::{DrawOptions, DrawTargets, LodInputs, Path, DEFAULT_GEOMETRY_CHUNK};
 
 /// The default ε: the largest measured value that costs the full dragon, drawn as discs,
 /// less than 0.5 dB of PSNR against ε = 0 at every distance from 0.5 to 8 times the default
@@ -132,14 +132,6 @@ pub const GEOMETRY_INFO: MethodInfo = MethodInfo {
     )
 };
 
-/// Which expansion path a method draws with.
-#[derive(Clone, Copy)]
-enum Path {
-    Compute,
-    Mesh,
-    Geometry,
-}
-
 fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
     let name = b.config.method.name;
     let Some(lod) = b.scene.lod.clone() else {
@@ -147,6 +139,7 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
     };
     let inputs = LodInputs::import(b.graph, b.frame, &lod);
     let options = DrawOptions {
+        path,
         epsilon: b.config.get("epsilon"),
         color_levels: b.config.get("levels") >= 0.5,
         discs: b.config.get("shape") >= 0.5,
@@ -175,12 +168,7 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
         normal: t.normal,
         zbuffer,
     };
-    let add = match path {
-        Path::Compute => gpu::add_compute,
-        Path::Mesh => gpu::add_mesh,
-        Path::Geometry => gpu::add_geometry,
-    };
-    let selection = add(b.ctx, b.graph, name, &lod, inputs, options, targets)?;
+    let selection = gpu::add_draw(b.ctx, b.graph, name, &lod, inputs, options, targets)?;
     b.samples = Some(selection.samples(&lod));
     Ok(())
 }

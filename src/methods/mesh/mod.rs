@@ -1,14 +1,12 @@
 //! `mesh`: the ground truth. Renders the input triangles at `samples` x `samples` the output
 //! resolution (linear color, linear depth, normal) and resolves them in a compute pass.
 
-use std::sync::Arc;
-
 use anyhow::{bail, Result};
 use ash::vk;
 
 use crate::gpu::layout::{BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, RESOLVE_GROUP};
-use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{bind, Access, Bind, BufferId, BufferRange, Load, Stages};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
+use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, Load, Stages};
 use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
@@ -67,25 +65,6 @@ pub fn add_mesh(
     if w > b.ctx.caps.max_image_dimension_2d || h > b.ctx.caps.max_image_dimension_2d {
         bail!("{w}x{h} supersampled target exceeds the device limit");
     }
-    let gfx = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-    let draw_binds = b.draw_binds();
-    let raster = Arc::new(Pipeline::graphics(
-        b.ctx,
-        &GraphicsDesc {
-            shaders: &["mesh/mesh.vert", "mesh/mesh.frag"],
-            bindings: &bind::layout(&draw_binds, gfx),
-            color_formats: &[HI_COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-            blends: &[Blend::Replace; 3],
-            depth_format: Some(ZBUFFER_FORMAT),
-            depth_test: true,
-            depth_write: true,
-            depth_compare: vk::CompareOp::GREATER,
-            topology: vk::PrimitiveTopology::TRIANGLE_LIST,
-            cull: vk::CullModeFlags::NONE,
-            specialization: &[],
-            geometry_output: None,
-        },
-    )?);
     let target = |format, usage| ImageDesc {
         format,
         width: w,
@@ -114,51 +93,55 @@ pub fn add_mesh(
         ),
     );
     let t = b.targets;
-    let mut raster_pass = b.graph.pass(&format!("{prefix}.raster")).binds(&draw_binds);
-    raster_pass = match source {
-        Indices::Static { indices, .. } => raster_pass.buffer(indices, Access::IndexRead),
-        Indices::Indirect {
-            indices,
-            args,
-            range,
-        } => raster_pass.buffer(indices, Access::IndexRead).buffer_range(
-            args,
-            range,
-            Access::IndirectRead,
-        ),
+    let desc = GraphicsDesc {
+        shaders: vec!["mesh/mesh.vert", "mesh/mesh.frag"],
+        color_formats: vec![HI_COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+        blends: vec![Blend::Replace; 3],
+        depth_format: Some(ZBUFFER_FORMAT),
+        depth_test: true,
+        depth_write: true,
+        depth_compare: vk::CompareOp::GREATER,
+        ..Default::default()
     };
-    raster_pass
+    b.graph
+        .draw(&format!("{prefix}.raster"), desc, &b.draw_binds())
+        .declare(|pass| match source {
+            Indices::Static { indices, .. } => pass.buffer(indices, Access::IndexRead),
+            Indices::Indirect {
+                indices,
+                args,
+                range,
+            } => pass.buffer(indices, Access::IndexRead).buffer_range(
+                args,
+                range,
+                Access::IndirectRead,
+            ),
+        })
         .color(hi_color, Load::Clear([0.0; 4]))
         .color(hi_depth, Load::Clear([0.0; 4]))
         .color(hi_normal, Load::Clear([0.0; 4]))
         .depth(zbuffer, Load::Clear([0.0; 4]))
-        .record(move |ctx| {
-            ctx.bind_all(&raster, &draw_binds);
-            match source {
-                Indices::Static { indices, count } => ctx.draw_indexed(indices, count),
-                Indices::Indirect {
-                    indices,
-                    args,
-                    range,
-                } => ctx.draw_indexed_indirect(indices, args, range.offset, 1, 20),
-            }
+        .draw(move |ctx| match source {
+            Indices::Static { indices, count } => ctx.draw_indexed(indices, count),
+            Indices::Indirect {
+                indices,
+                args,
+                range,
+            } => ctx.draw_indexed_indirect(indices, args, range.offset, 1, 20),
         });
     let read = Access::StorageRead(Stages::Compute);
-    let mut binds = vec![
+    let mut binds = Binds::from([
         Bind::image(BINDING_INPUT0, hi_color, 0, read),
         Bind::image(BINDING_INPUT1, hi_depth, 0, read),
         Bind::image(BINDING_INPUT2, hi_normal, 0, read),
-    ];
-    binds.extend(t.compute_writes());
-    let resolve = Pipeline::compute(b.ctx, "mesh/resolve.comp", &bind::compute_layout(&binds))?;
-    let (ow, oh) = (b.width, b.height);
+    ]);
+    for bind in t.compute_writes() {
+        binds.push(bind);
+    }
+    let groups = b.pixel_groups(RESOLVE_GROUP);
     b.graph
-        .pass(&format!("{prefix}.resolve"))
-        .binds(&binds)
-        .record(move |ctx| {
-            ctx.bind_all(&resolve, &binds);
-            ctx.push(&resolve, &samples.to_le_bytes());
-            ctx.dispatch(ow.div_ceil(RESOLVE_GROUP), oh.div_ceil(RESOLVE_GROUP), 1);
-        });
+        .compute(&format!("{prefix}.resolve"), "mesh/resolve.comp", &binds)
+        .push(&samples)
+        .dispatch_grid(groups);
     Ok(())
 }

@@ -47,10 +47,8 @@ use crate::gpu::layout::{
     BINDING_VISIBILITY, PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID,
     PYRAMID_SPEC_TUBE,
 };
-use crate::gpu::{Blend, Buffer, Context, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{
-    bind, Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, PassBuilder, Stages,
-};
+use crate::gpu::{Blend, Buffer, GraphicsDesc, ImageDesc};
+use crate::graph::{Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, Stages};
 use crate::methods::lod::gpu::{add_select, LodInputs};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its
@@ -196,29 +194,13 @@ impl Group {
 
     /// The three storage images of mip `mip` at bindings `base`, `base + 1`, `base + 2`,
     /// accessed with `access`.
-    pub(crate) fn binds(&self, base: u32, mip: u32, access: Access) -> [Bind; 3] {
+    pub fn binds(&self, base: u32, mip: u32, access: Access) -> [Bind; 3] {
         [
             Bind::image(base, self.a, mip, access),
             Bind::image(base + 1, self.b, mip, access),
             Bind::image(base + 2, self.c.unwrap_or(self.a), mip, access),
         ]
     }
-}
-
-/// Adds `pass` bound to `binds` (the frame block first): one dispatch of `pipeline` over
-/// `groups` with the push constants `push`.
-pub(crate) fn dispatch(
-    pass: PassBuilder<'_>,
-    pipeline: Arc<Pipeline>,
-    binds: Vec<Bind>,
-    push: PyramidParams,
-    (gx, gy): (u32, u32),
-) {
-    pass.binds(&binds).record(move |ctx| {
-        ctx.bind_all(&pipeline, &binds);
-        ctx.push(&pipeline, bytemuck::bytes_of(&push));
-        ctx.dispatch(gx, gy, 1);
-    });
 }
 
 /// Workgroups covering level `level` of a `width` x `height` pyramid.
@@ -316,31 +298,29 @@ impl Pyramid {
     /// Declares the analysis passes of levels 1..=`top`, bottom-up.
     pub fn add_analysis(
         &self,
-        ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
         frame: BufferId,
         params: PyramidParams,
         top: u32,
-    ) -> Result<()> {
+    ) {
         let spec = specialization(self.color, false, false);
         let analysis = Passes {
             shader: "pyramid/analysis.comp",
             spec: &spec,
             prefix: "pyramid",
         };
-        self.add_analysis_with(ctx, graph, frame, params, top, analysis)
+        self.add_analysis_with(graph, frame, params, top, analysis);
     }
 
     /// The analysis passes `{prefix}.analysis.L` of levels 1..=`top`.
     pub(crate) fn add_analysis_with(
         &self,
-        ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
         frame: BufferId,
         params: PyramidParams,
         top: u32,
         passes: Passes<'_>,
-    ) -> Result<()> {
+    ) {
         let compute = Stages::Compute;
         let binds = |level: u32| {
             let (src, dst) = (self.holder(level - 1), self.holder(level));
@@ -353,39 +333,31 @@ impl Pyramid {
             binds.extend(dst.binds(BINDING_PYRAMID_OUT, level, Access::StorageWrite(compute)));
             binds
         };
-        let analysis = Arc::new(Pipeline::compute_specialized(
-            ctx,
-            passes.shader,
-            &bind::compute_layout(&binds(1)),
-            passes.spec,
-        )?);
         let prefix = passes.prefix;
         for level in 1..=top.min(self.levels - 1) {
-            let pass = graph.pass(&format!("{prefix}.analysis.{level}"));
-            let push = PyramidParams { level, ..params };
-            dispatch(
-                pass,
-                analysis.clone(),
-                binds(level),
-                push,
-                self.groups(level),
-            );
+            graph
+                .compute(
+                    &format!("{prefix}.analysis.{level}"),
+                    passes.shader,
+                    &binds(level),
+                )
+                .spec(passes.spec)
+                .push(&PyramidParams { level, ..params })
+                .dispatch_grid(self.groups(level));
         }
-        Ok(())
     }
 
     /// Declares the copy (ping-pong layout) and synthesis passes after a full analysis;
     /// returns the group holding the reconstructed level 0.
     pub fn add_synthesis(
         &self,
-        ctx: &Arc<Context>,
         graph: &mut GraphBuilder,
         frame: BufferId,
         params: PyramidParams,
-    ) -> Result<Group> {
+    ) -> Group {
         let compute = Stages::Compute;
         if self.levels < 2 {
-            return Ok(self.holder(0));
+            return self.holder(0);
         }
         let binds = |level: u32| {
             let read = self.holder(level);
@@ -409,12 +381,6 @@ impl Pyramid {
             binds.extend(write.binds(BINDING_PYRAMID_OUT, level, output));
             (binds, write)
         };
-        let synthesis = Arc::new(Pipeline::compute_specialized(
-            ctx,
-            "pyramid/synthesis.comp",
-            &bind::compute_layout(&binds(0).0),
-            &specialization(self.color, false, false),
-        )?);
         // Synthesis of level l reads image l mod 2; the first one (l = levels - 2) needs the
         // top level, which analysis wrote into the other image: the copy pass (Fig. 4.13).
         let top = self.levels - 1;
@@ -438,12 +404,18 @@ impl Pyramid {
         let mut result = self.holder(0);
         for level in (0..top).rev() {
             let (binds, write) = binds(level);
-            let pass = graph.pass(&format!("pyramid.synthesis.{level}"));
-            let push = PyramidParams { level, ..params };
-            dispatch(pass, synthesis.clone(), binds, push, self.groups(level));
+            graph
+                .compute(
+                    &format!("pyramid.synthesis.{level}"),
+                    "pyramid/synthesis.comp",
+                    &binds,
+                )
+                .spec(&specialization(self.color, false, false))
+                .push(&PyramidParams { level, ..params })
+                .dispatch_grid(self.groups(level));
             result = write;
         }
-        Ok(result)
+        result
     }
 }
 
@@ -467,14 +439,11 @@ fn build_lod(b: &mut BuildContext<'_>) -> Result<()> {
     let inputs = LodInputs::import(b.graph, b.frame, &lod);
     let epsilon = b.config.get("epsilon");
     let selection = add_select(
-        b.ctx,
         b.graph,
         "pyramid-lod",
-        b.frame,
-        inputs.patches,
+        (b.frame, inputs.patches),
         &lod,
-        epsilon,
-        0,
+        (epsilon, 0),
     )?;
     b.samples = Some(selection.samples(&lod));
     let level0 = Level0::Lod {
@@ -635,30 +604,31 @@ fn build_with(b: &mut BuildContext<'_>, settings: Settings, level0: Level0) -> R
     let targets = (hardware || rasterized).then(|| raster_targets(b, first));
     if let Some(targets) = targets {
         for (k, primitives) in drawn.into_iter().flatten().enumerate() {
-            rasterize(b, targets, &spec, params, primitives, k == 0)?;
+            rasterize(b, targets, &spec, params, primitives, k == 0);
         }
     }
     if let (true, Some(targets)) = (hardware, targets) {
         let points = lod_list.unwrap_or(Primitives::Points(mask));
-        rasterize(b, targets, &spec, params, points, !rasterized)?;
+        rasterize(b, targets, &spec, params, points, !rasterized);
     } else {
         let options = ProjectOptions {
             cull,
             skip: mask,
             ..Default::default()
         };
-        add_level0(b, "pyramid", first, &spec, params, options)?;
+        add_level0(b, "pyramid", first, &spec, params, options);
     }
 
     // Analysis and synthesis, or the level shown without synthesis.
     let shown = (show >= 0.0).then(|| (show as u32).min(pyramid.levels - 1));
     let top = shown.unwrap_or(pyramid.levels - 1);
-    pyramid.add_analysis(b.ctx, b.graph, frame, params, top)?;
+    pyramid.add_analysis(b.graph, frame, params, top);
     let (source, level) = match shown {
         Some(level) => (pyramid.holder(level), level),
-        None => (pyramid.add_synthesis(b.ctx, b.graph, frame, params)?, 0),
+        None => (pyramid.add_synthesis(b.graph, frame, params), 0),
     };
-    add_shade(b, "pyramid", (source, level), &spec, params)
+    add_shade(b, "pyramid", (source, level), &spec, params);
+    Ok(())
 }
 
 /// Level 0 from the compute projection (000 4.2.1): `compute::project` with `options`, then
@@ -671,9 +641,9 @@ pub(crate) fn add_level0(
     spec: &[(u32, u32)],
     params: PyramidParams,
     options: ProjectOptions,
-) -> Result<()> {
+) {
     let compute = Stages::Compute;
-    let projection = project(b, prefix, options)?;
+    let projection = project(b, prefix, options);
     // Level 0 is read (with triangles or lines they are there; without, the shader's
     // statically present read is dead code) and written in place.
     let in_place = Access::StorageReadWrite(compute);
@@ -684,15 +654,11 @@ pub(crate) fn add_level0(
     ];
     binds.extend(first.binds(BINDING_PYRAMID_LEVEL, 0, in_place));
     binds.extend(first.binds(BINDING_PYRAMID_OUT, 0, in_place));
-    let pipeline = Arc::new(Pipeline::compute_specialized(
-        b.ctx,
-        "pyramid/level0.comp",
-        &bind::compute_layout(&binds),
-        spec,
-    )?);
-    let pass = b.graph.pass(&format!("{prefix}.level0"));
-    dispatch(pass, pipeline, binds, params, groups(b.width, b.height, 0));
-    Ok(())
+    b.graph
+        .compute(&format!("{prefix}.level0"), "pyramid/level0.comp", &binds)
+        .spec(spec)
+        .push(&params)
+        .dispatch_grid(groups(b.width, b.height, 0));
 }
 
 /// `{prefix}.shade`: deferred shading (000 4.2.3) of level `level` of `source` (magnified
@@ -703,7 +669,7 @@ pub(crate) fn add_shade(
     (source, level): (Group, u32),
     spec: &[(u32, u32)],
     params: PyramidParams,
-) -> Result<()> {
+) {
     let mut binds = vec![Bind::constants(BINDING_FRAME, b.frame)];
     binds.extend(source.binds(
         BINDING_PYRAMID_LEVEL,
@@ -711,16 +677,11 @@ pub(crate) fn add_shade(
         Access::StorageRead(Stages::Compute),
     ));
     binds.extend(b.targets.compute_writes());
-    let shade = Arc::new(Pipeline::compute_specialized(
-        b.ctx,
-        "pyramid/shade.comp",
-        &bind::compute_layout(&binds),
-        spec,
-    )?);
-    let pass = b.graph.pass(&format!("{prefix}.shade"));
-    let push = PyramidParams { level, ..params };
-    dispatch(pass, shade, binds, push, groups(b.width, b.height, 0));
-    Ok(())
+    b.graph
+        .compute(&format!("{prefix}.shade"), "pyramid/shade.comp", &binds)
+        .spec(spec)
+        .push(&PyramidParams { level, ..params })
+        .dispatch_grid(groups(b.width, b.height, 0));
 }
 
 /// Level 0 as render targets: the three groups' first level (an albedo target nothing reads
@@ -791,8 +752,7 @@ fn rasterize(
     params: PyramidParams,
     primitives: Primitives,
     clear: bool,
-) -> Result<()> {
-    let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+) {
     let (vertex, topology, name) = match primitives {
         Primitives::Points(_) => (
             "pyramid/project.vert",
@@ -851,63 +811,51 @@ fn rasterize(
         Primitives::Points(_) => Bind::buffer(BINDING_BATCHES, b.batches, vertex_read),
         _ => Bind::unused_in(BINDING_BATCHES, Stages::Vertex),
     });
-    let pipeline = Arc::new(Pipeline::graphics(
-        b.ctx,
-        &GraphicsDesc {
-            shaders: &[vertex, "pyramid/project.frag"],
-            bindings: &bind::layout(&binds, stages),
-            color_formats: &[FORMAT_A, FORMAT_B, FORMAT_C],
-            blends: &[Blend::Replace; 3],
-            depth_format: Some(ZBUFFER_FORMAT),
-            depth_test: true,
-            depth_write: true,
-            depth_compare: vk::CompareOp::GREATER,
-            topology,
-            cull: vk::CullModeFlags::NONE,
-            specialization: &spec,
-            geometry_output: None,
-        },
-    )?);
+    let desc = GraphicsDesc {
+        shaders: vec![vertex, "pyramid/project.frag"],
+        color_formats: vec![FORMAT_A, FORMAT_B, FORMAT_C],
+        blends: vec![Blend::Replace; 3],
+        depth_format: Some(ZBUFFER_FORMAT),
+        depth_test: true,
+        depth_write: true,
+        depth_compare: vk::CompareOp::GREATER,
+        topology,
+        specialization: spec,
+        ..Default::default()
+    };
     let load = if clear {
         Load::Clear([0.0; 4])
     } else {
         Load::Load
     };
     let points = b.scene.draw_points.clone();
-    let mut pass = b.graph.pass(name).binds(&binds);
-    if let Primitives::LodList(_, _, counters) = primitives {
-        pass = pass.buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead);
-    }
-    match primitives {
-        Primitives::Points(_) | Primitives::LodList(..) => {}
-        Primitives::Triangles(indices, _)
-        | Primitives::Ribbons(indices, _)
-        | Primitives::Tubes(indices, _) => pass = pass.buffer(indices, Access::IndexRead),
-        Primitives::IndirectTriangles(indices, args, offset) => {
-            pass = pass.buffer(indices, Access::IndexRead).buffer_range(
-                args,
-                BufferRange::new(offset, 20),
-                Access::IndirectRead,
-            );
-        }
-    }
-    pass.color_mip(t.a, 0, load)
-        .color_mip(t.b, 0, load)
-        .color_mip(t.c, 0, load)
-        .depth(t.zbuffer, load)
-        .record(move |ctx| {
-            ctx.bind_all(&pipeline, &binds);
-            ctx.push(&pipeline, bytemuck::bytes_of(&params));
-            match primitives {
-                Primitives::Points(_) => ctx.draw(points.get(), 1),
-                Primitives::Triangles(indices, count)
-                | Primitives::Ribbons(indices, count)
-                | Primitives::Tubes(indices, count) => ctx.draw_indexed(indices, count),
-                Primitives::IndirectTriangles(indices, args, offset) => {
-                    ctx.draw_indexed_indirect(indices, args, offset, 1, 20)
-                }
-                Primitives::LodList(_, _, counters) => ctx.draw_indirect(counters, 0, 1, 16),
+    b.graph
+        .draw(name, desc, &binds)
+        .push(&params)
+        .declare(|pass| match primitives {
+            Primitives::Points(_) => pass,
+            Primitives::LodList(_, _, counters) => {
+                pass.buffer_range(counters, BufferRange::new(0, 16), Access::IndirectRead)
             }
+            Primitives::Triangles(indices, _)
+            | Primitives::Ribbons(indices, _)
+            | Primitives::Tubes(indices, _) => pass.buffer(indices, Access::IndexRead),
+            Primitives::IndirectTriangles(indices, args, offset) => pass
+                .buffer(indices, Access::IndexRead)
+                .buffer_range(args, BufferRange::new(offset, 20), Access::IndirectRead),
+        })
+        .color(t.a, load)
+        .color(t.b, load)
+        .color(t.c, load)
+        .depth(t.zbuffer, load)
+        .draw(move |ctx| match primitives {
+            Primitives::Points(_) => ctx.draw(points.get(), 1),
+            Primitives::Triangles(indices, count)
+            | Primitives::Ribbons(indices, count)
+            | Primitives::Tubes(indices, count) => ctx.draw_indexed(indices, count),
+            Primitives::IndirectTriangles(indices, args, offset) => {
+                ctx.draw_indexed_indirect(indices, args, offset, 1, 20)
+            }
+            Primitives::LodList(_, _, counters) => ctx.draw_indirect(counters, 0, 1, 16),
         });
-    Ok(())
 }

@@ -11,8 +11,6 @@
 
 pub mod points;
 
-use std::sync::Arc;
-
 use anyhow::{anyhow, Result};
 use ash::vk;
 
@@ -25,8 +23,8 @@ use crate::gpu::layout::{
     SPLAT_RASTER_SQUARES, SPLAT_SHADING_DEFERRED, SPLAT_SHADING_FLAT, SPLAT_SHADING_GOURAUD,
     SPLAT_SHADING_PHONG, SPLAT_SPEC_CULL, SPLAT_SPEC_RASTER, SPLAT_SPEC_SHADING,
 };
-use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{bind, Access, Bind, ImageId, Load, Stages};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
+use crate::graph::{Access, Bind, ImageId, Load, Stages};
 
 /// The accumulation targets: (sum w c, sum w) and (sum w n, sum w), 16-bit float (002 5.3.2).
 const ACCUM_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
@@ -238,83 +236,51 @@ struct Splats {
 }
 
 impl Splats {
-    /// A point-sprite pipeline with `fragment`, writing `formats` with `blend`.
-    fn pipeline(
+    /// A point-sprite pipeline state with `fragment`, writing `formats` with `blend`.
+    fn desc(
         &self,
-        b: &BuildContext<'_>,
-        fragment: &str,
+        fragment: &'static str,
         formats: &[vk::Format],
         blend: Blend,
         visibility: bool,
-    ) -> Result<Arc<Pipeline>> {
-        let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-        let blends = vec![blend; formats.len()];
-        Ok(Arc::new(Pipeline::graphics(
-            b.ctx,
-            &GraphicsDesc {
-                shaders: &["splat/splat.vert", fragment],
-                bindings: &bind::layout(&b.draw_binds(), stages),
-                color_formats: formats,
-                blends: &blends,
-                depth_format: Some(ZBUFFER_FORMAT),
-                depth_test: true,
-                // The blending pass tests against the visibility depth without writing it.
-                depth_write: visibility,
-                depth_compare: if visibility {
-                    vk::CompareOp::GREATER
-                } else {
-                    vk::CompareOp::GREATER_OR_EQUAL
-                },
-                topology: vk::PrimitiveTopology::POINT_LIST,
-                cull: vk::CullModeFlags::NONE,
-                specialization: &self.specialization,
-                geometry_output: None,
+    ) -> GraphicsDesc {
+        GraphicsDesc {
+            shaders: vec!["splat/splat.vert", fragment],
+            color_formats: formats.to_vec(),
+            blends: vec![blend; formats.len()],
+            depth_format: Some(ZBUFFER_FORMAT),
+            depth_test: true,
+            // The blending pass tests against the visibility depth without writing it.
+            depth_write: visibility,
+            depth_compare: if visibility {
+                vk::CompareOp::GREATER
+            } else {
+                vk::CompareOp::GREATER_OR_EQUAL
             },
-        )?))
+            topology: vk::PrimitiveTopology::POINT_LIST,
+            specialization: self.specialization.to_vec(),
+            ..Default::default()
+        }
     }
 
     /// Flat shading: one pass into the standard targets.
     fn flat(self, b: &mut BuildContext<'_>) -> Result<()> {
-        let pipeline = self.pipeline(
-            b,
-            "splat/flat.frag",
-            &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-            Blend::Replace,
-            true,
-        )?;
-        let (binds, t) = (b.draw_binds(), b.targets);
-        let (count, params) = (b.scene.draw_points.clone(), self.params);
+        let formats = [COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT];
+        let desc = self.desc("splat/flat.frag", &formats, Blend::Replace, true);
+        let (binds, t, count) = (b.draw_binds(), b.targets, b.scene.draw_points.clone());
         b.graph
-            .pass("splat.flat")
-            .binds(&binds)
+            .draw("splat.flat", desc, &binds)
+            .push(&self.params)
             .color(t.color, Load::Clear([0.0; 4]))
             .color(t.depth, Load::Clear([0.0; 4]))
             .color(t.normal, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Clear([0.0; 4]))
-            .record(move |ctx| {
-                ctx.bind_all(&pipeline, &binds);
-                ctx.push(&pipeline, bytemuck::bytes_of(&params));
-                ctx.draw(count.get(), 1);
-            });
+            .draw(move |ctx| ctx.draw(count.get(), 1));
         Ok(())
     }
 
     /// The three passes of the blended shadings: visibility, accumulation, normalization.
     fn blended(self, b: &mut BuildContext<'_>) -> Result<()> {
-        let visibility = self.pipeline(
-            b,
-            "splat/visibility.frag",
-            &[DEPTH_FORMAT],
-            Blend::Replace,
-            true,
-        )?;
-        let accumulate = self.pipeline(
-            b,
-            "splat/accumulate.frag",
-            &[ACCUM_FORMAT, ACCUM_FORMAT],
-            Blend::Additive,
-            false,
-        )?;
         let accum = |b: &mut BuildContext<'_>, name| {
             b.graph.image(
                 name,
@@ -330,26 +296,33 @@ impl Splats {
         let accum_color = accum(b, "splat.accum_color");
         let accum_normal = accum(b, "splat.accum_normal");
         let (binds, t) = (b.draw_binds(), b.targets);
-        let (count, params) = (b.scene.draw_points.clone(), self.params);
-        let draw = move |ctx: &crate::graph::PassContext<'_>, pipeline: &Pipeline| {
-            ctx.bind_all(pipeline, &binds);
-            ctx.push(pipeline, bytemuck::bytes_of(&params));
-            ctx.draw(count.get(), 1);
-        };
-        let accumulate_draw = draw.clone();
+        let count = b.scene.draw_points.clone();
+        let visibility = self.desc(
+            "splat/visibility.frag",
+            &[DEPTH_FORMAT],
+            Blend::Replace,
+            true,
+        );
+        let points = count.clone();
         b.graph
-            .pass("splat.visibility")
-            .binds(&binds)
+            .draw("splat.visibility", visibility, &binds)
+            .push(&self.params)
             .color(t.depth, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Clear([0.0; 4]))
-            .record(move |ctx| draw(ctx, &visibility));
+            .draw(move |ctx| ctx.draw(points.get(), 1));
+        let accumulate = self.desc(
+            "splat/accumulate.frag",
+            &[ACCUM_FORMAT, ACCUM_FORMAT],
+            Blend::Additive,
+            false,
+        );
         b.graph
-            .pass("splat.accumulate")
-            .binds(&binds)
+            .draw("splat.accumulate", accumulate, &binds)
+            .push(&self.params)
             .color(accum_color, Load::Clear([0.0; 4]))
             .color(accum_normal, Load::Clear([0.0; 4]))
             .depth(self.zbuffer, Load::Load)
-            .record(move |ctx| accumulate_draw(ctx, &accumulate));
+            .draw(move |ctx| ctx.draw(count.get(), 1));
         let read = Access::StorageRead(Stages::Compute);
         let write = Access::StorageWrite(Stages::Compute);
         let normalize_binds = [
@@ -360,20 +333,11 @@ impl Splats {
             Bind::image(BINDING_OUTPUT0, t.color, 0, write),
             Bind::image(BINDING_OUTPUT0 + 1, t.normal, 0, write),
         ];
-        let normalize = Pipeline::compute_specialized(
-            b.ctx,
-            "splat/normalize.comp",
-            &bind::compute_layout(&normalize_binds),
-            &self.specialization,
-        )?;
-        let (w, h) = (b.width, b.height);
+        let groups = b.pixel_groups(RESOLVE_GROUP);
         b.graph
-            .pass("splat.normalize")
-            .binds(&normalize_binds)
-            .record(move |ctx| {
-                ctx.bind_all(&normalize, &normalize_binds);
-                ctx.dispatch(w.div_ceil(RESOLVE_GROUP), h.div_ceil(RESOLVE_GROUP), 1);
-            });
+            .compute("splat.normalize", "splat/normalize.comp", &normalize_binds)
+            .spec(&self.specialization)
+            .dispatch_grid(groups);
         Ok(())
     }
 }

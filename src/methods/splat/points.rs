@@ -1,12 +1,10 @@
 //! `points`: fixed-size points (002 §5.2, method 1), 1 px or N px, nearest depth wins.
 
-use std::sync::Arc;
-
 use anyhow::Result;
 use ash::vk;
 
-use crate::gpu::{Blend, GraphicsDesc, ImageDesc, Pipeline};
-use crate::graph::{bind, Load};
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
+use crate::graph::Load;
 use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
@@ -27,25 +25,6 @@ pub const INFO: MethodInfo = MethodInfo {
 };
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
-    let binds = b.draw_binds();
-    let stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-    let pipeline = Arc::new(Pipeline::graphics(
-        b.ctx,
-        &GraphicsDesc {
-            shaders: &["splat/points.vert", "splat/points.frag"],
-            bindings: &bind::layout(&binds, stages),
-            color_formats: &[COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-            blends: &[Blend::Replace; 3],
-            depth_format: Some(ZBUFFER_FORMAT),
-            depth_test: true,
-            depth_write: true,
-            depth_compare: vk::CompareOp::GREATER,
-            topology: vk::PrimitiveTopology::POINT_LIST,
-            cull: vk::CullModeFlags::NONE,
-            specialization: &[],
-            geometry_output: None,
-        },
-    )?);
     let zbuffer = b.graph.image(
         "points.zbuffer",
         ImageDesc {
@@ -56,17 +35,25 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
             usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
         },
     );
+    let desc = GraphicsDesc {
+        shaders: vec!["splat/points.vert", "splat/points.frag"],
+        color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+        blends: vec![Blend::Replace; 3],
+        depth_format: Some(ZBUFFER_FORMAT),
+        depth_test: true,
+        depth_write: true,
+        depth_compare: vk::CompareOp::GREATER,
+        topology: vk::PrimitiveTopology::POINT_LIST,
+        ..Default::default()
+    };
     let (t, count) = (b.targets, b.scene.draw_points.clone());
+    let binds = b.draw_binds();
     b.graph
-        .pass("points.project")
-        .binds(&binds)
+        .draw("points.project", desc, &binds)
         .color(t.color, Load::Clear([0.0; 4]))
         .color(t.depth, Load::Clear([0.0; 4]))
         .color(t.normal, Load::Clear([0.0; 4]))
         .depth(zbuffer, Load::Clear([0.0; 4]))
-        .record(move |ctx| {
-            ctx.bind_all(&pipeline, &binds);
-            ctx.draw(count.get(), 1);
-        });
+        .draw(move |ctx| ctx.draw(count.get(), 1));
     Ok(())
 }
