@@ -64,7 +64,7 @@ const INDENT: i32 = 10;
 const ABOVE_AND_BELOW_LEGEND: i32 = 130;
 
 /// DejaVu Sans (Bitstream Vera license, see `assets/fonts/LICENSE`), used for PNG text.
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
 
 type DrawResult = Result<(), Box<dyn Error + Send + Sync>>;
 
