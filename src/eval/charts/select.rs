@@ -1,0 +1,106 @@
+//! The records a chart compares: the baseline, the models and their slices, and per-label
+//! means of time and accuracy.
+
+use std::collections::BTreeMap;
+
+use super::axes::mean;
+use crate::eval::results::{Record, Results};
+
+/// Baseline (unstressed) records.
+pub(super) fn baseline(results: &Results) -> impl Iterator<Item = &Record> {
+    results.records.iter().filter(|r| r.stress.is_none())
+}
+
+/// Distinct model names in first-appearance order.
+pub fn models(results: &Results) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for r in &results.records {
+        if !out.contains(&r.model) {
+            out.push(r.model.clone());
+        }
+    }
+    out
+}
+
+/// The baseline records of `model` grouped by (resolution, point count), each a slice the
+/// speed-vs-accuracy and per-pass charts (and the report's Pareto sets) compare: the headline
+/// slice (largest resolution and, within it, largest point count) first, then the others by
+/// decreasing pixels and points.
+pub fn model_slices<'a>(results: &'a Results, model: &str) -> Vec<Vec<&'a Record>> {
+    // Keyed by (pixels, points, resolution), so the largest slice comes last.
+    type Key = (u64, u64, (u32, u32));
+    let mut slices: BTreeMap<Key, Vec<&Record>> = BTreeMap::new();
+    for r in baseline(results).filter(|r| r.model == model) {
+        slices
+            .entry((r.pixels(), r.points, (r.width, r.height)))
+            .or_default()
+            .push(r);
+    }
+    slices.into_values().rev().collect()
+}
+
+/// Per label (in first-appearance order): the records with that label.
+pub(super) fn by_label<'a>(records: &[&'a Record]) -> Vec<(String, Vec<&'a Record>)> {
+    let mut out: Vec<(String, Vec<&Record>)> = Vec::new();
+    for r in records {
+        let label = r.label();
+        match out.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, group)) => group.push(r),
+            None => out.push((label, vec![r])),
+        }
+    }
+    out
+}
+
+/// `(label, mean frame ms, mean metric)` per label, skipping labels without a finite metric
+/// and the reference ([`Record::is_reference`]), whose accuracy is its own.
+pub fn speed_accuracy(
+    records: &[&Record],
+    metric: impl Fn(&Record) -> Option<f64>,
+) -> Vec<(String, f64, f64)> {
+    let measured: Vec<&Record> = records
+        .iter()
+        .copied()
+        .filter(|r| !r.is_reference())
+        .collect();
+    by_label(&measured)
+        .into_iter()
+        .filter_map(|(label, group)| {
+            let ms: Vec<f64> = group.iter().map(|r| r.frame_ms_median).collect();
+            let acc: Vec<f64> = group.iter().filter_map(|r| metric(r)).collect();
+            Some((label, mean(&ms)?, mean(&acc)?))
+        })
+        .collect()
+}
+
+/// `(label, mean frame ms)` per configuration of the reference among `records`.
+pub fn reference_times(records: &[&Record]) -> Vec<(String, f64)> {
+    let references: Vec<&Record> = records
+        .iter()
+        .copied()
+        .filter(|r| r.is_reference())
+        .collect();
+    by_label(&references)
+        .into_iter()
+        .filter_map(|(label, group)| {
+            let ms: Vec<f64> = group.iter().map(|r| r.frame_ms_median).collect();
+            Some((label, mean(&ms)?))
+        })
+        .collect()
+}
+
+/// The value of `key` among `records` with the most distinct values of `other`.
+pub(super) fn slice_with_most<K: Ord + Copy, O: Ord>(
+    records: &[&Record],
+    key: impl Fn(&Record) -> K,
+    other: impl Fn(&Record) -> O,
+) -> Option<K> {
+    let mut distinct: BTreeMap<K, std::collections::BTreeSet<O>> = BTreeMap::new();
+    for r in records {
+        distinct.entry(key(r)).or_default().insert(other(r));
+    }
+    distinct
+        .into_iter()
+        .max_by_key(|(_, set)| set.len())
+        .map(|(k, _)| k)
+}
