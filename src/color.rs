@@ -16,7 +16,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::gpu::layout::*;
+use crate::layout::*;
 use crate::scene::{Cloud, Up};
 
 /// Samples used for a percentile estimate: larger fields are sampled with a fixed stride.

@@ -9,6 +9,7 @@ pub mod frame;
 pub mod gpu;
 pub mod graph;
 pub mod hpr;
+pub mod layout;
 pub mod lod;
 pub mod methods;
 pub mod overlay;

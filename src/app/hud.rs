@@ -6,7 +6,7 @@
 use std::time::{Duration, Instant};
 
 use crate::color::LegendEntry;
-use crate::gpu::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
+use crate::layout::{LOD_COLOR_0, LOD_COLOR_1, LOD_COLOR_2, LOD_COLOR_3};
 use crate::overlay::{Corner, HudLine, Panel};
 use crate::scene::appearance::Edl;
 use crate::scene::clip::Classes;

@@ -9,7 +9,7 @@ use glam::{DVec3, Vec4};
 use super::hud::{self, FrameRate, Hud, Stats};
 use super::Viewer;
 use crate::color::{self, Coloring, LegendEntry};
-use crate::gpu::layout::{COLOR_CLASSIFICATION, COLOR_ELEVATION, COLOR_RETURN};
+use crate::layout::{COLOR_CLASSIFICATION, COLOR_ELEVATION, COLOR_RETURN};
 use crate::overlay::{Corner, HudLine, Mark, Panel};
 use crate::render::Renderer;
 use crate::scene::{Camera, Cloud};

@@ -11,7 +11,7 @@ use super::tool_state::{window_of, ClickTool};
 use super::tools::{self, Pick, Screen, Target};
 use super::Viewer;
 use crate::frame::Frame;
-use crate::gpu::layout::GpuBatch;
+use crate::layout::GpuBatch;
 use crate::scene::clip::{classification_field, ClipBox, Keep};
 use crate::scene::Camera;
 use crate::streams::upload::DEFAULT_CHUNK_BYTES;

@@ -203,12 +203,12 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
             "scalar f32", 4
         );
     }
-    let batches = n.div_ceil(u64::from(crate::gpu::layout::BATCH_POINTS));
+    let batches = n.div_ceil(u64::from(crate::layout::BATCH_POINTS));
     println!(
         "GPU memory        {:.2} bytes/point, {:.2} MiB in {batches} batches of {} points",
         total as f64 / n.max(1) as f64,
         total as f64 / (1 << 20) as f64,
-        crate::gpu::layout::BATCH_POINTS
+        crate::layout::BATCH_POINTS
     );
     if !a.no_device {
         let ctx = context(false)?;

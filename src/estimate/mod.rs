@@ -30,13 +30,13 @@ use anyhow::{Context as _, Result};
 use ash::vk;
 use glam::{Vec3, Vec4};
 
-use crate::gpu::layout::{
+use crate::gpu::{Buffer, Context};
+use crate::graph::{Access, Bind, BufferRange, GraphBuilder, Stages};
+use crate::layout::{
     KnnParams, BINDING_KNN_GRAPH, BINDING_KNN_OUT, BINDING_KNN_POSITIONS, BINDING_KNN_SORTED,
     BINDING_KNN_TABLE, BINDING_SORT_KEYS, BINDING_SORT_VALUES, KNN_GRAPH_K, KNN_GROUP, KNN_MAX_K,
     KNN_SPEC_K,
 };
-use crate::gpu::{Buffer, Context};
-use crate::graph::{Access, Bind, BufferRange, GraphBuilder, Stages};
 use crate::methods::common::sort::{add_sort, RadixSort};
 use crate::scene::knn::{finite_indices, GridFrame};
 use crate::scene::orient::{Graph, GRAPH_K};

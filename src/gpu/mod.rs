@@ -3,7 +3,6 @@
 
 pub mod context;
 pub mod frames;
-pub mod layout;
 pub mod memory;
 pub mod pipeline;
 pub mod pipeline_cache;

@@ -15,7 +15,7 @@ use crate::gpu::Binding;
 /// binding it never uses.
 pub const UNUSED_BYTES: u64 = 256;
 
-pub use crate::gpu::layout::MAX_GROUPS;
+pub use crate::layout::MAX_GROUPS;
 
 /// The `(x, y)` group counts covering `groups` workgroups: one row up to `MAX_GROUPS`, then
 /// rows of `MAX_GROUPS`. Shaders recover the flat index as `x + y * gl_NumWorkGroups.x` and

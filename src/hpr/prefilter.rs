@@ -25,7 +25,7 @@ use super::approx::{bounding_sphere, Sectors};
 pub const POINTS_PER_SECTOR: usize = 8;
 
 /// Grids: the finest, then each half as fine along both angles (the GPU's count).
-pub const LEVELS: u32 = crate::gpu::layout::HPR_COMPLETE_LEVELS;
+pub const LEVELS: u32 = crate::layout::HPR_COMPLETE_LEVELS;
 
 /// How many ulps of its error bound an orientation determinant must clear to be trusted.
 pub const TOLERANCE: f64 = 64.0;

@@ -17,7 +17,7 @@ use glam::{Mat4, Vec3, Vec4};
 
 use crate::scene::pack::{linear_component, oct_encode, srgb_byte};
 
-use crate::gpu::layout::{
+use crate::layout::{
     GpuLodPatch, GpuLodVertex, LOD_BUDGET_BINS, LOD_BUDGET_BIN_BASE, LOD_MAX_LEVELS,
 };
 

@@ -18,9 +18,9 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::gpu::{Capabilities, Context};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
+use crate::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::suggest::did_you_mean;
 use crate::upload::{GpuScene, UploadOptions};
 

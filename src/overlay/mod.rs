@@ -13,7 +13,7 @@ use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 use anyhow::{anyhow, Result};
 use glam::Vec4;
 
-use crate::gpu::layout::{GpuGlyph, OVERLAY_ATLAS_WIDTH, OVERLAY_SOLID};
+use crate::layout::{GpuGlyph, OVERLAY_ATLAS_WIDTH, OVERLAY_SOLID};
 
 /// DejaVu Sans (Bitstream Vera license, see `assets/fonts/LICENSE`).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");

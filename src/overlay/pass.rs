@@ -13,9 +13,9 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::{atlas, layout, Mark, Panel, CAPACITY};
-use crate::gpu::layout::{GpuGlyph, BINDING_FRAME, BINDING_OVERLAY_ATLAS, BINDING_OVERLAY_GLYPHS};
 use crate::gpu::{Blend, Buffer, Context, GraphicsDesc};
 use crate::graph::{Access, Bind, BufferId, CompiledGraph, GraphBuilder, ImageId, Load, Stages};
+use crate::layout::{GpuGlyph, BINDING_FRAME, BINDING_OVERLAY_ATLAS, BINDING_OVERLAY_GLYPHS};
 
 /// The overlay of one renderer: per frame slot a quad buffer, and the quad count of the frame
 /// being recorded.

@@ -15,12 +15,12 @@ use ash::vk;
 use glam::Vec4;
 
 use crate::frame::Frame;
-use crate::gpu::layout::{
+use crate::gpu::ImageDesc;
+use crate::graph::{Access, Bind, GraphBuilder, ImageId, Stages};
+use crate::layout::{
     PostParams, BINDING_INPUT0, BINDING_INPUT1, BINDING_OUTPUT0, POST_GROUP, POST_SPEC_BACKGROUND,
     POST_SPEC_EDL,
 };
-use crate::gpu::ImageDesc;
-use crate::graph::{Access, Bind, GraphBuilder, ImageId, Stages};
 use crate::methods::{Targets, COLOR_FORMAT};
 pub use crate::scene::appearance::{
     Background, Edl, DEFAULT_RADIUS, DEFAULT_STRENGTH, EDL_DEFAULT_ARG, MAX_STRENGTH, RADIUS_RANGE,

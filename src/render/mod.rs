@@ -13,12 +13,12 @@ use glam::Vec4;
 use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
-use crate::gpu::layout::{
+use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
+use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
+use crate::layout::{
     FrameBlock, GpuBatch, COLOR_NONE, FLAG_CLIP, FLAG_CLIP_OUTSIDE, FLAG_FILTER, FLAG_HAS_NORMALS,
     FLAG_UNLIT,
 };
-use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
-use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::methods::{
     BuildContext, MethodConfig, SampleCounters, Targets, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT,
 };

@@ -5,7 +5,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::gpu::layout::EDL_NEIGHBOURS;
+use crate::layout::EDL_NEIGHBOURS;
 
 // `PostParams` holds the offsets of exactly eight neighbours.
 const _: () = assert!(EDL_NEIGHBOURS == 8);

@@ -4,7 +4,7 @@ use glam::{Mat4, Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
 use super::Up;
-use crate::gpu::layout::{GpuLight, LIGHT_CAMERA, LIGHT_ORBIT, LIGHT_STATIC, MAX_LIGHTS};
+use crate::layout::{GpuLight, LIGHT_CAMERA, LIGHT_ORBIT, LIGHT_STATIC, MAX_LIGHTS};
 
 /// Where a light lives.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

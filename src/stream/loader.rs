@@ -26,7 +26,7 @@ use glam::DVec3;
 
 use super::select::Hierarchy;
 use super::vpc::{self, Encoding};
-use crate::gpu::layout::GpuBatch;
+use crate::layout::GpuBatch;
 use crate::scene::copc::{self, CopcFile, Entry, Info, Key, Node};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::{Cloud, LoadError, Scalar};

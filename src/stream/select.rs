@@ -19,7 +19,7 @@ use std::collections::{BinaryHeap, HashMap, HashSet};
 
 use glam::{DVec3, Mat4, Vec3};
 
-use crate::gpu::layout::{GpuBatch, BATCH_POINTS};
+use crate::layout::{GpuBatch, BATCH_POINTS};
 use crate::scene::copc::{Entry, Info, Key, Node};
 use crate::streams::batch_visible;
 

@@ -20,7 +20,7 @@ use std::ops::Range;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
-use crate::gpu::layout::{GpuBatch, BATCH_POINTS, QUANT_BITS};
+use crate::layout::{GpuBatch, BATCH_POINTS, QUANT_BITS};
 pub use crate::scene::morton::{morton, morton_order};
 use crate::scene::pack::oct_encode;
 use crate::scene::Cloud;

@@ -8,9 +8,9 @@ use anyhow::{bail, Context as _, Result};
 use ash::vk;
 
 use super::{Stream, StreamLayout};
-use crate::gpu::layout::{GpuBatch, GpuSegment, BATCH_POINTS};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
+use crate::layout::{GpuBatch, GpuSegment, BATCH_POINTS};
 use crate::scene::progress::Progress;
 use crate::scene::Cloud;
 

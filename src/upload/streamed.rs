@@ -22,9 +22,9 @@ use glam::Vec3;
 
 use super::{GpuScene, SceneInfo};
 use crate::color::{self, Coloring, LegendEntry};
-use crate::gpu::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
+use crate::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
 use crate::scene::copc::Key;
 use crate::scene::{Camera, Cloud, Up};
 use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats, TileId};

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use surfel::color::{self, class_color, return_color, rgb8, Coloring};
-use surfel::gpu::layout::*;
+use surfel::layout::*;
 use surfel::render::{Extras, Renderer, View};
 use surfel::scene::{Camera, Cloud, Light, Scalar, Up};
 use surfel::upload::{upload, UploadOptions};

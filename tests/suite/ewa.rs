@@ -156,7 +156,7 @@ fn a_splat_larger_than_a_thread_takes_covers_its_whole_ellipse() {
         Default::default(),
         front_view,
     );
-    assert!(f64::from(surfel::gpu::layout::EWA_MAX_RADIUS) < 25.0);
+    assert!(f64::from(surfel::layout::EWA_MAX_RADIUS) < 25.0);
     let px = pixels_per_unit();
     let s2 = px * px;
     let mut mismatched = 0;

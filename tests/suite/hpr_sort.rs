@@ -147,7 +147,7 @@ fn radix_sort_matches_a_stable_cpu_sort() {
 
 #[test]
 fn radix_sort_scans_block_sums_in_more_than_one_chunk() {
-    use surfel::gpu::layout::{SCAN_GROUP, SCAN_ITEMS, SORT_GROUP, SORT_ITEMS, SORT_RADIX};
+    use surfel::layout::{SCAN_GROUP, SCAN_ITEMS, SORT_GROUP, SORT_ITEMS, SORT_RADIX};
     let ctx = common::context();
     let p = RadixSort::new(&ctx).expect("radix sort");
     // Just over one chunk of block sums: the single scan workgroup carries a running total.

@@ -9,11 +9,11 @@ use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, Vec2, Vec3, Vec4};
-use surfel::gpu::layout::{
-    FrameBlock, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP, PYRAMID_SPEC_COLOR,
-};
 use surfel::gpu::Buffer;
 use surfel::graph::{Access, Bind, GraphBuilder, Stages};
+use surfel::layout::{
+    FrameBlock, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP, PYRAMID_SPEC_COLOR,
+};
 use surfel::methods::kernel::reference::{self, searched_levels};
 use surfel::methods::kernel::KernelPyramid;
 use surfel::methods::pyramid::reference::{Level, Texel};

@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 /// Lowest first: the GPU and the graph, the CPU data, what runs on the GPU, the front ends.
 const LAYERS: &[&[&str]] = &[
-    &["gpu", "graph", "frame", "rng", "suggest", "source"],
+    &[
+        "gpu", "graph", "layout", "frame", "rng", "suggest", "source",
+    ],
     &["scene", "streams", "stream", "lod", "hpr", "color"],
     &["upload", "methods", "estimate", "post", "overlay", "render"],
     &["cli", "app", "eval"],

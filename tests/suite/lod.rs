@@ -10,9 +10,9 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, Vec3, Vec4};
 use surfel::eval::metrics;
-use surfel::gpu::layout::FrameBlock;
 use surfel::gpu::{Buffer, Context, ImageDesc};
 use surfel::graph::{Access, BufferId, GraphBuilder};
+use surfel::layout::FrameBlock;
 use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
 use surfel::methods::lod::gpu::{
     add_draw, DrawOptions, DrawTargets, LodInputs, Path, COUNTER_BYTES, GEOMETRY_VERTEX_COMPONENTS,

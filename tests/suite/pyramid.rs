@@ -9,11 +9,11 @@ use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, Vec2, Vec3, Vec4};
-use surfel::gpu::layout::{
-    FrameBlock, PyramidParams, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP,
-};
 use surfel::gpu::{Buffer, Context};
 use surfel::graph::{Access, Bind, GraphBuilder, Stages};
+use surfel::layout::{
+    FrameBlock, PyramidParams, BINDING_INPUT0, BINDING_PYRAMID_OUT, PYRAMID_GROUP,
+};
 use surfel::methods::pyramid::reference::{self, Level, Texel};
 use surfel::methods::pyramid::{specialization, Pyramid};
 use surfel::scene::{pack, Camera, Cloud};

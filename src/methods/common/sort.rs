@@ -26,13 +26,13 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{
+use crate::gpu::Context;
+use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
+use crate::layout::{
     BINDING_SORT_HIST, BINDING_SORT_KEYS, BINDING_SORT_KEYS_OUT, BINDING_SORT_SUMS,
     BINDING_SORT_VALUES, BINDING_SORT_VALUES_OUT, SCAN_GROUP, SCAN_ITEMS, SEGMAX_GROUP,
     SORT_DIGIT_BITS, SORT_GROUP, SORT_ITEMS, SORT_RADIX, SORT_SPEC_SUBGROUPS,
 };
-use crate::gpu::Context;
-use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
 
 /// Elements per tile of the count and scatter passes.
 const TILE: u32 = SORT_GROUP * SORT_ITEMS;

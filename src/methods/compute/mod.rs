@@ -14,12 +14,12 @@ use anyhow::Result;
 use ash::vk;
 
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
-use crate::gpu::layout::{
+use crate::graph::{Bind, Binds, BufferId, BufferRange};
+use crate::layout::{
     BINDING_ACCUM, BINDING_BATCHES, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_SEGMENTS,
     BINDING_VISIBILITY, RASTER_SPEC_CULL, RASTER_SPEC_MODE, RASTER_SPEC_QUANTIZED,
     RASTER_SPEC_SKIP, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
-use crate::graph::{Bind, Binds, BufferId, BufferRange};
 
 const QUANTIZED: ParamSpec = ParamSpec {
     name: "quantized",

@@ -41,12 +41,12 @@ use ash::vk;
 
 use super::compute::{resolve_binds, Projection};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
-use crate::gpu::layout::{
+use crate::graph::{Bind, Binds, BufferRange};
+use crate::layout::{
     EwaParams, BINDING_ACCUM, BINDING_BATCHES, BINDING_EWA_LARGE, BINDING_FRAME, BINDING_SEGMENTS,
     BINDING_VISIBILITY, EWA_SPEC_COVERAGE, EWA_SPEC_LARGE, EWA_SPEC_MODE, EWA_SPEC_SHADED,
     EWA_SPEC_SHADE_FRAGMENTS, EWA_WEIGHT_SCALE, RESOLVE_GROUP,
 };
-use crate::graph::{Bind, Binds, BufferRange};
 
 pub const INFO: MethodInfo = MethodInfo {
     params: &[

@@ -28,7 +28,10 @@ use gpu_allocator::MemoryLocation;
 
 use super::compute::{self, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
-use crate::gpu::layout::{
+use crate::gpu::{Buffer, Context};
+use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, GraphBuilder, Stages};
+use crate::hpr::approx::Propagation;
+use crate::layout::{
     FrameBlock, HprFrame, HprParams, BINDING_FRAME, BINDING_HPR_COMPLETE, BINDING_HPR_DST,
     BINDING_HPR_EMPTY, BINDING_HPR_FRAME, BINDING_HPR_KEYS, BINDING_HPR_MASK, BINDING_HPR_MAX,
     BINDING_HPR_PARTIALS, BINDING_HPR_SPHERE, BINDING_HPR_SRC, BINDING_HPR_TRIANGLES,
@@ -36,9 +39,6 @@ use crate::gpu::layout::{
     HPR_SECTOR_SORT, HPR_SPEC_ADAPTIVE, HPR_SPEC_FROM_MAX, HPR_SPEC_MODE, HPR_SPEC_REACH,
     HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
-use crate::gpu::{Buffer, Context};
-use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, GraphBuilder, Stages};
-use crate::hpr::approx::Propagation;
 use crate::methods::common::sort::{add_segmented_max, add_sort, RadixSort};
 use crate::upload::GpuScene;
 

@@ -39,12 +39,12 @@ pub mod reference;
 use anyhow::Result;
 use ash::vk;
 
-use crate::gpu::layout::{
+use crate::gpu::ImageDesc;
+use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
+use crate::layout::{
     PyramidParams, BINDING_FRAME, BINDING_KERNEL_ACCUM, BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT,
     PYRAMID_SPEC_KERNEL,
 };
-use crate::gpu::ImageDesc;
-use crate::graph::{Access, Bind, BufferId, GraphBuilder, Stages};
 use crate::methods::compute::ProjectOptions;
 use crate::methods::pyramid::{
     add_level0, add_shade, groups, specialization, Group, Passes, Pyramid,

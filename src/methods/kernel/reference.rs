@@ -6,7 +6,7 @@
 
 use glam::{IVec2, Vec2, Vec3};
 
-use crate::gpu::layout::PRIMITIVE_POINT;
+use crate::layout::PRIMITIVE_POINT;
 use crate::methods::pyramid::reference::{ellipse_distance2, parent, pixel_centre, Level, Texel};
 
 /// The level a splat of projected radius `radius` (level-0 pixels) is stored in for a

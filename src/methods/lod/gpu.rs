@@ -18,16 +18,16 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{
+use crate::gpu::{Blend, Context, GeometryOutput, GraphicsDesc};
+use crate::graph::{
+    bind, Access, Bind, Binds, BufferId, BufferRange, DrawPass, GraphBuilder, ImageId, Load, Stages,
+};
+use crate::layout::{
     LodParams, BINDING_FRAME, BINDING_LOD_COUNTERS, BINDING_LOD_LIST, BINDING_LOD_PATCHES,
     BINDING_LOD_VERTICES, LOD_BUDGET_BINS, LOD_GROUP, LOD_MAX_LEVELS, LOD_PATCH_VERTICES,
     LOD_SPEC_COLOR_LEVELS, LOD_SPEC_GEOMETRY_CHUNK, LOD_SPEC_RECORD, LOD_TASK_GROUP,
     SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_SQUARES, SPLAT_SHADING_FLAT, SPLAT_SPEC_RASTER,
     SPLAT_SPEC_SHADING,
-};
-use crate::gpu::{Blend, Context, GeometryOutput, GraphicsDesc};
-use crate::graph::{
-    bind, Access, Bind, Binds, BufferId, BufferRange, DrawPass, GraphBuilder, ImageId, Load, Stages,
 };
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use crate::upload::GpuLod;

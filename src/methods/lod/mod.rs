@@ -16,8 +16,8 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::LOD_PATCH_VERTICES;
 use crate::gpu::ImageDesc;
+use crate::layout::LOD_PATCH_VERTICES;
 use crate::methods::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
 pub mod gpu;
 

@@ -4,9 +4,9 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::layout::{BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, RESOLVE_GROUP};
 use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
 use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, Load, Stages};
+use crate::layout::{BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, RESOLVE_GROUP};
 use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };

@@ -33,7 +33,7 @@
 
 pub mod reference;
 
-use crate::gpu::layout::BINDING_BATCHES;
+use crate::layout::BINDING_BATCHES;
 use std::sync::Arc;
 
 use anyhow::{bail, Result};
@@ -41,14 +41,14 @@ use ash::vk;
 
 use super::compute::{project, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
-use crate::gpu::layout::{
+use crate::gpu::{Blend, Buffer, GraphicsDesc, ImageDesc};
+use crate::graph::{Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, Stages};
+use crate::layout::{
     PyramidParams, BINDING_FACE_VERTICES, BINDING_FRAME, BINDING_LOD_LIST, BINDING_LOD_VERTICES,
     BINDING_PYRAMID_LEVEL, BINDING_PYRAMID_OUT, BINDING_PYRAMID_PARENT, BINDING_SEGMENTS,
     BINDING_VISIBILITY, PYRAMID_GROUP, PYRAMID_SPEC_COLOR, PYRAMID_SPEC_CULL, PYRAMID_SPEC_HYBRID,
     PYRAMID_SPEC_TUBE,
 };
-use crate::gpu::{Blend, Buffer, GraphicsDesc, ImageDesc};
-use crate::graph::{Access, Bind, BufferId, BufferRange, GraphBuilder, ImageId, Load, Stages};
 use crate::methods::lod::gpu::{add_select, LodInputs};
 
 /// Default scale of the per-point radii. The thesis sizes a splat by r_k, the distance to its

@@ -6,7 +6,7 @@
 use glam::{IVec2, Vec2, Vec3, Vec4};
 use half::f16;
 
-use crate::gpu::layout::PRIMITIVE_TUBE;
+use crate::layout::PRIMITIVE_TUBE;
 
 /// One texel (see `glsl/pyramid/pyramid.glsl`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

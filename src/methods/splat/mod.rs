@@ -17,14 +17,14 @@ use ash::vk;
 use super::{
     BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
-use crate::gpu::layout::{
+use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
+use crate::graph::{Access, Bind, ImageId, Load, Stages};
+use crate::layout::{
     SplatParams, BINDING_FRAME, BINDING_INPUT0, BINDING_INPUT1, BINDING_INPUT2, BINDING_OUTPUT0,
     RESOLVE_GROUP, SPLAT_RASTER_AFFINE, SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_POINTS,
     SPLAT_RASTER_SQUARES, SPLAT_SHADING_DEFERRED, SPLAT_SHADING_FLAT, SPLAT_SHADING_GOURAUD,
     SPLAT_SHADING_PHONG, SPLAT_SPEC_CULL, SPLAT_SPEC_RASTER, SPLAT_SPEC_SHADING,
 };
-use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
-use crate::graph::{Access, Bind, ImageId, Load, Stages};
 
 /// The accumulation targets: (sum w c, sum w) and (sum w n, sum w), 16-bit float (002 5.3.2).
 const ACCUM_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
