@@ -10,8 +10,8 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use surfel::copc::convert::{self, ConvertOptions};
 use surfel::scene::{self, sample};
-use surfel::stream::convert::{self, ConvertOptions};
 
 fn data(rel: &str) -> PathBuf {
     let root = std::env::var_os("SURFEL_DATA")

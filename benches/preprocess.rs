@@ -150,7 +150,7 @@ fn gpu(dragon: &Cloud) {
             .map(|_| {
                 let mut c = cloud.clone();
                 let start = Instant::now();
-                let t = surfel::estimate::estimate(&ctx, &mut c, &options)
+                let t = surfel::knn_gpu::estimate(&ctx, &mut c, &options)
                     .expect("GPU estimate")
                     .expect("estimated");
                 (start.elapsed().as_secs_f64(), t.gpu_s, t.unresolved)

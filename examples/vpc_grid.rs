@@ -10,8 +10,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
+use surfel::copc::{convert, vpc};
 use surfel::scene::{self, Cloud, Scalar};
-use surfel::stream::{convert, vpc};
 
 /// The points of `cloud` at `indices`, every attribute kept.
 fn subset(cloud: &Cloud, indices: &[usize]) -> Cloud {

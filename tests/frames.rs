@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use surfel::eval::Frame;
 use surfel::methods::{MethodConfig, METHODS};
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::{Extras, Renderer, View};
+use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light};
 use surfel::upload::upload;
 
@@ -120,11 +120,11 @@ fn renderer_sized(
         config,
         size,
         size,
-        Extras {
+        RendererOptions {
             readback: true,
             frames_in_flight,
             post,
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )
     .expect("renderer");

@@ -101,12 +101,12 @@ vec3 sample_albedo(uint rgba8, vec3 p, vec3 n) {
 // Blinn-Phong term of light `i` at `view_pos` for the unit normal `n`, seen along `v`.
 vec3 light_term(uint i, vec3 albedo, vec3 n, vec3 v, vec3 view_pos) {
     float specular = frame.u.specular;
-    float diffuse_weight = 1.0 - frame.u.params.z - specular;
+    float diffuse_weight = 1.0 - frame.u.ambient - specular;
     vec3 l = normalize(frame.lights[i].position.xyz - view_pos);
     vec3 h = normalize(l + v);
     vec3 c = frame.lights[i].color_kind.rgb;
     float diffuse = max(dot(n, l), 0.0);
-    float highlight = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.params.w) : 0.0;
+    float highlight = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), frame.u.specular_exponent) : 0.0;
     return c * albedo * (diffuse_weight * diffuse + specular * highlight);
 }
 
@@ -122,7 +122,7 @@ vec3 shade(vec3 albedo, vec3 n, vec3 view_pos) {
     if (dot(n, v) < 0.0) {
         n = -n;
     }
-    vec3 lit = albedo * frame.u.params.z;
+    vec3 lit = albedo * frame.u.ambient;
     for (uint i = 0u; i < frame.u.light_count; ++i) {
         lit += light_term(i, albedo, n, v, view_pos);
     }
@@ -136,7 +136,7 @@ vec3 shade_tube(vec3 albedo, vec3 t, vec3 view_pos) {
         return albedo;
     }
     vec3 v = normalize(-view_pos);
-    vec3 lit = albedo * frame.u.params.z;
+    vec3 lit = albedo * frame.u.ambient;
     for (uint i = 0u; i < frame.u.light_count; ++i) {
         vec3 l = normalize(frame.lights[i].position.xyz - view_pos);
         vec3 across = l - t * dot(t, l);

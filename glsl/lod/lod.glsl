@@ -118,7 +118,7 @@ LodSplat lod_splat(GpuLodVertex v, float max_size, bool color_levels) {
     if (LOD_RASTER == SPLAT_RASTER_PERSPECTIVE) {
         // As splat/splat.vert: the sprite bounds every point within r of p.
         float spread = 1.0 + max(abs(p.x), abs(p.y)) / d;
-        size = 2.0 * lod_focal() * r * spread / max(d - r, frame.u.params.y);
+        size = 2.0 * lod_focal() * r * spread / max(d - r, frame.u.near);
     } else {
         size = 2.0 * r * lod_focal() / d;
     }

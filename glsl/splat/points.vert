@@ -15,7 +15,7 @@ void main() {
     if (!stream_live(i) || !point_kept(i, local)) {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     }
-    gl_PointSize = frame.u.params.x;
+    gl_PointSize = frame.u.point_size;
     v_albedo = stream_albedo(i);
     v_normal = mat3(frame.u.view) * stream_normal(i);
     v_view_pos = view_pos.xyz;

@@ -23,13 +23,13 @@ void main() {
     float k = 0.5 * frame.u.viewport.y * abs(frame.u.proj[1][1]);
     float size;
     if (RASTER == SPLAT_RASTER_POINTS) {
-        size = frame.u.params.x;
+        size = frame.u.point_size;
     } else if (RASTER == SPLAT_RASTER_PERSPECTIVE) {
         // Deviation from eq. 5.1: the perspective projection of the disc is not centred on the
         // projection of p and its near side is magnified, so the sprite is sized to bound every
         // point within r of p: offset r (1 + |p_xy| / d) / (d - r) at the image plane.
         float spread = 1.0 + max(abs(p.x), abs(p.y)) / max(d, 1e-20);
-        size = 2.0 * k * r * spread / max(d - r, frame.u.params.y);
+        size = 2.0 * k * r * spread / max(d - r, frame.u.near);
     } else {
         // Eq. 5.1: 2 r * n / p_z * h / (t - b).
         size = 2.0 * k * r / max(d, 1e-20);

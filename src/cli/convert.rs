@@ -7,9 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{bail, Context as _, Result};
 use clap::Args;
 
+use crate::copc::convert::{self, ConvertOptions, DEFAULT_NODE_POINTS};
+use crate::copc::tiles::{self, Done, Tile};
 use crate::scene::ReadOptions;
-use crate::stream::convert::{self, ConvertOptions, DEFAULT_NODE_POINTS};
-use crate::stream::tiles::{self, Done, Tile};
 
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
@@ -184,7 +184,7 @@ fn convert_tiles(a: &ConvertArgs, inputs: &[PathBuf], options: &ConvertOptions) 
             .iter()
             .map(|(tile, _)| tiles::summarize(&vpc, &tile.out, Some(&tile.input)))
             .collect::<Result<Vec<_>>>()?;
-        crate::stream::vpc::write(&vpc, &summaries)?;
+        crate::copc::vpc::write(&vpc, &summaries)?;
         eprintln!("{}: {} tiles", vpc.display(), summaries.len());
     }
     if STOP.load(Ordering::Relaxed) {

@@ -249,7 +249,7 @@ fn gpu_visible_points(
     let ctx = context(false)?;
     let (scene, _) = upload(&ctx, cloud, &UploadOptions::default())?;
     // Stream order is the Morton order of the positions.
-    let order = crate::streams::morton_order(&cloud.positions);
+    let order = crate::point_streams::morton_order(&cloud.positions);
     let mut settings =
         crate::methods::hpr::Settings::grid(sqrt_k, radius, propagation, options.sort);
     settings.params.max_edge = options.max_edge.unwrap_or(f32::INFINITY);

@@ -43,7 +43,7 @@ fn info_vpc(location: &str, http: &HttpArgs) -> Result<()> {
         connections: http.http_connections as usize,
         ..Default::default()
     };
-    let vpc = crate::stream::vpc::read(location, &options)?;
+    let vpc = crate::copc::vpc::read(location, &options)?;
     println!("file              {location}");
     println!("format            virtual point cloud (STAC ItemCollection)");
     println!("tiles             {}", vpc.tiles.len());
@@ -90,7 +90,7 @@ fn info_vpc(location: &str, http: &HttpArgs) -> Result<()> {
 
 pub(super) fn info(a: InfoArgs) -> Result<()> {
     let name = a.file.to_string_lossy();
-    if crate::stream::vpc::is_vpc(&name) {
+    if crate::copc::vpc::is_vpc(&name) {
         return info_vpc(&name, &a.http);
     }
     let cloud = load_prepared(&a.file, &a.input.options(false))?;
@@ -184,11 +184,11 @@ pub(super) fn info(a: InfoArgs) -> Result<()> {
     };
     println!("up axis           {} ({source})", up.name());
     let n = cloud.len() as u64;
-    let streams = crate::streams::StreamLayout::streams_for(&cloud, None);
+    let streams = crate::point_streams::StreamLayout::streams_for(&cloud, None);
     let mut total = 0;
     println!("GPU streams       bytes/point  MiB");
     for s in streams {
-        let bytes = crate::streams::StreamLayout::stream_bytes(s, n);
+        let bytes = crate::point_streams::StreamLayout::stream_bytes(s, n);
         total += bytes;
         println!(
             "  {:<22} {:>5}  {:>9.2}",

@@ -8,16 +8,16 @@ use serde::Serialize;
 
 use super::hpr::{visible_points, SectorOptions, Visibility};
 use super::{check_surfels, context, estimates, view_settings, CameraArgs, InputArgs};
-use crate::estimate::EstimateOn;
+use crate::copc::loader::LoaderOptions;
 use crate::frame::Size;
 use crate::gpu::ScopeStats;
+use crate::knn_gpu::EstimateOn;
 use crate::methods::{MethodConfig, METHODS};
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::compose;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
 use crate::source::{HttpOptions, DEFAULT_CONNECTIONS};
-use crate::stream::loader::LoaderOptions;
 use crate::upload::streamed::{
     StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
 };
@@ -98,7 +98,7 @@ impl StreamArgs {
     /// Whether `file` is streamed.
     pub fn streams(&self, file: &std::path::Path) -> bool {
         let name = file.to_string_lossy();
-        self.stream || crate::source::is_url(&name) || crate::stream::vpc::is_vpc(&name)
+        self.stream || crate::source::is_url(&name) || crate::copc::vpc::is_vpc(&name)
     }
 
     /// The streaming options for a method that needs normals and radii estimated with `k`
@@ -203,7 +203,7 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     let device_s = since();
     let on_gpu = a.estimate_on.uses_gpu(&ctx);
     let gpu_estimate = |cloud: &mut Cloud, options: &preprocess::PreprocessOptions| {
-        crate::estimate::estimate(&ctx, cloud, options).map(drop)
+        crate::knn_gpu::estimate(&ctx, cloud, options).map(drop)
     };
     let estimator: Estimator = if on_gpu {
         &gpu_estimate
@@ -255,9 +255,12 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     if let Some(k) = crate::scene::clip::classification_field(&cloud)
         .filter(|_| !settings.filter.hidden.is_empty())
     {
-        scene
-            .streams
-            .add_classes(&ctx, &cloud, k, crate::streams::upload::DEFAULT_CHUNK_BYTES)?;
+        scene.streams.add_classes(
+            &ctx,
+            &cloud,
+            k,
+            crate::point_streams::upload::DEFAULT_CHUNK_BYTES,
+        )?;
     }
     let upload_s = since();
     let mut renderer = Renderer::new(
@@ -267,11 +270,11 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         &config,
         width,
         height,
-        Extras {
+        RendererOptions {
             readback: true,
             present: None,
             post: settings.post.for_readback(),
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )?;
     renderer.set_filter(settings.filter.active(cloud.origin));
@@ -375,11 +378,11 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
     let start = std::time::Instant::now();
     let ctx = context(a.validation)?;
     let location = file.to_string_lossy().into_owned();
-    let extras = Extras {
+    let renderer_options = RendererOptions {
         readback: true,
         present: None,
         post: settings.post.for_readback(),
-        ..Extras::default()
+        ..RendererOptions::default()
     };
     let k = if config.method.needs_surfels {
         a.input.k
@@ -391,7 +394,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         &location,
         &a.stream.options(k, config.method.needs_normal_field),
         |root| settings.coloring(file, root),
-        extras.frames_in_flight,
+        renderer_options.frames_in_flight,
     )?;
     let (centre, radius) = streamed.bounding_sphere();
     let camera = settings.camera(centre, radius, streamed.root.up, streamed.origin());
@@ -402,7 +405,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         &config,
         width,
         height,
-        extras,
+        renderer_options,
     )?;
     renderer.set_filter(settings.filter.active(streamed.origin()));
     if a.dump_graph {

@@ -8,15 +8,15 @@ use glam::Vec3;
 
 use super::render::StreamArgs;
 use super::{check_surfels, estimates, view_settings, CameraArgs, InputArgs};
-use crate::app::estimate::EstimateOptions;
-use crate::app::script::Script;
-use crate::app::ViewerOptions;
 use crate::color;
 use crate::frame::Size;
 use crate::methods::MethodConfig;
 use crate::render::settings::ViewSettings;
 use crate::scene::{compose, Cloud};
 use crate::upload::streamed::StreamOptions;
+use crate::viewer::estimate::EstimateOptions;
+use crate::viewer::script::Script;
+use crate::viewer::ViewerOptions;
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -62,9 +62,9 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
     let script = a
         .script
         .as_deref()
-        .map(crate::app::script::Script::load)
+        .map(crate::viewer::script::Script::load)
         .transpose()?;
-    crate::app::script::check_camera_file(&a.camera_file)?;
+    crate::viewer::script::check_camera_file(&a.camera_file)?;
     if let Some(dir) = &a.screenshot_dir {
         std::fs::create_dir_all(dir).map_err(|e| {
             anyhow::anyhow!(
@@ -88,14 +88,14 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         || start.a.file.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let early = crate::app::Early {
+    let early = crate::viewer::Early {
         title: title.clone(),
         file: file.clone(),
         size,
         validation: validation(&start.a),
     };
     // The window opens at once and shows the load's progress.
-    crate::app::run_loading(early, move || load(start, (title, file)))
+    crate::viewer::run_loading(early, move || load(start, (title, file)))
 }
 
 /// What `view` read from its command line, for the viewer's options.
@@ -182,7 +182,7 @@ fn view_streamed(s: Start) -> Result<()> {
         0
     };
     let options = s.a.stream.options(k, s.config.method.needs_normal_field);
-    let opened = crate::stream::loader::Loader::open(&location, options.loader.clone())?;
+    let opened = crate::copc::loader::Loader::open(&location, options.loader.clone())?;
     let (lo, hi) = opened.loader.local_bounds();
     let root = opened.root;
     drop(opened.loader);
@@ -196,5 +196,5 @@ fn view_streamed(s: Start) -> Result<()> {
     );
     let stream = Some((location.clone(), options));
     let options = viewer_options(s, &root, sphere, shown, None, stream)?;
-    crate::app::run(root, options)
+    crate::viewer::run(root, options)
 }

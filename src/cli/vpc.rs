@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use crate::stream::tiles;
+use crate::copc::tiles;
 
 #[derive(Args, Debug)]
 pub struct VpcArgs {
@@ -24,7 +24,7 @@ pub struct VpcArgs {
 }
 
 pub(super) fn vpc(a: VpcArgs) -> Result<()> {
-    if !crate::stream::vpc::is_vpc(&a.out.to_string_lossy()) {
+    if !crate::copc::vpc::is_vpc(&a.out.to_string_lossy()) {
         bail!(
             "{}: a virtual point cloud's name ends in .vpc (readers choose the format by it)",
             a.out.display()
@@ -39,7 +39,7 @@ pub(super) fn vpc(a: VpcArgs) -> Result<()> {
         .iter()
         .map(|f| tiles::summarize(&a.out, f, None))
         .collect::<Result<Vec<_>>>()?;
-    crate::stream::vpc::write(&a.out, &summaries)?;
+    crate::copc::vpc::write(&a.out, &summaries)?;
     let points: u64 = summaries.iter().map(|s| s.points).sum();
     eprintln!(
         "{}: {} files, {points} points",

@@ -24,7 +24,7 @@ use super::stress;
 use super::Frame;
 use crate::gpu::Context;
 use crate::methods::MethodConfig;
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::{lights, load_prepared, sample, Camera, Cloud, LoadOptions, Pose};
 use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 
@@ -168,10 +168,10 @@ fn run_method(
         config,
         job.width,
         job.height,
-        Extras {
+        RendererOptions {
             readback: true,
             present: None,
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )?;
     let start = std::time::Instant::now();

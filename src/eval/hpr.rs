@@ -19,14 +19,14 @@ use crate::hpr::approx::{self, Params, Propagation};
 use crate::hpr::{agreement, exact, spacing, Radius};
 use crate::methods::hpr::{evaluate, Settings};
 use crate::methods::MethodConfig;
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::Cloud;
 use crate::upload::{upload, UploadOptions};
 
 /// The scenes the evaluations run HPR on keep their bounding sphere between evaluations.
 const HPR_UPLOAD: UploadOptions = UploadOptions {
     segment_points: None,
-    chunk_bytes: crate::streams::upload::DEFAULT_CHUNK_BYTES,
+    chunk_bytes: crate::point_streams::upload::DEFAULT_CHUNK_BYTES,
     coloring: None,
     lod: false,
     normal_field: false,
@@ -171,9 +171,9 @@ fn gpu_time(
         view.width,
         view.height,
         // Readback keeps the passes (the graph culls passes whose results nothing uses).
-        Extras {
+        RendererOptions {
             readback: true,
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )?;
     let v = View {
@@ -398,7 +398,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         let sphere = approx::bounding_sphere(&points).context("no points")?;
         let from_view = approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), 4096);
         let (scene, _) = upload(&ctx, &cloud, &HPR_UPLOAD)?;
-        let order = crate::streams::morton_order(&cloud.positions);
+        let order = crate::point_streams::morton_order(&cloud.positions);
         let mut ks = vec![64, 128, 256, 512, 1024, 2048, from_view];
         ks.sort_unstable();
         ks.dedup();
@@ -575,7 +575,7 @@ pub fn run(options: &StudyOptions) -> Result<Vec<Row>> {
         // The GPU timing of the largest clouds: one frame after the warm-up.
         let frames = if n > 2_000_000 { 1 } else { options.frames };
         let (scene, _) = upload(&ctx, &cloud, &HPR_UPLOAD)?;
-        let order = crate::streams::morton_order(&cloud.positions);
+        let order = crate::point_streams::morton_order(&cloud.positions);
         // The complete set, at its default grid on the CPU and the GPU; where the cloud is the
         // one closest to a million points, on the CPU also against the grid (sectors per
         // point).

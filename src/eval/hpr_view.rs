@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context as _, Result};
 
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::{Camera, Cloud};
 use crate::upload::{upload, UploadOptions};
 
@@ -68,9 +68,9 @@ pub fn render_once(cloud: &Cloud, view: &HprView, method: &str) -> Result<crate:
         &config,
         view.width,
         view.height,
-        Extras {
+        RendererOptions {
             readback: true,
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )?;
     let frame = renderer

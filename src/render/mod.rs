@@ -52,12 +52,13 @@ pub const SPECULAR: f32 = 0.15;
 /// Blinn-Phong exponent.
 pub const SPECULAR_EXPONENT: f32 = 32.0;
 
-/// Frames in flight unless `Extras::frames_in_flight` says otherwise.
+/// Frames in flight unless `RendererOptions::frames_in_flight` says otherwise.
 pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
 
-/// Optional extra passes of a renderer, and how many frames it keeps in flight.
+/// What a renderer adds around the method (readback, present, overlay, post) and how many
+/// frames it keeps in flight.
 #[derive(Clone, Copy, Debug)]
-pub struct Extras {
+pub struct RendererOptions {
     /// Add on-demand readback passes (color, depth, normal to host buffers).
     pub readback: bool,
     /// Add a blit to an external (swapchain) image of this format and size, and a present pass.
@@ -72,7 +73,7 @@ pub struct Extras {
     pub post: PostOptions,
 }
 
-impl Default for Extras {
+impl Default for RendererOptions {
     fn default() -> Self {
         Self {
             readback: false,
@@ -167,7 +168,7 @@ impl Renderer {
         config: &MethodConfig,
         width: u32,
         height: u32,
-        extras: Extras,
+        options: RendererOptions,
     ) -> Result<Self> {
         if width == 0 || height == 0 || width > MAX_EDGE || height > MAX_EDGE {
             bail!("image size {width}x{height} must be within 1..={MAX_EDGE} per edge");
@@ -202,7 +203,7 @@ impl Renderer {
         }
         let frame_bytes = std::mem::size_of::<FrameBlock>() as u64;
         let frame_usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let slots = extras.frames_in_flight.max(1);
+        let slots = options.frames_in_flight.max(1);
         let uniforms = (0..slots)
             .map(|_| {
                 Buffer::new(
@@ -281,10 +282,10 @@ impl Renderer {
             .transpose()?;
         // The post stage's color (or the method's, without post-processing) is what is shown.
         let shown = Targets {
-            color: post::build(&mut g, targets, width, height, &extras.post),
+            color: post::build(&mut g, targets, width, height, &options.post),
             ..targets
         };
-        let overlay = if extras.overlay {
+        let overlay = if options.overlay {
             Some(OverlayPass::add(
                 ctx,
                 &mut g,
@@ -296,10 +297,10 @@ impl Renderer {
         } else {
             None
         };
-        let present_target = extras
+        let present_target = options
             .present
             .map(|desc| add_present(&mut g, shown.color, desc));
-        let readback = if extras.readback {
+        let readback = if options.readback {
             Some(add_readback(ctx, &mut g, shown, width, height)?)
         } else {
             None
@@ -384,12 +385,10 @@ impl Renderer {
             1.0 / self.width as f32,
             1.0 / self.height as f32,
         );
-        block.u.params = Vec4::new(
-            self.config.get("size").max(1.0),
-            view.camera.near,
-            AMBIENT,
-            SPECULAR_EXPONENT,
-        );
+        block.u.point_size = self.config.get("size").max(1.0);
+        block.u.near = view.camera.near;
+        block.u.ambient = AMBIENT;
+        block.u.specular_exponent = SPECULAR_EXPONENT;
         block.u.specular = SPECULAR;
         block.u.base_color = Vec4::new(0.7, 0.7, 0.7, 1.0);
         // Without colors (`C` in the viewer, `--no-color`) every mode shows the lit base color.
@@ -467,7 +466,7 @@ impl Renderer {
     }
 
     /// Sets the current slot's overlay text (after `begin_frame`, before `record`); returns the
-    /// quads drawn. A renderer built without `Extras::overlay` draws nothing and returns 0.
+    /// quads drawn. A renderer built without `RendererOptions::overlay` draws nothing and returns 0.
     pub fn set_overlay(&mut self, panels: &[Panel], marks: &[Mark]) -> Result<usize> {
         let slot = self.frames.current();
         match &mut self.overlay {
@@ -527,7 +526,7 @@ impl Renderer {
     }
 
     /// Renders one frame and waits for it (and for any frame still in flight); returns the
-    /// read-back frame when asked (and built with `Extras::readback`).
+    /// read-back frame when asked (and built with `RendererOptions::readback`).
     pub fn render(&mut self, view: &View, readback: bool) -> Result<Option<Frame>> {
         self.render_batches(view, None, readback)
     }
@@ -578,7 +577,7 @@ impl Renderer {
     }
 
     /// The frame read back by the last finished frame recorded with readback (built with
-    /// `Extras::readback`; call after `finish`).
+    /// `RendererOptions::readback`; call after `finish`).
     pub fn read_frame(&self) -> Result<Frame> {
         let rb = self
             .readback

@@ -15,7 +15,7 @@
 //! file fails with the byte offset of what is wrong.
 //!
 //! The pieces (opening a file's header, reading one hierarchy page, decoding one node) work
-//! on any [`ByteSource`], so the streaming reader (`crate::stream`) uses them on a local file
+//! on any [`ByteSource`], so the streaming reader (`crate::copc`) uses them on a local file
 //! or an HTTP server, a page or a node at a time.
 
 use std::io::Cursor;

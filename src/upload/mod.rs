@@ -14,9 +14,9 @@ use glam::Vec3;
 use crate::color::Coloring;
 use crate::gpu::{Buffer, Context};
 use crate::lod::{self, Hierarchy, ObjectTexture};
+use crate::point_streams::upload::{default_segment_points, DEFAULT_CHUNK_BYTES};
+use crate::point_streams::{upload as upload_streams, GpuStreams, StreamLayout};
 use crate::scene::{normal_field, Cloud, Up};
-use crate::streams::upload::{default_segment_points, DEFAULT_CHUNK_BYTES};
-use crate::streams::{upload as upload_streams, GpuStreams, StreamLayout};
 
 /// What to upload beyond the point streams, and how to cut them.
 #[derive(Clone, Copy, Debug)]

@@ -22,15 +22,15 @@ use glam::Vec3;
 
 use super::{GpuScene, SceneInfo};
 use crate::color::{self, Coloring, LegendEntry};
+use crate::copc::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats, TileId};
+use crate::copc::select::{self, Budget, ForestSelection, Hierarchy, SelectView, Tree};
 use crate::gpu::upload::{CopyRegion, Uploader};
 use crate::gpu::Context;
 use crate::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
+use crate::point_streams::upload::pool;
+use crate::point_streams::{Stream, StreamLayout};
 use crate::scene::copc::Key;
 use crate::scene::{Camera, Cloud, Up};
-use crate::stream::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats, TileId};
-use crate::stream::select::{self, Budget, ForestSelection, Hierarchy, SelectView, Tree};
-use crate::streams::upload::pool;
-use crate::streams::{Stream, StreamLayout};
 
 /// Default point budget (Potree's default is 1 M; its interface goes to 10 M).
 pub const DEFAULT_POINT_BUDGET: u64 = 2_000_000;
@@ -160,7 +160,7 @@ impl StreamedScene {
         coloring: impl FnOnce(&Cloud) -> Result<Coloring>,
         frames: usize,
     ) -> Result<Self> {
-        let probe = crate::stream::loader::Loader::open(location, options.loader.clone())?;
+        let probe = crate::copc::loader::Loader::open(location, options.loader.clone())?;
         let coloring = coloring(&probe.root)?;
         // The scalar a colour mode reads decides the streams: reopen when it is not the default.
         let opened = if coloring.scalar == options.loader.scalar {
@@ -318,7 +318,7 @@ impl StreamedScene {
     }
 
     /// The streamed files.
-    pub fn tiles(&self) -> &[crate::stream::loader::Tile] {
+    pub fn tiles(&self) -> &[crate::copc::loader::Tile] {
         self.loader.tiles()
     }
 

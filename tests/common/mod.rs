@@ -88,10 +88,10 @@ pub fn two_frames(
     info: surfel::upload::SceneInfo,
     method: &str,
     size: u32,
-    extras: surfel::render::Extras,
+    extras: surfel::render::RendererOptions,
     camera: surfel::scene::Camera,
 ) -> surfel::eval::Frame {
-    use surfel::render::{Extras, Renderer, View};
+    use surfel::render::{Renderer, RendererOptions, View};
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let mut r = Renderer::new(
         ctx,
@@ -100,7 +100,7 @@ pub fn two_frames(
         &config,
         size,
         size,
-        Extras {
+        RendererOptions {
             readback: true,
             ..extras
         },

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use glam::Vec3;
 use surfel::color::{self, class_color, return_color, rgb8, Coloring};
 use surfel::layout::*;
-use surfel::render::{Extras, Renderer, View};
+use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light, Scalar, Up};
 use surfel::upload::{upload, UploadOptions};
 
@@ -260,9 +260,9 @@ fn the_scalar_stream_swaps_in_place_of_a_fresh_upload() {
             &config,
             96,
             96,
-            Extras {
+            RendererOptions {
                 readback: true,
-                ..Extras::default()
+                ..RendererOptions::default()
             },
         )
         .expect("renderer");
@@ -298,7 +298,7 @@ fn the_scalar_stream_swaps_in_place_of_a_fresh_upload() {
         .segments
         .iter()
         .flatten()
-        .all(|(s, _)| !matches!(s, surfel::streams::Stream::Scalar(_))));
+        .all(|(s, _)| !matches!(s, surfel::point_streams::Stream::Scalar(_))));
     common::assert_clean(&ctx);
 }
 
@@ -402,7 +402,7 @@ fn every_method_colors_a_cloud_without_colors_by_the_same_elevation_ramp() {
             info,
             method.name,
             48,
-            Extras::default(),
+            RendererOptions::default(),
             camera,
         );
         let covered = (0..frame.pixels()).filter(|&i| frame.covered(i)).count();

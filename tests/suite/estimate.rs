@@ -10,7 +10,7 @@ use crate::common;
 use std::path::PathBuf;
 
 use glam::Vec3;
-use surfel::estimate::{self, GpuKnn};
+use surfel::knn_gpu::{self, GpuKnn};
 use surfel::rng::SplitMix64;
 use surfel::scene::preprocess::{self, PreprocessOptions};
 use surfel::scene::{self, Cloud};
@@ -43,7 +43,7 @@ fn both(ctx: &std::sync::Arc<surfel::gpu::Context>, cloud: &Cloud) -> (Cloud, Cl
     let mut cpu = cloud.clone();
     preprocess::preprocess(&mut cpu, &options());
     let mut gpu = cloud.clone();
-    let times = estimate::estimate(ctx, &mut gpu, &options())
+    let times = knn_gpu::estimate(ctx, &mut gpu, &options())
         .expect("GPU estimate")
         .expect("something to estimate");
     common::assert_clean(ctx);
@@ -143,7 +143,7 @@ fn gpu_estimate_rejects_what_it_cannot_hold() {
     let mut cpu = cloud.clone();
     let options = PreprocessOptions { k: 40, ..options() };
     preprocess::preprocess(&mut cpu, &options);
-    let times = estimate::estimate(&ctx, &mut cloud, &options)
+    let times = knn_gpu::estimate(&ctx, &mut cloud, &options)
         .expect("estimate")
         .expect("estimated");
     assert_eq!((times.gpu_s, times.unresolved), (0.0, 0));

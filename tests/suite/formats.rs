@@ -566,8 +566,8 @@ fn converting_nir_warns_that_it_is_dropped() {
     };
     std::fs::write(&input, las_with_vlr(8, 40, false, note)).unwrap();
     let out = dir.join("nir.copc.laz");
-    let options = surfel::stream::convert::ConvertOptions::default();
-    let stats = surfel::stream::convert::convert(&input, &out, &options).unwrap();
+    let options = surfel::copc::convert::ConvertOptions::default();
+    let stats = surfel::copc::convert::convert(&input, &out, &options).unwrap();
     assert_eq!(
         stats.warnings,
         [format!("{}: point format 8 has NIR (near infrared), which a COPC file (point format 6 or 7) cannot hold; dropped", input.display())]

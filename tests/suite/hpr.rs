@@ -45,9 +45,9 @@ fn away_from_boundaries(half: Vec<Vec3>, eye: Vec3, sqrt_k: u32) -> Vec<Vec3> {
         .filter(|&&p| clear(p) && clear(-p))
         .flat_map(|&p| [p, -p])
         .collect();
-    let order = surfel::streams::morton_order(&points);
+    let order = surfel::point_streams::morton_order(&points);
     let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
-    let again = surfel::streams::morton_order(&sorted);
+    let again = surfel::point_streams::morton_order(&sorted);
     assert!(again.iter().enumerate().all(|(i, &j)| i as u32 == j));
     sorted
 }
@@ -261,7 +261,7 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
     let eye = Vec3::new(0.25, 0.3, 0.35);
     let side = surfel::hpr::complete_side(bunny.len());
     let (scene, _) = surfel::upload::upload(&ctx, &bunny, &Default::default()).expect("upload");
-    let order = surfel::streams::morton_order(&bunny.positions);
+    let order = surfel::point_streams::morton_order(&bunny.positions);
     let spacing = surfel::hpr::spacing(&bunny);
     let density = surfel::hpr::Radius::Density { spacing };
     let radius = surfel::hpr::flip_radius(&bunny.positions, eye, density).expect("R");
@@ -289,14 +289,14 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
 
 /// The names of the passes `method` records rendering `cloud` (one frame, then one timed).
 fn pass_names(cloud: &Cloud, method: &str) -> Vec<String> {
-    use surfel::render::{Extras, Renderer, View};
+    use surfel::render::{Renderer, RendererOptions, View};
     let ctx = common::context();
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(Default::default());
     let (scene, info) = surfel::upload::upload(&ctx, cloud, &options).expect("upload");
-    let extras = Extras {
+    let extras = RendererOptions {
         readback: true,
-        ..Extras::default()
+        ..RendererOptions::default()
     };
     let mut r = Renderer::new(&ctx, &scene, info, &config, 64, 64, extras).expect("renderer");
     let view = View {

@@ -11,9 +11,9 @@ const LAYERS: &[&[&str]] = &[
     &[
         "gpu", "graph", "layout", "frame", "rng", "suggest", "source",
     ],
-    &["scene", "streams", "stream", "lod", "hpr", "color"],
-    &["upload", "methods", "estimate", "post", "overlay", "render"],
-    &["cli", "app", "eval"],
+    &["scene", "point_streams", "copc", "lod", "hpr", "color"],
+    &["upload", "methods", "knn_gpu", "post", "overlay", "render"],
+    &["cli", "viewer", "eval"],
 ];
 
 fn layer(module: &str) -> Option<usize> {
@@ -243,7 +243,7 @@ fn the_cycle_search_finds_a_cycle_and_only_a_cycle() {
 fn the_import_scan_sees_paths_groups_and_skips_comments() {
     let text = "use crate::{gpu::{Buffer, Context}, scene};\n\
                 // crate::eval in a comment\n\
-                let s = \"crate::app\";\n\
+                let s = \"crate::viewer\";\n\
                 let x = crate::methods::find(\"a\");\n";
     let found: Vec<_> = imports(text).into_iter().collect();
     assert_eq!(found, ["gpu", "methods", "scene"]);

@@ -479,7 +479,7 @@ fn lod_methods_need_the_object_texture() {
 /// waited for, `finish` the newest); a method that counts no samples reports none.
 #[test]
 fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
-    use surfel::render::{Extras, Renderer, View};
+    use surfel::render::{Renderer, RendererOptions, View};
     use surfel::scene::{Camera, Light};
 
     const EDGE: u32 = 128;
@@ -536,7 +536,16 @@ fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
     }
     let renderer = |method: &str| {
         let config = surfel::methods::MethodConfig::parse(method).expect("method");
-        Renderer::new(&ctx, &scene, info, &config, EDGE, EDGE, Extras::default()).expect("renderer")
+        Renderer::new(
+            &ctx,
+            &scene,
+            info,
+            &config,
+            EDGE,
+            EDGE,
+            RendererOptions::default(),
+        )
+        .expect("renderer")
     };
     for method in methods {
         let mut r = renderer(&format!("{method}:epsilon={EPSILON}"));

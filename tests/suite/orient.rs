@@ -262,7 +262,7 @@ fn oriented(name: &str, cloud: &Cloud, truth: &[Vec3], rule: Rule) -> [f64; 2] {
     preprocess::preprocess(&mut cpu, &options());
     let ctx = common::context();
     let mut gpu = cloud.clone();
-    surfel::estimate::estimate(&ctx, &mut gpu, &options())
+    surfel::knn_gpu::estimate(&ctx, &mut gpu, &options())
         .expect("GPU estimate")
         .expect("something to estimate");
     common::assert_clean(&ctx);

@@ -7,7 +7,7 @@ use crate::common;
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::post::{Background, Edl, PostOptions};
-use surfel::render::Extras;
+use surfel::render::RendererOptions;
 use surfel::scene::{Camera, Cloud};
 use surfel::upload::upload;
 
@@ -51,9 +51,9 @@ fn render(cloud: &Cloud, method: &str, post: PostOptions) -> Frame {
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(Default::default());
     let (scene, info) = upload(&ctx, cloud, &options).expect("upload");
-    let extras = Extras {
+    let extras = RendererOptions {
         post,
-        ..Extras::default()
+        ..RendererOptions::default()
     };
     let camera = Camera::framing(Vec3::ZERO, 2f32.sqrt());
     common::two_frames(&ctx, &scene, info, method, SIZE, extras, camera)

@@ -11,7 +11,7 @@ use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::gpu::Context;
 use surfel::methods::{MethodConfig, METHODS};
-use surfel::render::{Extras, Renderer, View};
+use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light};
 use surfel::upload::upload;
 use surfel::upload::UploadOptions;
@@ -134,7 +134,7 @@ fn render(
         &config,
         SIZE,
         SIZE,
-        Extras {
+        RendererOptions {
             readback: true,
             ..Default::default()
         },

@@ -4,13 +4,13 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
+use surfel::copc::convert;
+use surfel::copc::select::{
+    select, select_brute_force, select_forest, Budget, Hierarchy, SelectView, Tree,
+};
 use surfel::scene::copc::{CopcFile, Entry, Info, Key, Node};
 use surfel::scene::{self, Cloud, Scalar};
 use surfel::source::FileSource;
-use surfel::stream::convert;
-use surfel::stream::select::{
-    select, select_brute_force, select_forest, Budget, Hierarchy, SelectView, Tree,
-};
 
 use crate::common;
 
@@ -442,12 +442,12 @@ mod gpu {
     use std::time::Duration;
 
     use surfel::color;
+    use surfel::copc::loader::LoaderOptions;
     use surfel::frame::Frame;
     use surfel::methods::MethodConfig;
-    use surfel::render::{Extras, Renderer, View};
+    use surfel::render::{Renderer, RendererOptions, View};
     use surfel::scene::{Camera, Up};
     use surfel::source::HttpOptions;
-    use surfel::stream::loader::LoaderOptions;
     use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 
     use super::*;
@@ -515,10 +515,10 @@ mod gpu {
             &config,
             size,
             size,
-            Extras {
+            RendererOptions {
                 readback: true,
                 frames_in_flight: 2,
-                ..Extras::default()
+                ..RendererOptions::default()
             },
         )
         .unwrap();
@@ -760,7 +760,7 @@ fn server_errors_are_retried_and_bad_urls_are_clear_errors() {
     assert_eq!(gpu::coverage_difference(&retried.frame, &clean.frame), 0.0);
     // A missing file, a server that never succeeds and a file that is not COPC.
     let open = |url: &str| {
-        surfel::stream::loader::Loader::open(url, options.loader.clone())
+        surfel::copc::loader::Loader::open(url, options.loader.clone())
             .err()
             .expect("an error")
             .to_string()
@@ -853,7 +853,7 @@ fn eviction_under_a_small_memory_budget_keeps_the_image_complete() {
 fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
     use surfel::methods::{MethodConfig, METHODS};
     use surfel::post::{Edl, PostOptions};
-    use surfel::render::{Extras, Renderer, View};
+    use surfel::render::{Renderer, RendererOptions, View};
     use surfel::upload::streamed::StreamedScene;
 
     let lidar = scene::load(Path::new("../shared/data/lidar/autzen_trim.laz")).unwrap();
@@ -895,14 +895,14 @@ fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
     let mut drawn = Vec::new();
     for m in METHODS {
         let config = MethodConfig::parse(m.name).unwrap();
-        let extras = Extras {
+        let extras = RendererOptions {
             readback: true,
             frames_in_flight: 2,
             post: PostOptions {
                 edl: Some(Edl::default()),
                 ..PostOptions::NONE
             },
-            ..Extras::default()
+            ..RendererOptions::default()
         };
         let whole = m.needs_lod || m.needs_hpr || m.needs_faces;
         match Renderer::new(&ctx, &s.scene, s.info, &config, 96, 96, extras) {
@@ -1136,7 +1136,7 @@ fn a_server_that_stops_answering_is_timed_out_and_retried() {
     let mut options = gpu::options(PART, 64 << 20, 1.0);
     options.loader.http.timeout = std::time::Duration::from_millis(300);
     let start = std::time::Instant::now();
-    let opened = surfel::stream::loader::Loader::open(&slow.url, options.loader.clone()).unwrap();
+    let opened = surfel::copc::loader::Loader::open(&slow.url, options.loader.clone()).unwrap();
     assert!(start.elapsed() >= std::time::Duration::from_millis(300));
     assert_eq!(opened.root.len(), 8_000);
     // Streamed through the same server, every node arrives after its retry.

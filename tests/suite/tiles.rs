@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use surfel::copc::tiles::{self, FORMATS};
+use surfel::copc::vpc;
 use surfel::scene::{self, Cloud};
-use surfel::stream::tiles::{self, FORMATS};
-use surfel::stream::vpc;
 
 /// A fresh folder for one test.
 fn scratch(name: &str) -> PathBuf {

@@ -503,7 +503,7 @@ fn a_streamed_file_is_toured_with_budget_keys_and_methods_that_draw_streams() {
     let dir = tmp_dir("stream");
     let cloud = surfel::scene::load(&data("lidar/autzen_trim.las")).expect("load");
     let copc = dir.join("autzen.copc.laz");
-    surfel::stream::convert::write_with(&cloud, &copc, 5_000).expect("convert");
+    surfel::copc::convert::write_with(&cloud, &copc, 5_000).expect("convert");
     std::fs::write(
         dir.join("tour.txt"),
         "key Tab\n\
@@ -702,7 +702,7 @@ fn key_v_in_a_streamed_tour_is_reported_and_the_tour_goes_on() {
     let dir = tmp_dir("stream-v");
     let cloud = surfel::scene::load(&data("stanford/bun_zipper.ply")).expect("load");
     let copc = dir.join("bunny.copc.laz");
-    surfel::stream::convert::write_with(&cloud, &copc, 5_000).expect("convert");
+    surfel::copc::convert::write_with(&cloud, &copc, 5_000).expect("convert");
     std::fs::write(dir.join("t.txt"), "frames 1\nkey V\nscreenshot after.png\n").expect("script");
     let o = view(
         &dir,

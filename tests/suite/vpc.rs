@@ -10,13 +10,13 @@ use std::time::Duration;
 use glam::{DVec3, Vec3};
 use serde_json::Value;
 use surfel::color;
+use surfel::copc::loader::LoaderOptions;
+use surfel::copc::{convert, vpc};
 use surfel::frame::Frame;
 use surfel::methods::MethodConfig;
-use surfel::render::{Extras, Renderer, View};
+use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Scalar, Up};
 use surfel::source::HttpOptions;
-use surfel::stream::loader::LoaderOptions;
-use surfel::stream::{convert, vpc};
 use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 
 use crate::common;
@@ -163,10 +163,10 @@ fn stream_filtered(
         &MethodConfig::parse("points").unwrap(),
         size,
         size,
-        Extras {
+        RendererOptions {
             readback: true,
             frames_in_flight: 2,
-            ..Extras::default()
+            ..RendererOptions::default()
         },
     )
     .unwrap();
@@ -698,7 +698,7 @@ fn the_viewer_measures_a_distance_between_points_of_two_tiles() {
 }
 
 /// A root of 100 points at `centre` (half size 1) with eight children of 100 points.
-fn two_levels(centre: DVec3) -> (surfel::stream::select::Hierarchy, surfel::scene::copc::Info) {
+fn two_levels(centre: DVec3) -> (surfel::copc::select::Hierarchy, surfel::scene::copc::Info) {
     use surfel::scene::copc::{Entry, Info, Key, Node};
     let node = |key| {
         Entry::Node(Node {
@@ -709,7 +709,7 @@ fn two_levels(centre: DVec3) -> (surfel::stream::select::Hierarchy, surfel::scen
             entry_at: 0,
         })
     };
-    let mut h = surfel::stream::select::Hierarchy::default();
+    let mut h = surfel::copc::select::Hierarchy::default();
     let mut entries = vec![node(Key::ROOT)];
     entries.extend(Key::ROOT.children().map(node));
     h.add_page(0, entries);
@@ -725,8 +725,8 @@ fn two_levels(centre: DVec3) -> (surfel::stream::select::Hierarchy, surfel::scen
 
 #[test]
 fn every_visible_tile_root_is_drawn_before_any_tile_is_refined() {
+    use surfel::copc::select::{select_forest, Budget, SelectView, Tree};
     use surfel::scene::copc::Key;
-    use surfel::stream::select::{select_forest, Budget, SelectView, Tree};
     let (near, near_info) = two_levels(DVec3::ZERO);
     let (far, far_info) = two_levels(DVec3::new(8.0, 0.0, 0.0));
     let camera = Camera::look_at_up(

@@ -155,8 +155,13 @@ pub const STRUCTS: &[StructSpec] = &[
             f("mat4", "view_proj"),
             // x: width, y: height, z: 1/width, w: 1/height.
             f("vec4", "viewport"),
-            // x: point size in pixels, y: near plane, z: ambient weight, w: specular exponent.
-            f("vec4", "params"),
+            // Fixed-size points' size in pixels.
+            f("float", "point_size"),
+            // The near plane's distance.
+            f("float", "near"),
+            // The ambient weight of the lighting.
+            f("float", "ambient"),
+            f("float", "specular_exponent"),
             f("vec4", "base_color"),
             f("uint", "flags"),
             f("uint", "light_count"),

@@ -40,7 +40,7 @@ use crate::gpu::swapchain::Swapchain;
 use crate::gpu::{Context, ContextOptions, ImageDesc};
 use crate::methods::{MethodConfig, METHODS};
 use crate::post::PostOptions;
-use crate::render::{Extras, Renderer, View};
+use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::clip::Filter;
 use crate::scene::scene_file::Bookmark;
 use crate::scene::{Camera, Cloud, Light, Up};
@@ -272,13 +272,13 @@ impl Viewer {
             &self.config(),
             swapchain.extent.width,
             swapchain.extent.height,
-            Extras {
+            RendererOptions {
                 // Screenshots read the color target back (after the overlay drew on it).
                 readback: true,
                 present: Some(desc),
                 overlay: true,
                 post: self.drawing.post.for_display(),
-                ..Extras::default()
+                ..RendererOptions::default()
             },
         )
     }

@@ -110,7 +110,7 @@ fn projected(
         Some((scene, _)) if renderer.config.method.culls_batches => {
             let aspect = renderer.width as f32 / renderer.height.max(1) as f32;
             let view_proj = camera.projection(aspect) * camera.view();
-            hud::Projected::InView(crate::streams::projected_points(
+            hud::Projected::InView(crate::point_streams::projected_points(
                 view_proj,
                 &scene.streams.host_batches,
             ))

@@ -161,7 +161,7 @@ pub fn nearest_on_gpu(
     let groups = count.div_ceil(KNN_GROUP);
     g.compute(
         "estimate.key",
-        "estimate/key.comp",
+        "knn_gpu/key.comp",
         &[
             Bind::buffer(BINDING_KNN_POSITIONS, input, read),
             Bind::buffer(BINDING_SORT_KEYS, keys, write),
@@ -174,7 +174,7 @@ pub fn nearest_on_gpu(
     g.fill_buffer("estimate.clear", table, BufferRange::WHOLE, 0);
     g.compute(
         "estimate.cells",
-        "estimate/cells.comp",
+        "knn_gpu/cells.comp",
         &[
             Bind::buffer(BINDING_KNN_POSITIONS, input, read),
             Bind::buffer(BINDING_SORT_KEYS, keys, read),
@@ -187,7 +187,7 @@ pub fn nearest_on_gpu(
     .dispatch(u64::from(groups));
     g.compute(
         "estimate.query",
-        "estimate/query.comp",
+        "knn_gpu/query.comp",
         &[
             Bind::buffer(BINDING_KNN_TABLE, table, read),
             Bind::buffer(BINDING_KNN_SORTED, sorted, read),

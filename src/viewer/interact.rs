@@ -12,9 +12,9 @@ use super::tools::{self, Pick, Screen, Target};
 use super::Viewer;
 use crate::frame::Frame;
 use crate::layout::GpuBatch;
+use crate::point_streams::upload::DEFAULT_CHUNK_BYTES;
 use crate::scene::clip::{classification_field, ClipBox, Keep};
 use crate::scene::Camera;
-use crate::streams::upload::DEFAULT_CHUNK_BYTES;
 
 /// A streamed file's drawn points near the cursor, read again for a pick: one cloud, and per
 /// node its first point there and its name.

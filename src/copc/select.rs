@@ -20,8 +20,8 @@ use std::collections::{BinaryHeap, HashMap, HashSet};
 use glam::{DVec3, Mat4, Vec3};
 
 use crate::layout::{GpuBatch, BATCH_POINTS};
+use crate::point_streams::batch_visible;
 use crate::scene::copc::{Entry, Info, Key, Node};
-use crate::streams::batch_visible;
 
 /// The hierarchy known so far: nodes with points, and pages not read yet.
 #[derive(Clone, Debug, Default)]

@@ -8,8 +8,8 @@ use super::hud_state::legend_for;
 use super::Viewer;
 use crate::color;
 use crate::methods::{MethodConfig, METHODS};
+use crate::point_streams::upload::DEFAULT_CHUNK_BYTES;
 use crate::post::PostOptions;
-use crate::streams::upload::DEFAULT_CHUNK_BYTES;
 
 /// What the viewer draws with now.
 pub(super) struct Drawing {

@@ -27,11 +27,11 @@ use glam::DVec3;
 use super::select::Hierarchy;
 use super::vpc::{self, Encoding};
 use crate::layout::GpuBatch;
+use crate::point_streams::{Stream, StreamLayout};
 use crate::scene::copc::{self, CopcFile, Entry, Info, Key, Node};
 use crate::scene::preprocess::{self, PreprocessOptions};
 use crate::scene::{Cloud, LoadError, Scalar};
 use crate::source::{self, ByteSource, HttpOptions, HttpPool};
-use crate::streams::{Stream, StreamLayout};
 
 /// How nodes are prepared.
 #[derive(Clone, Debug)]
