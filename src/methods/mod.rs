@@ -184,6 +184,7 @@ pub static METHODS: &[MethodInfo] = &[
     splat::SQUARES_PHONG_INFO,
     splat::AFFINE_PHONG_INFO,
     splat::PERSPECTIVE_PHONG_INFO,
+    splat::paraboloids::INFO,
     ewa::INFO,
     pyramid::INFO,
     pyramid::HYBRID_INFO,

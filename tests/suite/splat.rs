@@ -468,3 +468,53 @@ fn deferred_lights_per_pixel_and_gouraud_per_splat() {
     let gouraud = render(&splats, "affine-gouraud", size, 2.0);
     assert_eq!(gouraud.color[centre], gouraud.color[rim]);
 }
+
+#[test]
+fn paraboloids_meet_at_the_bisector_as_round_points_with_raised_centres() {
+    // Two 16-pixel points at one depth, 10 pixels apart: red left, blue right, centred on the
+    // pixel corners (27, 32) and (37, 32).
+    let (size, d) = (64, 3.0);
+    let unit = d / pixels_per_unit(size);
+    let at = |px: f64, color| Splat {
+        color,
+        ..grey(Vec3::new((px * unit) as f32, 0.0, 0.0), Vec3::Z, 0.1)
+    };
+    let splats = [at(-5.0, [255, 0, 0, 255]), at(5.0, [0, 0, 255, 255])];
+    let centres = [(27.0, 32.0), (37.0, 32.0)];
+    let distance = |i: usize, (cx, cy): (f64, f64)| {
+        let (x, y) = ((i % 64) as f64 + 0.5, (i / 64) as f64 + 0.5);
+        ((x - cx).powi(2) + (y - cy).powi(2)).sqrt()
+    };
+    // Which point a covered pixel shows, and whether it is the nearer centre's.
+    let wrong_side = |frame: &Frame| {
+        covered(frame)
+            .into_iter()
+            .filter(|&i| {
+                let [r, _, b, _] = frame.color[i];
+                let left = distance(i, centres[0]) < distance(i, centres[1]);
+                (r > b) != left
+            })
+            .count()
+    };
+    let frame = render(&splats, "paraboloids:size=16", size, d as f32);
+    assert_eq!(wrong_side(&frame), 0, "pixels of the farther centre");
+    for i in 0..frame.pixels() {
+        let nearest = distance(i, centres[0]).min(distance(i, centres[1]));
+        if nearest < 7.5 {
+            assert!(frame.covered(i), "pixel {i} inside a disc is empty");
+        } else if nearest > 8.5 {
+            assert!(!frame.covered(i), "pixel {i} outside both discs is covered");
+        }
+    }
+    // At a centre the depth is raised by the radius, 8 pixels at depth d.
+    let centre = 32 * 64 + 27;
+    let raised = d - 8.0 * unit * (1.0 - (0.5f64.powi(2) * 2.0) / 64.0);
+    assert!(
+        (f64::from(frame.depth[centre]) - raised).abs() < 1e-4,
+        "depth {} at the centre, {raised} expected",
+        frame.depth[centre]
+    );
+    // Fixed-size squares give the whole overlap to one point.
+    let squares = render(&splats, "points:size=16", size, d as f32);
+    assert!(wrong_side(&squares) >= 16, "{}", wrong_side(&squares));
+}

@@ -9,6 +9,7 @@
 //! Every combination is one pair of shaders specialized by constants; the method name
 //! `{raster}-{shading}` picks them.
 
+pub mod paraboloids;
 pub mod points;
 
 use anyhow::{anyhow, Result};

@@ -9,14 +9,17 @@ use crate::methods::{
     BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
 };
 
+/// The point size in pixels.
+pub(super) const SIZE: ParamSpec = ParamSpec {
+    name: "size",
+    default: 1.0,
+    min: 1.0,
+    max: 64.0,
+    doc: "point size in pixels",
+};
+
 pub const INFO: MethodInfo = MethodInfo {
-    params: &[ParamSpec {
-        name: "size",
-        default: 1.0,
-        min: 1.0,
-        max: 64.0,
-        doc: "point size in pixels",
-    }],
+    params: &[SIZE],
     ..MethodInfo::new(
         "points",
         "fixed-size points, one vertex per point, nearest depth wins (002 §5.2 method 1)",
@@ -25,8 +28,15 @@ pub const INFO: MethodInfo = MethodInfo {
 };
 
 fn build(b: &mut BuildContext<'_>) -> Result<()> {
+    add_points(b, "points", "splat/points.frag");
+    Ok(())
+}
+
+/// Declares `{name}.project`: one vertex per point of `b`'s streams, `gl_PointSize` from the
+/// `size` parameter, shaded by `fragment` into the standard targets, nearest depth wins.
+pub(super) fn add_points(b: &mut BuildContext<'_>, name: &str, fragment: &'static str) {
     let zbuffer = b.graph.image(
-        "points.zbuffer",
+        &format!("{name}.zbuffer"),
         ImageDesc {
             format: ZBUFFER_FORMAT,
             width: b.width,
@@ -36,7 +46,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         },
     );
     let desc = GraphicsDesc {
-        shaders: vec!["splat/points.vert", "splat/points.frag"],
+        shaders: vec!["splat/points.vert", fragment],
         color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
         blends: vec![Blend::Replace; 3],
         depth_format: Some(ZBUFFER_FORMAT),
@@ -49,11 +59,10 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
     let (t, count) = (b.targets, b.scene.draw_points.clone());
     let binds = b.draw_binds();
     b.graph
-        .draw("points.project", desc, &binds)
+        .draw(&format!("{name}.project"), desc, &binds)
         .color(t.color, Load::Clear([0.0; 4]))
         .color(t.depth, Load::Clear([0.0; 4]))
         .color(t.normal, Load::Clear([0.0; 4]))
         .depth(zbuffer, Load::Clear([0.0; 4]))
         .draw(move |ctx| ctx.draw(count.get(), 1));
-    Ok(())
 }
