@@ -10,11 +10,11 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use surfel::eval::Frame;
+use surfel::gpu_scene::upload;
 use surfel::methods::{MethodConfig, METHODS};
 use surfel::post::{Background, Edl, PostOptions};
 use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light};
-use surfel::upload::upload;
 
 /// Counts the allocations (`alloc`, `alloc_zeroed`, `realloc`) made by threads that opted in.
 struct Counting;

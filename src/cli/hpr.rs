@@ -8,9 +8,9 @@ use clap::Args;
 
 use super::{context, InputArgs};
 use crate::frame::{write_png, Channels, Size};
+use crate::gpu_scene::{upload, UploadOptions};
 use crate::scene::camera::parse_vec3;
 use crate::scene::{load_prepared, Cloud};
-use crate::upload::{upload, UploadOptions};
 
 #[derive(Args, Debug)]
 pub struct HprArgs {

@@ -11,6 +11,10 @@ use super::{check_surfels, context, estimates, view_settings, CameraArgs, InputA
 use crate::copc::loader::LoaderOptions;
 use crate::frame::Size;
 use crate::gpu::ScopeStats;
+use crate::gpu_scene::streamed::{
+    StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
+};
+use crate::gpu_scene::{upload, UploadOptions};
 use crate::knn_gpu::EstimateOn;
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{Renderer, RendererOptions, View};
@@ -18,10 +22,6 @@ use crate::scene::compose;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
 use crate::source::{HttpOptions, DEFAULT_CONNECTIONS};
-use crate::upload::streamed::{
-    StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
-};
-use crate::upload::{upload, UploadOptions};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {

@@ -23,10 +23,10 @@ use super::results::{PassTiming, Record, Results, Skipped, REFERENCE_METHOD};
 use super::stress;
 use super::Frame;
 use crate::gpu::Context;
+use crate::gpu_scene::{upload, GpuScene, SceneInfo, UploadOptions};
 use crate::methods::MethodConfig;
 use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::{lights, load_prepared, sample, Camera, Cloud, LoadOptions, Pose};
-use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 
 /// Shortest warm-up per job, in seconds of wall time (at most [`WARMUP_MAX_FRAMES`] frames).
 pub const WARMUP_MIN_SECONDS: f64 = 0.5;

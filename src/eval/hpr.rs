@@ -15,13 +15,13 @@ use serde::Serialize;
 
 use crate::eval::hpr_view::{mesh_visibility, render_once, HprView};
 use crate::gpu::Context;
+use crate::gpu_scene::{upload, UploadOptions};
 use crate::hpr::approx::{self, Params, Propagation};
 use crate::hpr::{agreement, exact, spacing, Radius};
 use crate::methods::hpr::{evaluate, Settings};
 use crate::methods::MethodConfig;
 use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::Cloud;
-use crate::upload::{upload, UploadOptions};
 
 /// The scenes the evaluations run HPR on keep their bounding sphere between evaluations.
 const HPR_UPLOAD: UploadOptions = UploadOptions {
@@ -208,7 +208,7 @@ fn gpu_time(
 /// `view`, as indices of the file's order (`order`: stream index to file index), ascending.
 fn complete_on_gpu(
     ctx: &Arc<Context>,
-    scene: &crate::upload::GpuScene,
+    scene: &crate::gpu_scene::GpuScene,
     view: &HprView,
     size: (u32, u32),
     (r, side): (f64, u32),

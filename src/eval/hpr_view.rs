@@ -3,9 +3,9 @@
 
 use anyhow::{bail, Context as _, Result};
 
+use crate::gpu_scene::{upload, UploadOptions};
 use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::{Camera, Cloud};
-use crate::upload::{upload, UploadOptions};
 
 /// The view HPR measures pixels in: the camera from the eye to the target and the image size.
 pub struct HprView {

@@ -1,4 +1,4 @@
-//! Thin ash layer: context, frames in flight, memory, pipelines, timestamps, shared layouts,
+//! Thin ash layer: context, frames in flight, memory, staging uploads, pipelines, timestamps,
 //! swapchain.
 
 pub mod context;
@@ -7,11 +7,11 @@ pub mod memory;
 pub mod pipeline;
 pub mod pipeline_cache;
 pub mod profiler;
-pub mod upload;
+pub mod staging;
+pub mod swapchain;
 
 pub use context::{Capabilities, Context, ContextOptions};
 pub use frames::FrameRing;
 pub use memory::{Buffer, Image, ImageDesc};
 pub use pipeline::{Binding, Blend, GeometryOutput, GraphicsDesc, Pipeline};
 pub use profiler::{Profiler, SampleWindow, ScopeStats};
-pub mod swapchain;

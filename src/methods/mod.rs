@@ -19,10 +19,10 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use crate::gpu::{Capabilities, Context};
+use crate::gpu_scene::{GpuScene, UploadOptions};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
 use crate::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
 use crate::suggest::did_you_mean;
-use crate::upload::{GpuScene, UploadOptions};
 
 /// Format of the color target (sRGB-encoded by the shaders, so it can be a storage image).
 pub const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;

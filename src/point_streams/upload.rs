@@ -8,7 +8,7 @@ use anyhow::{bail, Context as _, Result};
 use ash::vk;
 
 use super::{Stream, StreamLayout};
-use crate::gpu::upload::{CopyRegion, Uploader};
+use crate::gpu::staging::{CopyRegion, Uploader};
 use crate::gpu::{Buffer, Context};
 use crate::layout::{GpuBatch, GpuSegment, BATCH_POINTS};
 use crate::scene::progress::Progress;

@@ -1,5 +1,5 @@
 //! The frame loop shared by the headless renderer, the benchmark and the viewer: on an
-//! uploaded scene (`crate::upload`), builds one method's graph once, keeps frames in flight (`FrameRing`), updates each
+//! uploaded scene (`crate::gpu_scene`), builds one method's graph once, keeps frames in flight (`FrameRing`), updates each
 //! slot's uniforms, submits, reads back.
 
 pub mod settings;
@@ -14,6 +14,7 @@ use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
 use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
+use crate::gpu_scene::{GpuScene, SceneInfo};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::layout::{
     FrameBlock, GpuBatch, COLOR_NONE, FLAG_CLIP, FLAG_CLIP_OUTSIDE, FLAG_FILTER, FLAG_HAS_NORMALS,
@@ -26,7 +27,6 @@ use crate::overlay::{pass::OverlayPass, Mark, Panel};
 use crate::post::{self, PostOptions};
 use crate::scene::clip::{Keep, Resolved};
 use crate::scene::{lights, Camera, Light};
-use crate::upload::{GpuScene, SceneInfo};
 
 use crate::frame::MAX_EDGE;
 

@@ -9,12 +9,12 @@ use glam::{DVec3, Vec4};
 use super::hud::{self, FrameRate, Hud, Stats};
 use super::Viewer;
 use crate::color::{self, Coloring, LegendEntry};
+use crate::gpu_scene::streamed::StreamedScene;
+use crate::gpu_scene::{GpuScene, SceneInfo};
 use crate::layout::{COLOR_CLASSIFICATION, COLOR_ELEVATION, COLOR_RETURN};
 use crate::overlay::{Corner, HudLine, Mark, Panel};
 use crate::render::Renderer;
 use crate::scene::{Camera, Cloud};
-use crate::upload::streamed::StreamedScene;
-use crate::upload::{GpuScene, SceneInfo};
 
 /// The HUD's state: whether and what it shows, and the figures it shows between rebuilds.
 pub(super) struct HudState {

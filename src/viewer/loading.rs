@@ -15,6 +15,8 @@ use super::estimate::{EstimateOptions, Estimation};
 use super::{Viewer, ViewerOptions};
 use crate::color::{self, Coloring};
 use crate::gpu::Context;
+use crate::gpu_scene::streamed::StreamedScene;
+use crate::gpu_scene::{upload, GpuScene, SceneInfo, UploadOptions};
 use crate::layout::COLOR_CLASSIFICATION;
 use crate::methods::{MethodConfig, MethodInfo, METHODS};
 use crate::overlay::{Corner, HudLine, Mark, Panel};
@@ -22,8 +24,6 @@ use crate::post::PostOptions;
 use crate::render::DEFAULT_FRAMES_IN_FLIGHT;
 use crate::scene::clip::Filter;
 use crate::scene::{Camera, Cloud, Light, Up};
-use crate::upload::streamed::StreamedScene;
-use crate::upload::{upload, GpuScene, SceneInfo, UploadOptions};
 
 /// Rounds of 100 ms a scripted frame waits for a streamed view's nodes.
 const STREAM_WAIT_ROUNDS: u32 = 600;

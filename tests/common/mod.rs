@@ -68,13 +68,13 @@ pub fn render_view(
     cloud: &Cloud,
     method: &str,
     size: u32,
-    options: surfel::upload::UploadOptions,
+    options: surfel::gpu_scene::UploadOptions,
     camera: impl Fn(Vec3, f32) -> surfel::scene::Camera,
 ) -> surfel::eval::Frame {
     let ctx = context();
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(options);
-    let (scene, info) = surfel::upload::upload(&ctx, cloud, &options).expect("upload");
+    let (scene, info) = surfel::gpu_scene::upload(&ctx, cloud, &options).expect("upload");
     let camera = camera(info.centre, info.radius);
     two_frames(&ctx, &scene, info, method, size, Default::default(), camera)
 }
@@ -84,8 +84,8 @@ pub fn render_view(
 /// Fails on any validation error.
 pub fn two_frames(
     ctx: &Arc<Context>,
-    scene: &surfel::upload::GpuScene,
-    info: surfel::upload::SceneInfo,
+    scene: &surfel::gpu_scene::GpuScene,
+    info: surfel::gpu_scene::SceneInfo,
     method: &str,
     size: u32,
     extras: surfel::render::RendererOptions,
@@ -124,7 +124,7 @@ pub fn render_with(
     cloud: &Cloud,
     method: &str,
     size: u32,
-    options: surfel::upload::UploadOptions,
+    options: surfel::gpu_scene::UploadOptions,
 ) -> surfel::eval::Frame {
     render_view(cloud, method, size, options, surfel::scene::Camera::framing)
 }
@@ -143,10 +143,10 @@ pub fn render_colored(
     coloring: surfel::color::Coloring,
 ) -> surfel::eval::Frame {
     let ctx = context();
-    let (scene, info) = surfel::upload::upload(
+    let (scene, info) = surfel::gpu_scene::upload(
         &ctx,
         cloud,
-        &surfel::upload::UploadOptions::colored(coloring),
+        &surfel::gpu_scene::UploadOptions::colored(coloring),
     )
     .expect("upload");
     let camera = surfel::scene::Camera::framing(info.centre, info.radius);

@@ -8,10 +8,10 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use surfel::color::{self, class_color, return_color, rgb8, Coloring};
+use surfel::gpu_scene::{upload, UploadOptions};
 use surfel::layout::*;
 use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light, Scalar, Up};
-use surfel::upload::{upload, UploadOptions};
 
 /// A `n` x `n` grid over [-1, 1]² seen from +z, in three plateaus along x: the left third at
 /// z = 0, the middle at z = 0.5, the right at z = 1; normals +z. Each third has its value
@@ -252,7 +252,7 @@ fn the_scalar_stream_swaps_in_place_of_a_fresh_upload() {
         use_color: true,
         time: 0.0,
     };
-    let render = |scene: &surfel::upload::GpuScene, info| {
+    let render = |scene: &surfel::gpu_scene::GpuScene, info| {
         let mut r = Renderer::new(
             &Arc::clone(&ctx),
             scene,

@@ -9,8 +9,8 @@ use std::path::Path;
 use common::{render, render_with};
 use glam::Vec3;
 use surfel::eval::Frame;
+use surfel::gpu_scene::UploadOptions;
 use surfel::scene::{pack, Cloud};
-use surfel::upload::UploadOptions;
 
 fn bunny() -> Cloud {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/stanford/bun_zipper.ply");

@@ -72,7 +72,7 @@ fn run_gpu(
     sort: bool,
 ) -> Evaluation {
     let (scene, _) =
-        surfel::upload::upload(ctx, &cloud_of(points), &Default::default()).expect("upload");
+        surfel::gpu_scene::upload(ctx, &cloud_of(points), &Default::default()).expect("upload");
     let mut settings = Settings::grid(sqrt_k, f64::from(radius), propagation, sort);
     settings.params.max_edge = 4.0;
     let view = Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
@@ -260,7 +260,7 @@ fn the_gpu_complete_set_holds_every_exactly_visible_point() {
     let bunny = surfel::scene::load(&path).expect("bunny");
     let eye = Vec3::new(0.25, 0.3, 0.35);
     let side = surfel::hpr::complete_side(bunny.len());
-    let (scene, _) = surfel::upload::upload(&ctx, &bunny, &Default::default()).expect("upload");
+    let (scene, _) = surfel::gpu_scene::upload(&ctx, &bunny, &Default::default()).expect("upload");
     let order = surfel::point_streams::morton_order(&bunny.positions);
     let spacing = surfel::hpr::spacing(&bunny);
     let density = surfel::hpr::Radius::Density { spacing };
@@ -293,7 +293,7 @@ fn pass_names(cloud: &Cloud, method: &str) -> Vec<String> {
     let ctx = common::context();
     let config = surfel::methods::MethodConfig::parse(method).expect("method");
     let options = config.method.upload_options(Default::default());
-    let (scene, info) = surfel::upload::upload(&ctx, cloud, &options).expect("upload");
+    let (scene, info) = surfel::gpu_scene::upload(&ctx, cloud, &options).expect("upload");
     let extras = RendererOptions {
         readback: true,
         ..RendererOptions::default()
@@ -385,7 +385,8 @@ fn the_methods_render_a_sphere_s_facing_side_and_degenerate_clouds_cleanly() {
     let ctx = common::context();
     let config = surfel::methods::MethodConfig::parse("hpr").expect("method");
     let options = config.method.upload_options(Default::default());
-    let (scene, info) = surfel::upload::upload(&ctx, &Cloud::default(), &options).expect("upload");
+    let (scene, info) =
+        surfel::gpu_scene::upload(&ctx, &Cloud::default(), &options).expect("upload");
     let e = surfel::render::Renderer::new(&ctx, &scene, info, &config, 32, 32, Default::default())
         .err()
         .expect("an empty cloud is rejected");
@@ -400,14 +401,15 @@ fn the_bounding_sphere_is_reduced_once_per_scene_and_hpr_data_is_required() {
     let cloud = cloud_of(&two_shells(Vec3::new(0.0, 0.0, 5.0), 8));
     let config = surfel::methods::MethodConfig::parse("hpr").expect("method");
     // Uploaded for another method: the HPR method names what the scene lacks.
-    let (bare, info) = surfel::upload::upload(&ctx, &cloud, &Default::default()).expect("upload");
+    let (bare, info) =
+        surfel::gpu_scene::upload(&ctx, &cloud, &Default::default()).expect("upload");
     let e = Renderer::new(&ctx, &bare, info, &config, 32, 32, Default::default())
         .err()
         .expect("a scene without HPR data is rejected");
     assert!(e.to_string().contains("needs the scene's HPR data"), "{e}");
     // Uploaded for HPR: two renderers (a rebuild) share one sphere buffer.
     let options = config.method.upload_options(Default::default());
-    let (scene, info) = surfel::upload::upload(&ctx, &cloud, &options).expect("upload");
+    let (scene, info) = surfel::gpu_scene::upload(&ctx, &cloud, &options).expect("upload");
     let first = surfel::methods::hpr::bounding_sphere(&ctx, &scene).expect("sphere");
     for _ in 0..2 {
         Renderer::new(&ctx, &scene, info, &config, 32, 32, Default::default()).expect("renderer");

@@ -12,7 +12,14 @@ const LAYERS: &[&[&str]] = &[
         "gpu", "graph", "layout", "frame", "rng", "suggest", "source",
     ],
     &["scene", "point_streams", "copc", "lod", "hpr", "color"],
-    &["upload", "methods", "knn_gpu", "post", "overlay", "render"],
+    &[
+        "gpu_scene",
+        "methods",
+        "knn_gpu",
+        "post",
+        "overlay",
+        "render",
+    ],
     &["cli", "viewer", "eval"],
 ];
 

@@ -11,6 +11,8 @@ use ash::vk;
 use glam::{Mat4, Vec3, Vec4};
 use surfel::eval::metrics;
 use surfel::gpu::{Buffer, Context, ImageDesc};
+use surfel::gpu_scene::GpuLod;
+use surfel::gpu_scene::UploadOptions;
 use surfel::graph::{Access, BufferId, GraphBuilder};
 use surfel::layout::FrameBlock;
 use surfel::lod::{Hierarchy, LodView, ObjectTexture, DEFAULT_LEVELS};
@@ -20,8 +22,6 @@ use surfel::methods::lod::gpu::{
 };
 use surfel::methods::{COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
 use surfel::scene::Cloud;
-use surfel::upload::GpuLod;
-use surfel::upload::UploadOptions;
 
 const SIZE: f32 = 512.0;
 
@@ -462,7 +462,7 @@ fn pyramid_lod_projects_the_selection_with_its_points_colors() {
 fn lod_methods_need_the_object_texture() {
     let ctx = common::context();
     let (scene, info) =
-        surfel::upload::upload(&ctx, &sphere_cloud(100), &Default::default()).expect("upload");
+        surfel::gpu_scene::upload(&ctx, &sphere_cloud(100), &Default::default()).expect("upload");
     let config = surfel::methods::MethodConfig::parse("lod-compute").expect("method");
     let err =
         surfel::render::Renderer::new(&ctx, &scene, info, &config, 16, 16, Default::default())
@@ -486,7 +486,7 @@ fn the_renderer_reads_back_each_lod_methods_samples_per_level() {
     const EPSILON: f32 = 0.5;
     let ctx = common::context();
     let cloud = sphere_cloud(8_000);
-    let (scene, info) = surfel::upload::upload(&ctx, &cloud, &with_lod()).expect("upload");
+    let (scene, info) = surfel::gpu_scene::upload(&ctx, &cloud, &with_lod()).expect("upload");
     let (Some(normals), Some(radii)) = (&cloud.normals, &cloud.radii) else {
         unreachable!("sphere_cloud has normals and radii");
     };

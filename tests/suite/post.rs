@@ -6,10 +6,10 @@ use crate::common;
 
 use glam::Vec3;
 use surfel::eval::Frame;
+use surfel::gpu_scene::upload;
 use surfel::post::{Background, Edl, PostOptions};
 use surfel::render::RendererOptions;
 use surfel::scene::{Camera, Cloud};
-use surfel::upload::upload;
 
 const SIZE: u32 = 64;
 

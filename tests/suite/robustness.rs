@@ -10,11 +10,11 @@ use std::sync::Arc;
 use glam::Vec3;
 use surfel::eval::Frame;
 use surfel::gpu::Context;
+use surfel::gpu_scene::upload;
+use surfel::gpu_scene::UploadOptions;
 use surfel::methods::{MethodConfig, METHODS};
 use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Light};
-use surfel::upload::upload;
-use surfel::upload::UploadOptions;
 
 /// Frame size: large enough for the pyramid's levels and the kernels, small for lavapipe.
 const SIZE: u32 = 24;

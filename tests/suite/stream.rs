@@ -444,11 +444,11 @@ mod gpu {
     use surfel::color;
     use surfel::copc::loader::LoaderOptions;
     use surfel::frame::Frame;
+    use surfel::gpu_scene::streamed::{StreamOptions, StreamStats, StreamedScene};
     use surfel::methods::MethodConfig;
     use surfel::render::{Renderer, RendererOptions, View};
     use surfel::scene::{Camera, Up};
     use surfel::source::HttpOptions;
-    use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 
     use super::*;
 
@@ -663,7 +663,7 @@ fn a_point_budget_below_the_root_node_draws_the_root_with_one_warning() {
 
 #[test]
 fn the_streamed_legend_lists_the_classes_of_every_node_loaded_with_their_points() {
-    use surfel::upload::streamed::StreamedScene;
+    use surfel::gpu_scene::streamed::StreamedScene;
 
     // A survey whose class 65 is two points: the root's subsample lacks it.
     let mut cloud = survey(40_000);
@@ -851,10 +851,10 @@ fn eviction_under_a_small_memory_budget_keeps_the_image_complete() {
 /// or refuses it for reading the whole cloud.
 #[test]
 fn every_method_draws_a_streamed_cloud_or_says_it_needs_the_whole_cloud() {
+    use surfel::gpu_scene::streamed::StreamedScene;
     use surfel::methods::{MethodConfig, METHODS};
     use surfel::post::{Edl, PostOptions};
     use surfel::render::{Renderer, RendererOptions, View};
-    use surfel::upload::streamed::StreamedScene;
 
     let lidar = scene::load(Path::new("../shared/data/lidar/autzen_trim.laz")).unwrap();
     let path = scratch("autzen.copc.laz");

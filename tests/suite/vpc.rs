@@ -13,11 +13,11 @@ use surfel::color;
 use surfel::copc::loader::LoaderOptions;
 use surfel::copc::{convert, vpc};
 use surfel::frame::Frame;
+use surfel::gpu_scene::streamed::{StreamOptions, StreamStats, StreamedScene};
 use surfel::methods::MethodConfig;
 use surfel::render::{Renderer, RendererOptions, View};
 use surfel::scene::{Camera, Cloud, Scalar, Up};
 use surfel::source::HttpOptions;
-use surfel::upload::streamed::{StreamOptions, StreamStats, StreamedScene};
 
 use crate::common;
 

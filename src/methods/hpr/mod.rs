@@ -29,6 +29,7 @@ use gpu_allocator::MemoryLocation;
 use super::compute::{self, ProjectOptions};
 use super::{BuildContext, Feature, MethodInfo, ParamSpec};
 use crate::gpu::{Buffer, Context};
+use crate::gpu_scene::GpuScene;
 use crate::graph::{Access, Bind, Binds, BufferId, BufferRange, GraphBuilder, Stages};
 use crate::hpr::approx::Propagation;
 use crate::layout::{
@@ -40,7 +41,6 @@ use crate::layout::{
     HPR_SPHERE_CENTRE, HPR_SPHERE_RADIUS, HPR_SPHERE_SUM, RESOLVE_GROUP, RESOLVE_SPEC_HIGH_QUALITY,
 };
 use crate::methods::common::sort::{add_segmented_max, add_sort, RadixSort};
-use crate::upload::GpuScene;
 
 /// Points per thread of the sphere reduction (`ITEMS` in `glsl/hpr/sphere.comp`).
 const SPHERE_ITEMS: u32 = 16;

@@ -19,6 +19,7 @@ use anyhow::{bail, Result};
 use ash::vk;
 
 use crate::gpu::{Blend, Context, GeometryOutput, GraphicsDesc};
+use crate::gpu_scene::GpuLod;
 use crate::graph::{
     bind, Access, Bind, Binds, BufferId, BufferRange, DrawPass, GraphBuilder, ImageId, Load, Stages,
 };
@@ -30,7 +31,6 @@ use crate::layout::{
     SPLAT_SPEC_SHADING,
 };
 use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
-use crate::upload::GpuLod;
 
 /// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
 /// after the list's `VkDrawIndirectCommand`.

@@ -24,7 +24,7 @@ use super::{GpuScene, SceneInfo};
 use crate::color::{self, Coloring, LegendEntry};
 use crate::copc::loader::{Done, EncodedNode, Job, Loader, LoaderOptions, LoaderStats, TileId};
 use crate::copc::select::{self, Budget, ForestSelection, Hierarchy, SelectView, Tree};
-use crate::gpu::upload::{CopyRegion, Uploader};
+use crate::gpu::staging::{CopyRegion, Uploader};
 use crate::gpu::Context;
 use crate::layout::{GpuBatch, BATCH_POINTS, COLOR_ELEVATION};
 use crate::point_streams::upload::pool;
