@@ -1,14 +1,20 @@
 //! `surfel hpr` and `surfel hpr-study`: hidden point removal of a file from a viewpoint, exact
-//! or approximate, on the CPU or the GPU, and the study comparing them.
+//! or approximate, on the CPU or the GPU (found by `methods::hpr::visible`), and the study
+//! comparing them (`eval::hpr`): their arguments, what they print and the files they write.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 use clap::Args;
 
 use super::{context, InputArgs};
+use crate::eval::hpr::{mesh_visibility, render_once};
 use crate::frame::{write_png, Channels, Size};
-use crate::gpu_scene::{upload, UploadOptions};
+use crate::hpr::view::HprView;
+use crate::hpr::Radius;
+use crate::methods::hpr::visible::{
+    visible_points, Algorithm, Found, HullKind, Request, DEFAULT_MAX_EDGE,
+};
 use crate::scene::camera::parse_vec3;
 use crate::scene::{load_prepared, Cloud};
 
@@ -114,209 +120,25 @@ pub struct HprStudyArgs {
     pub frames: u32,
 }
 
-/// Which hidden point removal filters a render (`--visibility`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Visibility {
-    /// The sector approximation (003 ch. 4; the full-sphere partition where the viewpoint is
-    /// inside or near the bounding sphere).
-    Hpr,
-    /// Exact HPR (003 §2.1).
-    HprExact,
-}
-
-/// The approximate convex hulls of 003 ch. 3 (`surfel hpr --hull`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum HullKind {
-    /// Bentley, Faust and Preparata: extremes per grid cell, then their exact hull (§3.1).
-    Bfp,
-    /// Kavan, Kolingerová and Žára: extremes per sphere sector, refined in O(k²) (§3.2).
-    Kavan,
-    /// The exact hull of the sector extremes (§3.3).
-    Hybrid,
-}
-
-/// What `visible_points` found.
-pub(super) struct Found {
-    pub(super) visibility: crate::hpr::Visibility,
-    /// How the points were found.
-    pub(super) note: String,
-    /// The sector approximation's √k.
-    sectors: Option<u32>,
-}
-
-/// How the sector approximation runs.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct SectorOptions {
-    /// √k; `None`: from the view.
-    sqrt_k: Option<u32>,
-    m: Option<u32>,
-    rounds: Option<u32>,
-    gpu: bool,
-    sort: bool,
-    /// The reconstruction's longest projected edge in pixels (`None`: no limit).
-    max_edge: Option<f32>,
-    /// On the GPU, the complete visible set with this many sectors per angle on its finest
-    /// grid in place of the distinct extremes.
-    complete: Option<u32>,
-}
-
-/// The approximation's reconstruction drops edges longer than this many pixels by default.
-const DEFAULT_MAX_EDGE: f32 = 10.0;
-
-/// The largest √k the approximation allocates when k comes from the view.
-const MAX_SQRT_K: u32 = 4096;
-
-/// The points of `cloud` visible from the view's eye.
-pub(super) fn visible_points(
-    cloud: &Cloud,
-    view: &crate::eval::hpr_view::HprView,
-    mode: Visibility,
-    radius: crate::hpr::Radius,
-    options: SectorOptions,
-) -> Result<Found> {
-    use crate::hpr::approx::{self, Params, Propagation};
-    let eye = view.camera.eye;
-    let pixel = |i: u32| view.pixel(cloud.positions[i as usize]);
-    let max_edge = options.max_edge.unwrap_or(f32::INFINITY);
-    if mode == Visibility::HprExact {
-        let mut visibility = crate::hpr::exact(&cloud.positions, eye, radius)?;
-        if options.max_edge.is_some() {
-            visibility
-                .triangles
-                .retain(|&t| approx::short_in_view(t, &pixel, max_edge));
+impl HprArgs {
+    /// What the flags ask [`visible_points`] for, with flipping radius `radius`.
+    fn request(&self, radius: Radius) -> Request {
+        let algorithm = match self.hull {
+            Some(kind) => Algorithm::Hull(kind),
+            None if self.exact => Algorithm::Exact,
+            None if self.complete => Algorithm::Complete,
+            None => Algorithm::Sectors,
+        };
+        Request {
+            sectors: self.sectors,
+            m: self.m,
+            rounds: self.rounds,
+            gpu: self.gpu,
+            sort: self.sort,
+            max_edge: self.max_edge.or((!self.exact).then_some(DEFAULT_MAX_EDGE)),
+            ..Request::new(algorithm, radius)
         }
-        return Ok(Found {
-            visibility,
-            note: "method            exact HPR".into(),
-            sectors: None,
-        });
     }
-    let r = crate::hpr::flip_radius(&cloud.positions, eye, radius)?;
-    let points: Vec<glam::DVec3> = cloud.positions.iter().map(|p| p.as_dvec3()).collect();
-    let sphere = approx::bounding_sphere(&points).context("no points")?;
-    let sqrt_k = options.sqrt_k.unwrap_or_else(|| {
-        approx::sqrt_k_for_view(sphere, eye.as_dvec3(), view.pixel_angle(), MAX_SQRT_K)
-    });
-    let propagation = match (options.m, options.rounds) {
-        (Some(m), _) => Propagation::Fixed(m),
-        (None, Some(max_rounds)) => Propagation::Adaptive { max_rounds },
-        (None, None) if options.gpu => Propagation::Adaptive { max_rounds: 256 },
-        (None, None) => Propagation::UNTIL_STABLE,
-    };
-    if options.gpu {
-        return gpu_visible_points(cloud, view, r, sqrt_k, propagation, options);
-    }
-    let params = Params {
-        sqrt_k,
-        radius: r,
-        propagation,
-    };
-    let found =
-        approx::approximate(&points, eye.as_dvec3(), params).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let partition = if found.full {
-        "full sphere: the viewpoint is inside or near the bounding sphere"
-    } else {
-        "the bounding sphere's cone"
-    };
-    let capped = if found.capped { " (the cap)" } else { "" };
-    let triangles = approx::triangulate(&found.max, sqrt_k, pixel, max_edge);
-    Ok(Found {
-        visibility: crate::hpr::Visibility {
-            visible: found.visible,
-            triangles,
-            radius: r,
-            ..Default::default()
-        },
-        note: format!(
-            "sectors           {sqrt_k} x {sqrt_k} over {partition}, {} propagation round(s){capped}, EMPTY grid 1/{} (CPU)",
-            found.rounds, found.coarse
-        ),
-        sectors: Some(sqrt_k),
-    })
-}
-
-/// `visible_points` on the GPU (`methods::hpr::evaluate`), indices mapped back to the file's
-/// order.
-fn gpu_visible_points(
-    cloud: &Cloud,
-    view: &crate::eval::hpr_view::HprView,
-    radius: f64,
-    sqrt_k: u32,
-    propagation: crate::hpr::approx::Propagation,
-    options: SectorOptions,
-) -> Result<Found> {
-    use crate::hpr::approx::Propagation;
-    let ctx = context(false)?;
-    let (scene, _) = upload(&ctx, cloud, &UploadOptions::default())?;
-    // Stream order is the Morton order of the positions.
-    let order = crate::point_streams::morton_order(&cloud.positions);
-    let mut settings =
-        crate::methods::hpr::Settings::grid(sqrt_k, radius, propagation, options.sort);
-    settings.params.max_edge = options.max_edge.unwrap_or(f32::INFINITY);
-    settings.params.complete_side = options.complete.unwrap_or(0);
-    let found = crate::methods::hpr::evaluate(
-        &ctx,
-        &scene,
-        (view.camera.view(), view.proj()),
-        (view.width, view.height),
-        &settings,
-        true,
-    )?;
-    if ctx.validation && ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors", ctx.validation_errors());
-    }
-    let mut visible: Vec<u32> = found.visible.iter().map(|&i| order[i as usize]).collect();
-    visible.sort_unstable();
-    let triangles = found
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| order[i as usize]))
-        .collect();
-    let state = found.state;
-    let capped = match propagation {
-        Propagation::Adaptive { max_rounds } if state.rounds >= max_rounds => " (the cap)",
-        _ => "",
-    };
-    Ok(Found {
-        visibility: crate::hpr::Visibility {
-            visible,
-            triangles,
-            radius,
-            ..Default::default()
-        },
-        note: format!(
-            "sectors           {0} x {0}{1}, {2} propagation round(s){capped}, EMPTY grid 1/{3} (GPU, {4})",
-            state.sqrt_k,
-            if state.full != 0 { " over the full sphere" } else { "" },
-            state.rounds,
-            state.coarse,
-            if options.sort { "radix sort + segmented max" } else { "atomicMax" },
-        ),
-        sectors: Some(state.sqrt_k),
-    })
-}
-
-/// The points of `cloud` visible from `eye` through the approximate hull `kind` over `k` cells
-/// or sectors.
-fn approximate_hull(
-    cloud: &Cloud,
-    eye: glam::Vec3,
-    radius: crate::hpr::Radius,
-    kind: HullKind,
-    k: u64,
-) -> Result<Found> {
-    use crate::hpr::hulls::Hull;
-    let k = u32::try_from(k).map_err(|_| anyhow::anyhow!("--sectors {k} is too large"))?;
-    let hull = match kind {
-        HullKind::Bfp => Hull::Bfp { cells: k },
-        HullKind::Kavan => Hull::Kavan { sectors: k },
-        HullKind::Hybrid => Hull::Hybrid { sectors: k },
-    };
-    Ok(Found {
-        visibility: crate::hpr::hulls::approximate_hull(&cloud.positions, eye, radius, hull)?,
-        note: format!("method            approximate hull {hull:?} (003 ch. 3)"),
-        sectors: None,
-    })
 }
 
 pub(super) fn hpr(a: HprArgs) -> Result<()> {
@@ -332,71 +154,25 @@ pub(super) fn hpr(a: HprArgs) -> Result<()> {
         .transpose()?;
     let cloud = load_prepared(&a.file, &a.input.options(true))?;
     let radius = match (a.radius, a.radius_factor) {
-        (Some(r), _) => crate::hpr::Radius::Absolute(r),
-        (None, Some(f)) => crate::hpr::Radius::Factor(f),
-        (None, None) => crate::hpr::Radius::Density {
+        (Some(r), _) => Radius::Absolute(r),
+        (None, Some(f)) => Radius::Factor(f),
+        (None, None) => Radius::Density {
             spacing: crate::hpr::spacing(&cloud),
         },
     };
-    let view = crate::eval::hpr_view::HprView::new(
+    let view = HprView::new(
         &cloud,
         eye,
         target,
         Size::parse(&a.size).map_err(anyhow::Error::msg)?.pair(),
     );
     let start = std::time::Instant::now();
-    let mode = if a.exact {
-        Visibility::HprExact
-    } else {
-        Visibility::Hpr
-    };
-    let found = match a.hull {
-        Some(kind) => approximate_hull(&cloud, eye, radius, kind, a.sectors.unwrap_or(65_536)),
-        None if a.complete && !a.gpu => {
-            let side = a.sectors.map_or_else(
-                || crate::hpr::complete_side(cloud.len()),
-                |k| crate::hpr::complete_grid((k as f64).sqrt().round() as u32),
-            );
-            crate::hpr::complete(&cloud.positions, eye, radius, Some(side)).map(|visibility| {
-                Found {
-                    note: format!(
-                        "method            complete visible set, {side} sectors per angle, {} grids",
-                        crate::hpr::prefilter::LEVELS
-                    ),
-                    visibility,
-                    sectors: Some(side),
-                }
-            })
-        }
-        None => {
-            let sqrt_k = a.sectors.map(|k| {
-                (k as f64)
-                    .sqrt()
-                    .round()
-                    .clamp(1.0, f64::from(MAX_SQRT_K * 2)) as u32
-            });
-            let options = SectorOptions {
-                sqrt_k,
-                m: a.m,
-                rounds: a.rounds,
-                gpu: a.gpu,
-                sort: a.sort,
-                max_edge: a.max_edge.or((!a.exact).then_some(DEFAULT_MAX_EDGE)),
-                complete: a.complete.then(|| {
-                    a.sectors.map_or_else(
-                        || crate::hpr::complete_side(cloud.len()),
-                        |k| crate::hpr::complete_grid((k as f64).sqrt().round() as u32),
-                    )
-                }),
-            };
-            visible_points(&cloud, &view, mode, radius, options)
-        }
-    };
     let Found {
         visibility: v,
         note,
         sectors,
-    } = found.with_context(|| a.file.display().to_string())?;
+    } = visible_points(&cloud, &view, &a.request(radius))
+        .with_context(|| a.file.display().to_string())?;
     let seconds = start.elapsed().as_secs_f64();
     let mut report = serde_json::json!({
         "file": a.file.display().to_string(),
@@ -424,47 +200,14 @@ pub(super) fn hpr(a: HprArgs) -> Result<()> {
         println!("time              {seconds:.3} s");
     }
     if a.compare {
-        let start = std::time::Instant::now();
-        let truth = crate::hpr::exact(&cloud.positions, eye, radius)?;
-        let exact_s = start.elapsed().as_secs_f64();
-        let (p, r, f1) = crate::hpr::agreement(&v.visible, &truth.visible);
-        report["exact"] = serde_json::json!({
-            "visible": truth.visible.len(), "seconds": exact_s,
-            "precision": p, "recall": r, "f1": f1,
-        });
-        if !a.json {
-            println!(
-                "against exact     precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} exactly visible, {exact_s:.3} s)",
-                truth.visible.len()
-            );
-        }
-        if cloud.faces.is_some() {
-            let seen = crate::eval::hpr_view::mesh_visibility(&cloud, &view)?;
-            let (p, r, f1) = crate::hpr::agreement(&v.visible, &seen);
-            let (ep, er, ef1) = crate::hpr::agreement(&truth.visible, &seen);
-            report["truth"] = serde_json::json!({
-                "visible": seen.len(), "precision": p, "recall": r, "f1": f1,
-                "exact_precision": ep, "exact_recall": er, "exact_f1": ef1,
-            });
-            if !a.json {
-                println!(
-                    "against the mesh  precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} vertices seen in its depth buffer; exact HPR: {ep:.4}, {er:.4}, {ef1:.4})",
-                    seen.len()
-                );
-            }
-        }
+        compare((&cloud, &view), radius, &v.visible, a.json, &mut report)?;
     }
     if a.json {
         println!("{report}");
     }
     if let Some(out) = &a.out {
         let visible = crate::hpr::visible_cloud(&cloud, &v);
-        if crate::scene::format_extension(out) == "png" {
-            render_hpr_png(&visible, &view, out)?;
-        } else {
-            crate::scene::ply::save(out, &visible)
-                .with_context(|| format!("{}: cannot write", out.display()))?;
-        }
+        write_visible(&visible, &view, out)?;
         if !a.json {
             println!(
                 "written           {} ({} points)",
@@ -476,15 +219,61 @@ pub(super) fn hpr(a: HprArgs) -> Result<()> {
     Ok(())
 }
 
-/// Renders `cloud` (the visible points, with the reconstruction's faces when it has any) in
-/// `view` to a PNG: the faces as a mesh, else the points by the compute rasterizer.
-fn render_hpr_png(cloud: &Cloud, view: &crate::eval::hpr_view::HprView, out: &Path) -> Result<()> {
+/// `--compare`: `visible` scored against exact HPR and, for an input with faces, against the
+/// true visibility of its vertices, added to `report` and printed unless `json`.
+fn compare(
+    (cloud, view): (&Cloud, &HprView),
+    radius: Radius,
+    visible: &[u32],
+    json: bool,
+    report: &mut serde_json::Value,
+) -> Result<()> {
+    let start = std::time::Instant::now();
+    let truth = crate::hpr::exact(&cloud.positions, view.camera.eye, radius)?;
+    let exact_s = start.elapsed().as_secs_f64();
+    let (p, r, f1) = crate::hpr::agreement(visible, &truth.visible);
+    report["exact"] = serde_json::json!({
+        "visible": truth.visible.len(), "seconds": exact_s,
+        "precision": p, "recall": r, "f1": f1,
+    });
+    if !json {
+        println!(
+            "against exact     precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} exactly visible, {exact_s:.3} s)",
+            truth.visible.len()
+        );
+    }
+    if cloud.faces.is_some() {
+        let seen = mesh_visibility(cloud, view)?;
+        let (p, r, f1) = crate::hpr::agreement(visible, &seen);
+        let (ep, er, ef1) = crate::hpr::agreement(&truth.visible, &seen);
+        report["truth"] = serde_json::json!({
+            "visible": seen.len(), "precision": p, "recall": r, "f1": f1,
+            "exact_precision": ep, "exact_recall": er, "exact_f1": ef1,
+        });
+        if !json {
+            println!(
+                "against the mesh  precision {p:.4}, recall {r:.4}, F1 {f1:.4} ({} vertices seen in its depth buffer; exact HPR: {ep:.4}, {er:.4}, {ef1:.4})",
+                seen.len()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Writes `cloud` (the visible points, with the reconstruction's faces when it has any) as
+/// PLY or, to a `.png`, rendered in `view`: the faces as a mesh, else the points by the compute
+/// rasterizer.
+fn write_visible(cloud: &Cloud, view: &HprView, out: &Path) -> Result<()> {
+    if crate::scene::format_extension(out) != "png" {
+        return crate::scene::ply::save(out, cloud)
+            .with_context(|| format!("{}: cannot write", out.display()));
+    }
     let method = if cloud.faces.is_some() {
         "mesh:samples=1"
     } else {
         "compute"
     };
-    let frame = crate::eval::hpr_view::render_once(cloud, view, method)?;
+    let frame = render_once(cloud, view, method)?;
     write_png(out, &frame, Channels::Rgba)
         .with_context(|| format!("{}: cannot write", out.display()))
 }

@@ -6,7 +6,6 @@ use anyhow::{bail, Context as _, Result};
 use clap::Args;
 use serde::Serialize;
 
-use super::hpr::{visible_points, SectorOptions, Visibility};
 use super::{check_surfels, context, estimates, view_settings, CameraArgs, InputArgs};
 use crate::copc::loader::LoaderOptions;
 use crate::frame::Size;
@@ -15,7 +14,9 @@ use crate::gpu_scene::streamed::{
     StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
 };
 use crate::gpu_scene::{upload, UploadOptions};
+use crate::hpr::view::HprView;
 use crate::knn_gpu::EstimateOn;
+use crate::methods::hpr::visible::{visible_points, Algorithm, Request};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::compose;
@@ -65,6 +66,26 @@ pub struct RenderArgs {
     pub camera: CameraArgs,
     #[command(flatten)]
     pub stream: StreamArgs,
+}
+
+/// Which hidden point removal filters a render (`--visibility`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Visibility {
+    /// The sector approximation (003 ch. 4; the full-sphere partition where the viewpoint is
+    /// inside or near the bounding sphere).
+    Hpr,
+    /// Exact HPR (003 §2.1).
+    HprExact,
+}
+
+impl Visibility {
+    /// The algorithm deciding visibility.
+    fn algorithm(self) -> Algorithm {
+        match self {
+            Self::Hpr => Algorithm::Sectors,
+            Self::HprExact => Algorithm::Exact,
+        }
+    }
 }
 
 /// Streaming a COPC file or a virtual point cloud (`.vpc`; a path or an http(s) URL) by
@@ -221,28 +242,15 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
     let camera = settings.camera(centre, radius, cloud.up, cloud.origin);
     let cloud = match a.visibility {
-        Some(mode) => {
-            let radius = crate::hpr::Radius::Density {
-                spacing: crate::hpr::spacing(&cloud),
-            };
-            let view = crate::eval::hpr_view::HprView {
+        Some(mode) => visible_only(
+            &cloud,
+            mode,
+            HprView {
                 camera,
                 width,
                 height,
-            };
-            let options = SectorOptions::default();
-            let found = visible_points(&cloud, &view, mode, radius, options)?;
-            let v = found.visibility;
-            let note = found.note;
-            eprintln!(
-                "{note}; {} of {} points visible",
-                v.visible.len(),
-                cloud.len()
-            );
-            let mut visible = crate::hpr::visible_cloud(&cloud, &v);
-            visible.faces = None;
-            visible
-        }
+            },
+        )?,
         None => cloud,
     };
     let coloring = settings.coloring(&file, &cloud)?;
@@ -361,6 +369,24 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         a.out.display()
     );
     Ok(())
+}
+
+/// The points of `cloud` that `mode` finds visible in `view`, without faces; says how many.
+fn visible_only(cloud: &Cloud, mode: Visibility, view: HprView) -> Result<Cloud> {
+    let radius = crate::hpr::Radius::Density {
+        spacing: crate::hpr::spacing(cloud),
+    };
+    let found = visible_points(cloud, &view, &Request::new(mode.algorithm(), radius))?;
+    let v = found.visibility;
+    let note = found.note;
+    eprintln!(
+        "{note}; {} of {} points visible",
+        v.visible.len(),
+        cloud.len()
+    );
+    let mut visible = crate::hpr::visible_cloud(cloud, &v);
+    visible.faces = None;
+    Ok(visible)
 }
 
 /// Iterations without any progress after which a streamed render gives up.

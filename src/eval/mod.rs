@@ -5,7 +5,6 @@ pub mod bench;
 pub mod charts;
 pub mod config;
 pub mod hpr;
-pub mod hpr_view;
 pub mod lod;
 pub mod metrics;
 pub mod report;

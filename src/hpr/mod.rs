@@ -18,6 +18,7 @@ pub mod approx;
 pub mod hulls;
 pub mod prefilter;
 pub mod truth;
+pub mod view;
 
 use anyhow::{bail, Result};
 use glam::{DVec3, Vec3};

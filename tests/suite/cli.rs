@@ -1090,12 +1090,8 @@ fn hpr_writes_the_visible_points_and_their_hull_triangles() {
         faces.len()
     );
     let whole = surfel::scene::load(&bunny).expect("bunny");
-    let view = surfel::eval::hpr_view::HprView::new(
-        &whole,
-        glam::Vec3::new(0.3, 0.15, 0.3),
-        None,
-        (900, 900),
-    );
+    let view =
+        surfel::hpr::view::HprView::new(&whole, glam::Vec3::new(0.3, 0.15, 0.3), None, (900, 900));
     let longest = faces
         .iter()
         .flat_map(|t| {

@@ -20,6 +20,8 @@
 //! Converged adaptive rounds leave both ping-pong buffers equal (the last round that ran
 //! wrote what it read), so the statically last destination holds the result.
 
+pub mod visible;
+
 use std::sync::Arc;
 
 use anyhow::{bail, Context as _, Result};
