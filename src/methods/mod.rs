@@ -18,7 +18,7 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::{Capabilities, Context};
+use crate::gpu::{Blend, Capabilities, Context, GraphicsDesc, ImageDesc};
 use crate::gpu_scene::{GpuScene, UploadOptions};
 use crate::graph::{Access, Bind, BufferId, GraphBuilder, ImageId, Stages};
 use crate::layout::{BINDING_BATCHES, BINDING_FRAME, BINDING_OUTPUT0, BINDING_SEGMENTS};
@@ -184,7 +184,6 @@ pub static METHODS: &[MethodInfo] = &[
     splat::SQUARES_PHONG_INFO,
     splat::AFFINE_PHONG_INFO,
     splat::PERSPECTIVE_PHONG_INFO,
-    splat::paraboloids::INFO,
     ewa::INFO,
     pyramid::INFO,
     pyramid::HYBRID_INFO,
@@ -197,6 +196,7 @@ pub static METHODS: &[MethodInfo] = &[
     lod::COMPUTE_INFO,
     lod::MESH_INFO,
     lod::GEOMETRY_INFO,
+    splat::paraboloids::INFO,
 ];
 
 /// Looks a method up by name.
@@ -355,7 +355,37 @@ pub struct BuildContext<'a> {
     pub samples: Option<SampleCounters>,
 }
 
+/// The pipeline state of point sprites drawn by `shaders` into the three standard targets,
+/// reversed-Z, the nearest depth winning.
+pub fn points_desc(shaders: &[&'static str]) -> GraphicsDesc {
+    GraphicsDesc {
+        shaders: shaders.to_vec(),
+        color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
+        blends: vec![Blend::Replace; 3],
+        depth_format: Some(ZBUFFER_FORMAT),
+        depth_test: true,
+        depth_write: true,
+        depth_compare: vk::CompareOp::GREATER,
+        topology: vk::PrimitiveTopology::POINT_LIST,
+        ..Default::default()
+    }
+}
+
 impl BuildContext<'_> {
+    /// A frame-sized reversed-Z depth buffer, `name`.
+    pub fn zbuffer(&mut self, name: &str) -> ImageId {
+        self.graph.image(
+            name,
+            ImageDesc {
+                format: ZBUFFER_FORMAT,
+                width: self.width,
+                height: self.height,
+                mip_levels: 1,
+                usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            },
+        )
+    }
+
     /// Workgroups of `group` x `group` pixels covering the frame.
     pub fn pixel_groups(&self, group: u32) -> (u32, u32) {
         (self.width.div_ceil(group), self.height.div_ceil(group))

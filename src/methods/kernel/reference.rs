@@ -170,17 +170,7 @@ mod tests {
     use glam::Vec4;
 
     use super::*;
-
-    fn texel(radius: f32, depth: f32, color: Vec3) -> Texel {
-        Texel {
-            n: Vec3::Z,
-            radius,
-            depth,
-            half_range: 0.1,
-            disp: Vec2::ZERO,
-            color: color.extend(0.0),
-        }
-    }
+    use crate::methods::pyramid::reference::tests::texel;
 
     fn close(a: f32, b: f32) -> bool {
         (a - b).abs() <= 1e-3 * b.abs().max(1.0)

@@ -18,7 +18,7 @@
 use anyhow::{bail, Result};
 use ash::vk;
 
-use crate::gpu::{Blend, Context, GeometryOutput, GraphicsDesc};
+use crate::gpu::{Context, GeometryOutput, GraphicsDesc};
 use crate::gpu_scene::GpuLod;
 use crate::graph::{
     bind, Access, Bind, Binds, BufferId, BufferRange, DrawPass, GraphBuilder, ImageId, Load, Stages,
@@ -30,7 +30,7 @@ use crate::layout::{
     SPLAT_RASTER_PERSPECTIVE, SPLAT_RASTER_SQUARES, SPLAT_SHADING_FLAT, SPLAT_SPEC_RASTER,
     SPLAT_SPEC_SHADING,
 };
-use crate::methods::{SampleCounters, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT};
+use crate::methods::{points_desc, SampleCounters};
 
 /// Byte offset in the counters of the vertices selected per level (`LOD_MAX_LEVELS` u32),
 /// after the list's `VkDrawIndirectCommand`.
@@ -332,14 +332,6 @@ pub fn add_select(
 /// rasterized and shaded by `splat/flat.frag` (squares or discs).
 fn draw_desc(shaders: &[&'static str], options: &DrawOptions) -> GraphicsDesc {
     GraphicsDesc {
-        shaders: shaders.to_vec(),
-        color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-        blends: vec![Blend::Replace; 3],
-        depth_format: Some(ZBUFFER_FORMAT),
-        depth_test: true,
-        depth_write: true,
-        depth_compare: vk::CompareOp::GREATER,
-        topology: vk::PrimitiveTopology::POINT_LIST,
         specialization: vec![
             (LOD_SPEC_COLOR_LEVELS, u32::from(options.color_levels)),
             (LOD_SPEC_RECORD, u32::from(options.record)),
@@ -361,7 +353,7 @@ fn draw_desc(shaders: &[&'static str], options: &DrawOptions) -> GraphicsDesc {
                 vertices: options.geometry_chunk,
                 invocations: LOD_PATCH_VERTICES / options.geometry_chunk,
             }),
-        ..Default::default()
+        ..points_desc(shaders)
     }
 }
 

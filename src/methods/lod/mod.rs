@@ -14,11 +14,9 @@
 //! frame.
 
 use anyhow::{bail, Result};
-use ash::vk;
 
-use crate::gpu::ImageDesc;
 use crate::layout::LOD_PATCH_VERTICES;
-use crate::methods::{BuildContext, Feature, MethodInfo, ParamSpec, ZBUFFER_FORMAT};
+use crate::methods::{BuildContext, Feature, MethodInfo, ParamSpec};
 pub mod gpu;
 
 use gpu::{DrawOptions, DrawTargets, LodInputs, Path, DEFAULT_GEOMETRY_CHUNK};
@@ -151,16 +149,7 @@ fn build(b: &mut BuildContext<'_>, path: Path) -> Result<()> {
             _ => LOD_PATCH_VERTICES,
         },
     };
-    let zbuffer = b.graph.image(
-        &format!("{name}.zbuffer"),
-        ImageDesc {
-            format: ZBUFFER_FORMAT,
-            width: b.width,
-            height: b.height,
-            mip_levels: 1,
-            usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-        },
-    );
+    let zbuffer = b.zbuffer(&format!("{name}.zbuffer"));
     let t = b.targets;
     let targets = DrawTargets {
         color: t.color,

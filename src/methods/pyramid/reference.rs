@@ -345,10 +345,11 @@ pub(crate) fn gather(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn texel(radius: f32, depth: f32, color: Vec3) -> Texel {
+    /// A front-facing texel of `radius`, `depth` and `color`.
+    pub(crate) fn texel(radius: f32, depth: f32, color: Vec3) -> Texel {
         Texel {
             n: Vec3::Z,
             radius,

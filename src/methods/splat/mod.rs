@@ -207,16 +207,7 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
         max_point_size: b.ctx.caps.point_size_range[1],
         pad0: 0,
     };
-    let zbuffer = b.graph.image(
-        "splat.zbuffer",
-        ImageDesc {
-            format: ZBUFFER_FORMAT,
-            width: b.width,
-            height: b.height,
-            mip_levels: 1,
-            usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-        },
-    );
+    let zbuffer = b.zbuffer("splat.zbuffer");
     let splats = Splats {
         specialization,
         params,

@@ -11,7 +11,7 @@ use crate::methods::{BuildContext, MethodInfo, ParamSpec};
 
 pub const INFO: MethodInfo = MethodInfo {
     params: &[ParamSpec {
-        default: 8.0,
+        default: 4.0,
         ..SIZE
     }],
     ..MethodInfo::new(

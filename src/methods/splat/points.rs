@@ -1,13 +1,9 @@
 //! `points`: fixed-size points (002 §5.2, method 1), 1 px or N px, nearest depth wins.
 
 use anyhow::Result;
-use ash::vk;
 
-use crate::gpu::{Blend, GraphicsDesc, ImageDesc};
 use crate::graph::Load;
-use crate::methods::{
-    BuildContext, MethodInfo, ParamSpec, COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT, ZBUFFER_FORMAT,
-};
+use crate::methods::{points_desc, BuildContext, MethodInfo, ParamSpec};
 
 /// The point size in pixels.
 pub(super) const SIZE: ParamSpec = ParamSpec {
@@ -35,27 +31,8 @@ fn build(b: &mut BuildContext<'_>) -> Result<()> {
 /// Declares `{name}.project`: one vertex per point of `b`'s streams, `gl_PointSize` from the
 /// `size` parameter, shaded by `fragment` into the standard targets, nearest depth wins.
 pub(super) fn add_points(b: &mut BuildContext<'_>, name: &str, fragment: &'static str) {
-    let zbuffer = b.graph.image(
-        &format!("{name}.zbuffer"),
-        ImageDesc {
-            format: ZBUFFER_FORMAT,
-            width: b.width,
-            height: b.height,
-            mip_levels: 1,
-            usage: vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
-        },
-    );
-    let desc = GraphicsDesc {
-        shaders: vec!["splat/points.vert", fragment],
-        color_formats: vec![COLOR_FORMAT, DEPTH_FORMAT, NORMAL_FORMAT],
-        blends: vec![Blend::Replace; 3],
-        depth_format: Some(ZBUFFER_FORMAT),
-        depth_test: true,
-        depth_write: true,
-        depth_compare: vk::CompareOp::GREATER,
-        topology: vk::PrimitiveTopology::POINT_LIST,
-        ..Default::default()
-    };
+    let zbuffer = b.zbuffer(&format!("{name}.zbuffer"));
+    let desc = points_desc(&["splat/points.vert", fragment]);
     let (t, count) = (b.targets, b.scene.draw_points.clone());
     let binds = b.draw_binds();
     b.graph
