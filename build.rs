@@ -21,6 +21,7 @@ fn main() {
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let root = Path::new("glsl");
     println!("cargo:rerun-if-changed=src/layout/spec");
+    println!("cargo:rustc-env=SURFEL_COMMIT={}", commit());
     let constants: Vec<_> = spec::constants().collect();
     if let Some((a, b)) = spec::overlapping(&constants) {
         panic!("src/layout/spec: bindings {a} and {b} share a number");
@@ -93,6 +94,27 @@ fn main() {
         std::process::exit(1);
     }
     std::fs::write(out.join("shaders.rs"), index).expect("write shaders.rs");
+}
+
+/// The commit the build comes from, for timing studies' metadata (`unknown` outside a git
+/// checkout). The build reruns when HEAD or the branch it names moves; uncommitted changes
+/// are not tracked (that would rebuild on every edit of the index).
+fn commit() -> String {
+    let head = std::fs::read_to_string(".git/HEAD").unwrap_or_default();
+    let mut watched = vec![".git/HEAD".to_string(), ".git/packed-refs".to_string()];
+    if let Some(branch) = head.trim().strip_prefix("ref: ") {
+        watched.push(format!(".git/{branch}"));
+    }
+    for path in watched.iter().filter(|p| Path::new(p).exists()) {
+        println!("cargo:rerun-if-changed={path}");
+    }
+    std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_else(|| "unknown".into())
 }
 
 fn collect(dir: &Path, files: &mut Vec<PathBuf>) {

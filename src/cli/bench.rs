@@ -3,12 +3,15 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
-use clap::Args;
+use clap::{Args, Subcommand};
 
 use super::context;
 
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    pub action: Option<BenchAction>,
     /// Sweep file (TOML); see benches/sweeps/.
     #[arg(required_unless_present = "quick")]
     pub sweep: Option<PathBuf>,
@@ -25,6 +28,15 @@ pub struct BenchArgs {
     pub validation: bool,
 }
 
+/// What `surfel bench` does besides running a sweep.
+#[derive(Subcommand, Debug)]
+pub enum BenchAction {
+    /// Compare two timing results (`render --timings` files or bench results.json): per
+    /// configuration and pass, B's median over A's with its bootstrap 95 % interval; `*` marks
+    /// a difference beyond noise (an interval without 1).
+    Compare { a: PathBuf, b: PathBuf },
+}
+
 #[derive(Args, Debug)]
 pub struct ReportArgs {
     /// results.json written by `surfel bench`.
@@ -36,6 +48,14 @@ pub struct ReportArgs {
 
 pub(super) fn bench(a: BenchArgs) -> Result<()> {
     use crate::eval::config::BenchConfig;
+    if let Some(BenchAction::Compare { a, b }) = &a.action {
+        use crate::eval::compare;
+        let rows = compare::compare(&compare::load(a)?, &compare::load(b)?)?;
+        print!("{}", compare::table(&rows));
+        let beyond = rows.iter().filter(|r| r.differs()).count();
+        eprintln!("{beyond} of {} passes differ beyond noise", rows.len());
+        return Ok(());
+    }
     let config = match &a.sweep {
         Some(path) => BenchConfig::load(path)?,
         None => BenchConfig::quick()?,

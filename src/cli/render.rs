@@ -8,8 +8,8 @@ use serde::Serialize;
 
 use super::{check_surfels, context, estimates, view_settings, CameraArgs, InputArgs};
 use crate::copc::loader::LoaderOptions;
+use crate::eval::timing::{self, measure, FramePlan, RunMeta, Study};
 use crate::frame::Size;
-use crate::gpu::ScopeStats;
 use crate::gpu_scene::streamed::{
     StreamOptions, StreamedScene, DEFAULT_ERROR_PX, DEFAULT_POINT_BUDGET,
 };
@@ -38,12 +38,26 @@ pub struct RenderArgs {
     /// Output PNG.
     #[arg(long, short, default_value = "surfel.png")]
     pub out: PathBuf,
-    /// Write per-pass GPU timings (median over --frames frames) as JSON.
+    /// Write per-pass GPU timings as JSON: run metadata, every measured frame's milliseconds
+    /// per pass, and each pass's median with its bootstrap 95 % interval.
     #[arg(long, value_name = "JSON")]
     pub timings: Option<PathBuf>,
-    /// Timed frames (after 3 warm-up frames) for --timings.
+    /// Write the timed frames as a tidy CSV: frame, pass, ms (one row per frame and pass).
+    #[arg(long, value_name = "CSV")]
+    pub timings_csv: Option<PathBuf>,
+    /// Write the timed frames as a trace (Chrome trace-event JSON) that Perfetto and
+    /// chrome://tracing open: GPU passes on one track, recording and submission on another.
+    #[arg(long, value_name = "JSON")]
+    pub trace: Option<PathBuf>,
+    /// Frames rendered before timing starts (pipelines, caches and thread pools settle).
+    #[arg(long, default_value_t = 3)]
+    pub warmup: u32,
+    /// Timed frames (at least), 1 to 1024.
     #[arg(long, default_value_t = 20)]
     pub frames: u32,
+    /// Time frames for at least this many seconds (past --frames, up to 1024 frames).
+    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    pub min_time: f64,
     /// Print the render graph's schedule (passes, accesses, barriers).
     #[arg(long)]
     pub dump_graph: bool,
@@ -161,18 +175,53 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
         })
 }
 
-/// Timings written by `render --timings`.
+impl RenderArgs {
+    /// Whether frames are timed (`--timings`, `--timings-csv` or `--trace`).
+    fn timed(&self) -> bool {
+        self.timings.is_some() || self.timings_csv.is_some() || self.trace.is_some()
+    }
+
+    fn plan(&self) -> FramePlan {
+        FramePlan {
+            warmup: self.warmup,
+            frames: self.frames,
+            min_time_s: self.min_time,
+        }
+    }
+
+    /// Writes `json` (`--timings`), the study's CSV (`--timings-csv`) and the trace
+    /// (`--trace`), and prints each pass's median with its interval.
+    fn write_timings(
+        &self,
+        json: &serde_json::Value,
+        study: &Study,
+        series: &crate::render::TimingSeries,
+    ) -> Result<()> {
+        if let Some(path) = &self.timings {
+            timing::write(path, &serde_json::to_string_pretty(json)?)?;
+        }
+        if let Some(path) = &self.timings_csv {
+            timing::write(path, &study.csv())?;
+        }
+        if let Some(path) = &self.trace {
+            let trace = timing::trace(&study.meta.method, series);
+            timing::write(path, &serde_json::to_string(&trace)?)?;
+        }
+        for p in study.passes.iter().chain([&study.frame]) {
+            eprintln!(
+                "{:<24} {:>9.3} ms (95 % CI {:.3}-{:.3}, IQR {:.3}, {} frames)",
+                p.name, p.median_ms, p.ci_low_ms, p.ci_high_ms, p.iqr_ms, p.frames
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Timings written by `render --timings`: the study and what this run adds to it.
 #[derive(Serialize)]
-struct Timings<'a> {
-    device: &'a str,
-    driver: &'a str,
-    method: String,
-    width: u32,
-    height: u32,
-    points: u32,
-    frames: u32,
-    passes: Vec<ScopeStats>,
-    frame: ScopeStats,
+struct Timings {
+    #[serde(flatten)]
+    study: Study,
     points_per_second: f64,
     startup: Startup,
 }
@@ -316,44 +365,27 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         "first pixel after {:.2} s (device {:.2} s, load {:.2} s{estimated}, upload {:.2} s, first frame {:.2} s)",
         startup.first_pixel_s, device_s, load_s, upload_s, first_frame_s
     );
-    if let Some(path) = &a.timings {
-        for _ in 0..3 {
-            renderer.render(&view, false)?;
-        }
-        renderer.clear_timings();
-        for _ in 0..a.frames.max(1) {
-            renderer.render(&view, false)?;
-        }
-        let (passes, frame) = renderer.timings();
+    let timed = a.timed();
+    if timed {
+        let series = measure(&mut renderer, a.plan(), |r| {
+            r.render(&view, false).map(drop)
+        })?;
+        let meta = RunMeta::headless(&ctx, &config.label(), (width, height), info.points.into());
+        let study = Study::new(meta, a.plan(), &series);
+        let median = study.frame.median_ms;
         let timings = Timings {
-            device: &ctx.caps.device_name,
-            driver: &ctx.caps.driver,
-            method: config.label(),
-            width,
-            height,
-            points: info.points,
-            frames: a.frames.max(1),
-            points_per_second: if frame.median_ms > 0.0 {
-                info.points as f64 / (frame.median_ms / 1000.0)
+            points_per_second: if median > 0.0 {
+                f64::from(info.points) / (median / 1000.0)
             } else {
                 0.0
             },
-            passes,
-            frame,
+            study,
             startup,
         };
-        std::fs::write(path, serde_json::to_string_pretty(&timings)?)
-            .with_context(|| format!("{}: cannot write timings", path.display()))?;
-        for p in &timings.passes {
-            eprintln!(
-                "{:<24} {:>9.3} ms (IQR {:.3})",
-                p.name, p.median_ms, p.spread_ms
-            );
-        }
-        eprintln!("{:<24} {:>9.3} ms", "frame", timings.frame.median_ms);
+        a.write_timings(&serde_json::to_value(&timings)?, &timings.study, &series)?;
     }
     // The frame to write: the first one, unless timed frames followed (then a fresh one).
-    let mut frame = if a.timings.is_some() {
+    let mut frame = if timed {
         renderer.render(&view, true)?
     } else {
         first
@@ -479,16 +511,16 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         }
     }
     let refine_s = start.elapsed().as_secs_f64() - first_pixel_s;
-    if let Some(path) = &a.timings {
+    if a.timed() {
         let view_batches = streamed.batches().to_vec();
-        for _ in 0..3 {
-            renderer.render_batches(&view, Some(&view_batches), false)?;
-        }
-        renderer.clear_timings();
-        for _ in 0..a.frames.max(1) {
-            renderer.render_batches(&view, Some(&view_batches), false)?;
-        }
-        let (passes, frame) = renderer.timings();
+        let series = measure(&mut renderer, a.plan(), |r| {
+            r.render_batches(&view, Some(&view_batches), false)
+                .map(drop)
+        })?;
+        let points = streamed.file_points();
+        let meta = RunMeta::headless(&ctx, &config.label(), (width, height), points);
+        let study = Study::new(meta, a.plan(), &series);
+        let frame = &study.frame;
         let stats = streamed.stats();
         let loader = stats.loader;
         let busy = loader.read_s + loader.decode_s + loader.prepare_s;
@@ -499,10 +531,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
                 0.0
             }
         };
-        let report = serde_json::json!({
-            "device": ctx.caps.device_name,
-            "driver": ctx.caps.driver,
-            "method": config.label(),
+        let mut report = serde_json::json!({
             "location": location,
             "file_points": streamed.file_points(),
             "width": width,
@@ -532,12 +561,13 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
             "prepare_s": loader.prepare_s,
             "decode_points_per_core_s": per_core(loader.decode_s),
             "load_points_per_core_s": per_core(busy),
-            "frames": a.frames.max(1),
-            "passes": passes,
-            "frame": frame,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
-            .with_context(|| format!("{}: cannot write timings", path.display()))?;
+        if let (Some(fields), serde_json::Value::Object(base)) =
+            (report.as_object_mut(), serde_json::to_value(&study)?)
+        {
+            fields.extend(base);
+        }
+        a.write_timings(&report, &study, &series)?;
         eprintln!(
             "frame {:.3} ms; decode {:.2} M points/s per core, read + decode + prepare {:.2} M points/s per core",
             frame.median_ms,

@@ -146,6 +146,8 @@ fn point_spacing(cloud: &Cloud, fallback: f32) -> f32 {
 struct Timed {
     passes: Vec<PassTiming>,
     frame_ms: (f64, f64),
+    /// Every measured frame's GPU milliseconds.
+    frame_samples: Vec<f64>,
     frames: Vec<Frame>,
     /// The first (scored) view's samples per level, for methods that count them
     /// (`Renderer::samples_per_level`).
@@ -189,6 +191,7 @@ fn run_method(
         r.render(&views[0], false)?;
     }
     let (scopes, frame) = r.timings();
+    let series = r.timing_series();
     let mut samples_per_level = None;
     let mut frames = Vec::with_capacity(views.len());
     for (i, v) in views.iter().enumerate() {
@@ -200,13 +203,16 @@ fn run_method(
     Ok(Timed {
         passes: scopes
             .into_iter()
-            .map(|s| PassTiming {
+            .zip(series.gpu.scopes)
+            .map(|(s, (_, samples_ms))| PassTiming {
                 name: s.name,
                 median_ms: s.median_ms,
                 spread_ms: s.spread_ms,
+                samples_ms,
             })
             .collect(),
         frame_ms: (frame.median_ms, frame.spread_ms),
+        frame_samples: series.gpu.frame,
         frames,
         samples_per_level,
     })
@@ -432,6 +438,7 @@ pub fn run(
             passes: timed.passes,
             frame_ms_median: frame_ms,
             frame_ms_spread: timed.frame_ms.1,
+            frame_samples_ms: timed.frame_samples.clone(),
             points_per_second: if frame_ms > 0.0 {
                 f64::from(scene.info.points) / (frame_ms / 1000.0)
             } else {

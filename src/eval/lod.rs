@@ -457,6 +457,7 @@ mod tests {
             passes: Vec::new(),
             frame_ms_median: ms,
             frame_ms_spread: 0.0,
+            frame_samples_ms: Vec::new(),
             points_per_second: 0.0,
             samples: Some(1000),
             samples_per_level: Vec::new(),

@@ -3,12 +3,15 @@
 
 pub mod bench;
 pub mod charts;
+pub mod compare;
 pub mod config;
 pub mod hpr;
 pub mod lod;
 pub mod metrics;
 pub mod report;
 pub mod results;
+pub mod stats;
 pub mod stress;
+pub mod timing;
 
 pub use crate::frame::Frame;

@@ -29,6 +29,10 @@ pub struct PassTiming {
     pub median_ms: f64,
     /// Interquartile range over the measured frames, milliseconds.
     pub spread_ms: f64,
+    /// Every measured frame's milliseconds, in order (empty in results written before they
+    /// were recorded).
+    #[serde(default)]
+    pub samples_ms: Vec<f64>,
 }
 
 /// One row of a sweep: what was rendered, how long it took and how accurate it was.
@@ -61,6 +65,10 @@ pub struct Record {
     pub frame_ms_median: f64,
     /// Interquartile range of the frame time, milliseconds.
     pub frame_ms_spread: f64,
+    /// Every measured frame's GPU milliseconds, in order (empty in results written before
+    /// they were recorded).
+    #[serde(default)]
+    pub frame_samples_ms: Vec<f64>,
     /// `points / (frame_ms_median / 1000)`.
     pub points_per_second: f64,
     /// Samples projected in the scored frame: for level-of-detail methods the sum of
@@ -386,9 +394,11 @@ mod tests {
                 name: "splat".into(),
                 median_ms: ms * 0.75,
                 spread_ms: 0.1,
+                samples_ms: Vec::new(),
             }],
             frame_ms_median: ms,
             frame_ms_spread: 0.2,
+            frame_samples_ms: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
             samples: None,
             samples_per_level: Vec::new(),
@@ -427,6 +437,7 @@ mod tests {
             name: "resolve".into(),
             median_ms: 0.5,
             spread_ms: 0.0,
+            samples_ms: Vec::new(),
         });
         let mut b = record("pyramid", "2", 3.0, 35.0);
         b.params.insert("levels".into(), "4".into());
@@ -436,6 +447,7 @@ mod tests {
                 name: "build".into(),
                 median_ms: 1.0,
                 spread_ms: 0.0,
+                samples_ms: Vec::new(),
             },
         );
         b.stress = Some("noise".into());

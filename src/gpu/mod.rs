@@ -14,4 +14,4 @@ pub use context::{Capabilities, Context, ContextOptions};
 pub use frames::FrameRing;
 pub use memory::{Buffer, Image, ImageDesc};
 pub use pipeline::{Binding, Blend, GeometryOutput, GraphicsDesc, Pipeline};
-pub use profiler::{Profiler, SampleWindow, ScopeStats};
+pub use profiler::{Profiler, SampleWindow, ScopeStats, Series};

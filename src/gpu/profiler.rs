@@ -25,6 +25,17 @@ pub struct ScopeStats {
     pub samples: usize,
 }
 
+/// The raw samples of the recorded frames, oldest first (`Profiler::series`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Series {
+    /// Per scope (render-graph pass, in execution order): its name and milliseconds per frame.
+    pub scopes: Vec<(String, Vec<f64>)>,
+    /// Milliseconds of each whole frame.
+    pub frame: Vec<f64>,
+    /// Each frame's start on the device's timestamp clock, milliseconds.
+    pub starts: Vec<f64>,
+}
+
 /// Statistics of a sample set: median and interquartile range.
 pub fn median_and_iqr(samples: &[f64]) -> (f64, f64) {
     if samples.is_empty() {
@@ -82,6 +93,12 @@ impl SampleWindow {
         &self.values
     }
 
+    /// The samples in the window, oldest first.
+    pub fn ordered(&self) -> Vec<f64> {
+        let (newer, older) = self.values.split_at(self.next);
+        older.iter().chain(newer).copied().collect()
+    }
+
     /// The most recent sample.
     pub fn last(&self) -> Option<f64> {
         self.last
@@ -111,6 +128,8 @@ pub struct Profiler {
     names: Vec<String>,
     /// Per scope, then a final "frame" entry: milliseconds of the last `WINDOW` frames.
     samples: Vec<SampleWindow>,
+    /// Each of those frames' first boundary on the device's clock, in milliseconds.
+    starts: SampleWindow,
     /// Reused buffer for query results.
     raw: Vec<u64>,
 }
@@ -127,6 +146,7 @@ impl Profiler {
             written: vec![false; slots],
             // Not `vec![..; n]`: cloning a Vec drops its reserved capacity.
             samples: (0..=names.len()).map(|_| SampleWindow::default()).collect(),
+            starts: SampleWindow::default(),
             raw: vec![0; count as usize],
             names,
         };
@@ -213,12 +233,30 @@ impl Profiler {
         }
         let frame = ms(self.raw[n].saturating_sub(self.raw[0]));
         self.samples[n].push(frame);
+        self.starts.push(ms(self.raw[0]));
         Ok(())
     }
 
     /// Forgets recorded samples (e.g. after warm-up frames).
     pub fn clear(&mut self) {
         self.samples.iter_mut().for_each(SampleWindow::clear);
+        self.starts.clear();
+    }
+
+    /// Every recorded frame (the last `WINDOW`), oldest first: per scope its milliseconds,
+    /// the whole frame's, and where each frame started on the device's clock.
+    pub fn series(&self) -> Series {
+        let n = self.names.len();
+        Series {
+            scopes: self
+                .names
+                .iter()
+                .zip(&self.samples)
+                .map(|(name, s)| (name.clone(), s.ordered()))
+                .collect(),
+            frame: self.samples[n].ordered(),
+            starts: self.starts.ordered(),
+        }
     }
 
     /// Per-scope statistics over the last `WINDOW` frames, in scope order.
@@ -290,6 +328,8 @@ mod tests {
         assert_eq!(w.samples().len(), WINDOW);
         assert_eq!(w.values.capacity(), capacity, "the ring never grows");
         assert_eq!(w.last(), Some(4999.0));
+        let ordered: Vec<f64> = (5000 - WINDOW as i32..5000).map(f64::from).collect();
+        assert_eq!(w.ordered(), ordered, "oldest first across the wrap");
         // The window holds exactly the last 1024 samples: 3976..=4999.
         let mut kept = w.samples().to_vec();
         kept.sort_by(f64::total_cmp);

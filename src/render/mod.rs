@@ -5,6 +5,7 @@
 pub mod settings;
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
 use ash::vk;
@@ -13,7 +14,7 @@ use glam::Vec4;
 use gpu_allocator::MemoryLocation;
 
 use crate::frame::Frame;
-use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, ScopeStats};
+use crate::gpu::{Buffer, Context, FrameRing, ImageDesc, SampleWindow, ScopeStats, Series};
 use crate::gpu_scene::{GpuScene, SceneInfo};
 use crate::graph::{Access, BufferId, CompiledGraph, GraphBuilder, ImageId};
 use crate::layout::{
@@ -157,6 +158,30 @@ pub struct Renderer {
     /// The viewer's clipping box and hidden classes (`set_filter`), applied by the
     /// projection passes.
     filter: Option<Resolved>,
+    /// The host's side of each timed frame: recording and submission.
+    cpu: CpuTimes,
+}
+
+/// Per frame (the last `profiler::WINDOW`), when the host began recording it (milliseconds
+/// since the renderer was built) and how long recording and submission took.
+struct CpuTimes {
+    epoch: Instant,
+    starts: SampleWindow,
+    record: SampleWindow,
+    submit: SampleWindow,
+}
+
+/// The raw timings of the frames recorded since the last `clear_timings`, oldest first: the
+/// GPU's per pass (`Series`) and the host's per frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TimingSeries {
+    pub gpu: Series,
+    /// When the host began recording each frame, milliseconds since the renderer was built.
+    pub cpu_starts: Vec<f64>,
+    /// Milliseconds the host spent recording each frame's commands.
+    pub cpu_record: Vec<f64>,
+    /// Milliseconds the host spent submitting each frame.
+    pub cpu_submit: Vec<f64>,
 }
 
 impl Renderer {
@@ -331,6 +356,12 @@ impl Renderer {
             batch_tables,
             batches_id,
             filter: None,
+            cpu: CpuTimes {
+                epoch: Instant::now(),
+                starts: SampleWindow::default(),
+                record: SampleWindow::default(),
+                submit: SampleWindow::default(),
+            },
         })
     }
 
@@ -477,11 +508,16 @@ impl Renderer {
 
     /// Records the frame into the current slot's command buffer.
     pub fn record(&mut self, readback: bool) -> Result<()> {
+        let start = Instant::now();
         let cmd = self.frames.begin()?;
         let slot = self.frames.current();
         self.graph
             .record(cmd, slot, readback && self.readback.is_some());
-        self.frames.end()
+        self.frames.end()?;
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+        self.cpu.starts.push(ms(start - self.cpu.epoch));
+        self.cpu.record.push(ms(start.elapsed()));
+        Ok(())
     }
 
     /// Submits the current slot and returns without waiting for it. `wait` (the swapchain
@@ -492,7 +528,9 @@ impl Renderer {
         wait: Option<vk::Semaphore>,
         signal: Option<vk::Semaphore>,
     ) -> Result<()> {
+        let start = Instant::now();
         self.frames.submit(wait, signal)?;
+        self.cpu.submit.push(start.elapsed().as_secs_f64() * 1e3);
         if let Some(samples) = &mut self.samples {
             samples.pending[self.frames.current()] = true;
         }
@@ -563,6 +601,19 @@ impl Renderer {
     /// Forgets timing samples (after warm-up).
     pub fn clear_timings(&mut self) {
         self.graph.profiler().clear();
+        self.cpu.starts.clear();
+        self.cpu.record.clear();
+        self.cpu.submit.clear();
+    }
+
+    /// The raw timings of every frame since `clear_timings` (at most `profiler::WINDOW`).
+    pub fn timing_series(&mut self) -> TimingSeries {
+        TimingSeries {
+            gpu: self.graph.profiler().series(),
+            cpu_starts: self.cpu.starts.ordered(),
+            cpu_record: self.cpu.record.ordered(),
+            cpu_submit: self.cpu.submit.ordered(),
+        }
     }
 
     /// Per-pass GPU time statistics and the whole frame's.

@@ -82,7 +82,7 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
     assert_eq!(t["points"], 437_645);
     assert_eq!(t["passes"][0]["name"], "points.project");
-    assert_eq!(t["passes"][0]["samples"], 3);
+    assert_eq!(t["passes"][0]["frames"], 3);
     assert!(t["passes"][0]["median_ms"].as_f64().expect("ms") > 0.0);
     assert!(t["points_per_second"].as_f64().expect("rate") > 0.0);
 }
@@ -1497,4 +1497,110 @@ fn sample_counts_beyond_the_memory_are_refused_before_anything_is_allocated() {
                 after, and the sweep keeps every cloud it samples: 1000 points before these)";
     assert!(line.starts_with(&head) && line.ends_with(tail), "{e}");
     assert!(!out.join("results.json").exists());
+}
+
+/// `render --timings/--timings-csv/--trace` of the bunny under `lights` (a scene file), with
+/// points-deferred (its normalize pass lights every pixel once per light); returns the JSON.
+fn timed_bunny(dir: &Path, name: &str, lights: &str) -> serde_json::Value {
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(&scene, lights).expect("scene");
+    let path = |ext: &str| dir.join(format!("{name}.{ext}"));
+    let bunny = data("stanford/bun_zipper.ply");
+    let o = surfel(&[
+        "render",
+        bunny.to_str().expect("utf8"),
+        "--method",
+        "points-deferred",
+        "--size",
+        "160x160",
+        "--scene",
+        scene.to_str().expect("utf8"),
+        "--warmup",
+        "2",
+        "--frames",
+        "15",
+        "--validation",
+        "--out",
+        path("png").to_str().expect("utf8"),
+        "--timings",
+        path("json").to_str().expect("utf8"),
+        "--timings-csv",
+        path("csv").to_str().expect("utf8"),
+        "--trace",
+        path("trace.json").to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&std::fs::read(path("json")).expect("json")).expect("valid json")
+}
+
+#[test]
+fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_lights() {
+    let dir = tmp("timing-study");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let one = timed_bunny(&dir, "one", "[[lights]]\nkind = \"camera\"\n");
+    let many: String = (0..16)
+        .map(|i| format!("[[lights]]\nkind = \"static\"\nposition = [{i}.0, 2.0, 3.0]\n"))
+        .collect();
+    timed_bunny(&dir, "many", &many);
+    // Run metadata, the plan, and exactly frames x passes samples, whose median and interval
+    // the file states.
+    assert_eq!(one["plan"]["warmup"], 2);
+    assert_eq!(one["plan"]["frames"], 15);
+    for field in [
+        "version", "commit", "device", "driver", "vulkan", "cpu", "os",
+    ] {
+        assert!(
+            one["meta"][field].as_str().is_some_and(|s| !s.is_empty()),
+            "{field}"
+        );
+    }
+    let passes = one["passes"].as_array().expect("passes");
+    assert_eq!(passes.len(), 3);
+    for p in passes.iter().chain([&one["frame"]]) {
+        let samples: Vec<f64> = p["samples_ms"]
+            .as_array()
+            .expect("samples")
+            .iter()
+            .map(|v| v.as_f64().expect("ms"))
+            .collect();
+        assert_eq!(samples.len(), 15, "{}", p["name"]);
+        let e = surfel::eval::stats::median_ci(&samples);
+        assert_eq!(p["median_ms"].as_f64(), Some(e.value));
+        assert_eq!(p["ci_low_ms"].as_f64(), Some(e.low));
+        assert_eq!(p["ci_high_ms"].as_f64(), Some(e.high));
+        assert!(e.low <= e.value && e.value <= e.high);
+    }
+    let csv = std::fs::read_to_string(dir.join("one.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 1 + 15 * 3);
+    assert_eq!(csv.lines().next(), Some("frame,pass,ms"));
+    // The trace: trace-event JSON with one GPU slice per pass per frame.
+    let trace: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("one.trace.json")).expect("trace"))
+            .expect("trace JSON");
+    let events = trace["traceEvents"].as_array().expect("events");
+    let gpu = events
+        .iter()
+        .filter(|e| e["cat"] == "gpu" && e["ph"] == "X");
+    assert_eq!(gpu.count(), 15 * 3);
+    assert_eq!(events.iter().filter(|e| e["name"] == "record").count(), 15);
+    // A file against itself differs nowhere; 16 lights against 1 slow the per-pixel lighting.
+    let compare = |a: &str, b: &str| {
+        let o = surfel(&[
+            "bench",
+            "compare",
+            dir.join(a).to_str().expect("utf8"),
+            dir.join(b).to_str().expect("utf8"),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8(o.stdout).expect("utf8")
+    };
+    let same = compare("one.json", "one.json");
+    assert_eq!(same.lines().count(), 1 + 4, "{same}");
+    assert!(!same.contains('*'), "{same}");
+    let lights = compare("one.json", "many.json");
+    let normalize = lights
+        .lines()
+        .find(|l| l.contains("| splat.normalize |"))
+        .expect("normalize row");
+    assert!(normalize.trim_end().ends_with('*'), "{lights}");
 }

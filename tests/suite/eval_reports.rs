@@ -37,18 +37,21 @@ fn record(m: usize, points: u64, (w, h): (u32, u32), stress: Option<(&str, f64, 
         name: "project".into(),
         median_ms: frame * 0.5,
         spread_ms: 0.01,
+        samples_ms: Vec::new(),
     }];
     if method != "points" {
         passes.push(PassTiming {
             name: "resolve".into(),
             median_ms: frame * 0.3,
             spread_ms: 0.02,
+            samples_ms: Vec::new(),
         });
     }
     passes.push(PassTiming {
         name: "shade".into(),
         median_ms: frame * if method == "points" { 0.5 } else { 0.2 },
         spread_ms: 0.01,
+        samples_ms: Vec::new(),
     });
     Record {
         model: "bunny".into(),
@@ -67,6 +70,7 @@ fn record(m: usize, points: u64, (w, h): (u32, u32), stress: Option<(&str, f64, 
         passes,
         frame_ms_median: frame,
         frame_ms_spread: frame * 0.05,
+        frame_samples_ms: Vec::new(),
         points_per_second: points as f64 / (frame / 1000.0),
         samples: None,
         samples_per_level: Vec::new(),

@@ -384,6 +384,7 @@ mod tests {
             passes: Vec::new(),
             frame_ms_median: ms,
             frame_ms_spread: 0.1,
+            frame_samples_ms: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
             samples: None,
             samples_per_level: Vec::new(),
@@ -487,6 +488,7 @@ mod tests {
                 name: name.clone(),
                 median_ms: 1.0,
                 spread_ms: 0.0,
+                samples_ms: Vec::new(),
             });
         }
         out
