@@ -58,6 +58,10 @@ pub struct RenderArgs {
     /// Time frames for at least this many seconds (past --frames, up to 1024 frames).
     #[arg(long, default_value_t = 0.0, value_name = "S")]
     pub min_time: f64,
+    /// Also count each pass's vertex, fragment and compute shader invocations (pipeline
+    /// statistics queries around every pass, which may perturb the times beside them).
+    #[arg(long)]
+    pub pipeline_stats: bool,
     /// Print the render graph's schedule (passes, accesses, barriers).
     #[arg(long)]
     pub dump_graph: bool,
@@ -213,6 +217,12 @@ impl RenderArgs {
                 p.name, p.median_ms, p.ci_low_ms, p.ci_high_ms, p.iqr_ms, p.frames
             );
         }
+        for i in &study.invocations {
+            eprintln!(
+                "{:<24} invocations: {} vertex, {} fragment, {} compute",
+                i.name, i.vertex, i.fragment, i.compute
+            );
+        }
         Ok(())
     }
 }
@@ -331,6 +341,7 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
             readback: true,
             present: None,
             post: settings.post.for_readback(),
+            pipeline_statistics: a.pipeline_stats,
             ..RendererOptions::default()
         },
     )?;
@@ -440,6 +451,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         readback: true,
         present: None,
         post: settings.post.for_readback(),
+        pipeline_statistics: a.pipeline_stats,
         ..RendererOptions::default()
     };
     let k = if config.method.needs_surfels {

@@ -187,6 +187,18 @@ pub struct Study {
     /// Host milliseconds recording and submitting each frame.
     pub cpu_record: PassSummary,
     pub cpu_submit: PassSummary,
+    /// With `--pipeline-stats`: each pass's median shader invocations per frame.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub invocations: Vec<Invocations>,
+}
+
+/// One pass's median shader invocations per frame (pipeline statistics).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Invocations {
+    pub name: String,
+    pub vertex: f64,
+    pub fragment: f64,
+    pub compute: f64,
 }
 
 impl Study {
@@ -203,6 +215,18 @@ impl Study {
             frame: PassSummary::of("frame", &series.gpu.frame),
             cpu_record: PassSummary::of("record", &series.cpu_record),
             cpu_submit: PassSummary::of("submit", &series.cpu_submit),
+            invocations: series
+                .gpu
+                .scopes
+                .iter()
+                .zip(&series.gpu.invocations)
+                .map(|((name, _), [vertex, fragment, compute])| Invocations {
+                    name: name.clone(),
+                    vertex: super::stats::median(vertex),
+                    fragment: super::stats::median(fragment),
+                    compute: super::stats::median(compute),
+                })
+                .collect(),
         }
     }
 
@@ -282,6 +306,7 @@ mod tests {
                 ],
                 frame: vec![1.5, 2.5, 3.5],
                 starts: vec![100.0, 110.0, 120.0],
+                invocations: Vec::new(),
             },
             cpu_starts: vec![5.0, 15.0, 25.0],
             cpu_record: vec![0.1, 0.1, 0.1],

@@ -58,6 +58,8 @@ pub struct Capabilities {
     pub float64: bool,
     /// `multiDrawIndirect`: indirect draws with a draw count above 1.
     pub multi_draw_indirect: bool,
+    /// `pipelineStatisticsQuery`: shader invocation counts per pass (`--pipeline-stats`).
+    pub pipeline_statistics: bool,
     /// `drawIndirectCount`: `PassContext::draw_indirect_count`.
     pub draw_indirect_count: bool,
     /// `shaderDrawParameters`: `gl_DrawID`/`gl_BaseInstance` in vertex shaders.
@@ -326,7 +328,8 @@ impl Context {
             .fragment_stores_and_atomics(core_q.fragment_stores_and_atomics != 0)
             .vertex_pipeline_stores_and_atomics(core_q.vertex_pipeline_stores_and_atomics != 0)
             .independent_blend(core_q.independent_blend != 0)
-            .multi_draw_indirect(core_q.multi_draw_indirect != 0);
+            .multi_draw_indirect(core_q.multi_draw_indirect != 0)
+            .pipeline_statistics_query(core_q.pipeline_statistics_query != 0);
         let mut v11 = vk::PhysicalDeviceVulkan11Features::default()
             .shader_draw_parameters(v11_q.shader_draw_parameters != 0);
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default()
@@ -510,6 +513,24 @@ impl Context {
         }
     }
 
+    /// Names `object` in captures and validation messages (RenderDoc, Nsight) when debug
+    /// utils exist; a name with a NUL byte is cut there.
+    pub fn name_object<H: vk::Handle>(&self, object: H, name: &str) {
+        let Some(du) = &self.debug_utils else {
+            return;
+        };
+        let name = name.split('\0').next().unwrap_or_default();
+        let Ok(name) = std::ffi::CString::new(name) else {
+            return;
+        };
+        let info = vk::DebugUtilsObjectNameInfoEXT::default()
+            .object_handle(object)
+            .object_name(&name);
+        // SAFETY: `object` is a live handle of this device; naming has no other effect.
+        // A failure to name is not an error of the program: the object stays unnamed.
+        let _ = unsafe { du.set_debug_utils_object_name(&info) };
+    }
+
     /// Closes the region opened by `begin_label`.
     pub fn end_label(&self, cmd: vk::CommandBuffer) {
         if let Some(du) = &self.debug_utils {
@@ -659,6 +680,7 @@ unsafe fn capabilities(
         buffer_int64_atomics: v12.shader_buffer_int64_atomics != 0 && core.shader_int64 != 0,
         float64: core.shader_float64 != 0,
         multi_draw_indirect: core.multi_draw_indirect != 0,
+        pipeline_statistics: core.pipeline_statistics_query != 0,
         draw_indirect_count: v12.draw_indirect_count != 0,
         shader_draw_parameters: v11.shader_draw_parameters != 0,
         large_points: core.large_points != 0,

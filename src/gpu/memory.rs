@@ -55,6 +55,7 @@ impl Buffer {
             };
             ctx.device
                 .bind_buffer_memory(raw, allocation.memory(), allocation.offset())?;
+            ctx.name_object(raw, name);
             Ok(Self {
                 ctx: ctx.clone(),
                 raw,
@@ -264,6 +265,7 @@ impl Image {
         // SAFETY: valid create info; views/memory are destroyed in Drop.
         unsafe {
             let raw = ctx.device.create_image(&info, None)?;
+            ctx.name_object(raw, name);
             let requirements = ctx.device.get_image_memory_requirements(raw);
             let allocation = ctx.with_allocator(|a| {
                 a.allocate(&AllocationCreateDesc {

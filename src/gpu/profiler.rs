@@ -34,6 +34,28 @@ pub struct Series {
     pub frame: Vec<f64>,
     /// Each frame's start on the device's timestamp clock, milliseconds.
     pub starts: Vec<f64>,
+    /// With pipeline statistics on, per scope and frame its shader invocations: vertex,
+    /// fragment and compute (`STATISTICS`); empty otherwise.
+    pub invocations: Vec<[Vec<f64>; 3]>,
+}
+
+/// The pipeline statistics counted per scope: vertex, fragment and compute shader
+/// invocations.
+pub const STATISTICS: [vk::QueryPipelineStatisticFlags; 3] = [
+    vk::QueryPipelineStatisticFlags::VERTEX_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::FRAGMENT_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::COMPUTE_SHADER_INVOCATIONS,
+];
+
+/// Pipeline-statistics queries, one per scope and frame slot, and their samples.
+struct Statistics {
+    pools: Vec<vk::QueryPool>,
+    /// Per slot: whether its pool holds a frame recorded with the queries.
+    written: Vec<bool>,
+    /// Per scope, per counter of `STATISTICS`: the last `WINDOW` frames.
+    samples: Vec<[SampleWindow; 3]>,
+    /// Reused buffer for query results: one value per counter of each scope.
+    raw: Vec<[u64; 3]>,
 }
 
 /// Statistics of a sample set: median and interquartile range.
@@ -132,6 +154,7 @@ pub struct Profiler {
     starts: SampleWindow,
     /// Reused buffer for query results.
     raw: Vec<u64>,
+    statistics: Option<Statistics>,
 }
 
 impl Profiler {
@@ -149,6 +172,7 @@ impl Profiler {
             starts: SampleWindow::default(),
             raw: vec![0; count as usize],
             names,
+            statistics: None,
         };
         for _ in 0..slots {
             // SAFETY: valid create info; destroyed in Drop (also on an early return).
@@ -163,6 +187,90 @@ impl Profiler {
             profiler.pools.push(pool);
         }
         Ok(profiler)
+    }
+
+    /// Counts each scope's shader invocations (`STATISTICS`) beside its time, from the next
+    /// frame on. Queries around every pass may perturb the timings they sit beside: an
+    /// opt-in. Fails where the device lacks `pipelineStatisticsQuery`.
+    pub fn enable_statistics(&mut self) -> Result<()> {
+        if !self.ctx.caps.pipeline_statistics {
+            anyhow::bail!(
+                "{} lacks pipeline statistics queries (pipelineStatisticsQuery)",
+                self.ctx.caps.device_name
+            );
+        }
+        if self.statistics.is_some() {
+            return Ok(());
+        }
+        let flags = STATISTICS
+            .iter()
+            .fold(vk::QueryPipelineStatisticFlags::empty(), |a, &f| a | f);
+        let scopes = self.names.len().max(1) as u32;
+        let mut statistics = Statistics {
+            pools: Vec::with_capacity(self.pools.len()),
+            written: vec![false; self.pools.len()],
+            samples: (0..self.names.len())
+                .map(|_| std::array::from_fn(|_| SampleWindow::default()))
+                .collect(),
+            raw: vec![[0; 3]; scopes as usize],
+        };
+        for _ in 0..self.pools.len() {
+            // SAFETY: valid create info; destroyed in Drop.
+            let pool = unsafe {
+                self.ctx.device.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::PIPELINE_STATISTICS)
+                        .pipeline_statistics(flags)
+                        .query_count(scopes),
+                    None,
+                )
+            };
+            match pool {
+                Ok(pool) => statistics.pools.push(pool),
+                Err(e) => {
+                    for pool in statistics.pools {
+                        // SAFETY: created above, never used.
+                        unsafe { self.ctx.device.destroy_query_pool(pool, None) };
+                    }
+                    return Err(e.into());
+                }
+            }
+        }
+        self.statistics = Some(statistics);
+        Ok(())
+    }
+
+    /// Whether pipeline statistics are counted.
+    pub fn counts_statistics(&self) -> bool {
+        self.statistics.is_some()
+    }
+
+    /// Starts counting scope `scope`'s invocations (outside any rendering scope).
+    pub fn begin_statistics(&self, cmd: vk::CommandBuffer, slot: usize, scope: usize) {
+        if let Some(st) = &self.statistics {
+            // SAFETY: the pool was reset in this command buffer; the query is ended by
+            // `end_statistics` before the next one begins.
+            unsafe {
+                self.ctx.device.cmd_begin_query(
+                    cmd,
+                    st.pools[slot],
+                    scope as u32,
+                    vk::QueryControlFlags::empty(),
+                )
+            };
+        }
+    }
+
+    /// Ends scope `scope`'s count.
+    pub fn end_statistics(&self, cmd: vk::CommandBuffer, slot: usize, scope: usize) {
+        if let Some(st) = &self.statistics {
+            // SAFETY: matches `begin_statistics` in the same command buffer.
+            unsafe {
+                self.ctx
+                    .device
+                    .cmd_end_query(cmd, st.pools[slot], scope as u32)
+            };
+        }
     }
 
     /// Number of scopes.
@@ -189,6 +297,16 @@ impl Profiler {
                 .device
                 .cmd_reset_query_pool(cmd, self.pools[slot], 0, self.query_count())
         };
+        if let Some(st) = &mut self.statistics {
+            let scopes = self.names.len().max(1) as u32;
+            st.written[slot] = true;
+            // SAFETY: as above.
+            unsafe {
+                self.ctx
+                    .device
+                    .cmd_reset_query_pool(cmd, st.pools[slot], 0, scopes)
+            };
+        }
         self.written[slot] = true;
     }
 
@@ -234,6 +352,26 @@ impl Profiler {
         let frame = ms(self.raw[n].saturating_sub(self.raw[0]));
         self.samples[n].push(frame);
         self.starts.push(ms(self.raw[0]));
+        let recorded = self
+            .statistics
+            .as_mut()
+            .is_some_and(|st| std::mem::take(&mut st.written[slot]));
+        if let Some(st) = self.statistics.as_mut().filter(|_| recorded) {
+            // SAFETY: every scope's query was begun and ended in the completed command buffer.
+            unsafe {
+                self.ctx.device.get_query_pool_results(
+                    st.pools[slot],
+                    0,
+                    &mut st.raw,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )?
+            };
+            for (scope, counts) in st.samples.iter_mut().enumerate() {
+                for (k, window) in counts.iter_mut().enumerate() {
+                    window.push(st.raw[scope][k] as f64);
+                }
+            }
+        }
         Ok(())
     }
 
@@ -241,6 +379,12 @@ impl Profiler {
     pub fn clear(&mut self) {
         self.samples.iter_mut().for_each(SampleWindow::clear);
         self.starts.clear();
+        if let Some(st) = &mut self.statistics {
+            st.samples
+                .iter_mut()
+                .flatten()
+                .for_each(SampleWindow::clear);
+        }
     }
 
     /// Every recorded frame (the last `WINDOW`), oldest first: per scope its milliseconds,
@@ -256,6 +400,12 @@ impl Profiler {
                 .collect(),
             frame: self.samples[n].ordered(),
             starts: self.starts.ordered(),
+            invocations: self.statistics.as_ref().map_or_else(Vec::new, |st| {
+                st.samples
+                    .iter()
+                    .map(|counts| std::array::from_fn(|k| counts[k].ordered()))
+                    .collect()
+            }),
         }
     }
 
@@ -296,7 +446,8 @@ fn stats(name: &str, s: &SampleWindow) -> ScopeStats {
 
 impl Drop for Profiler {
     fn drop(&mut self) {
-        for &pool in &self.pools {
+        let statistics = self.statistics.iter().flat_map(|st| &st.pools);
+        for &pool in self.pools.iter().chain(statistics) {
             // SAFETY: no pending frame uses the pool (owners wait before dropping).
             unsafe { self.ctx.device.destroy_query_pool(pool, None) };
         }

@@ -121,6 +121,8 @@ pub(super) fn create_pipelines<'a>(
                     .create(ctx)
                     .with_context(|| format!("the pipeline of pass '{name}'"))?,
             );
+            ctx.name_object(pipeline.raw, name);
+            ctx.name_object(pipeline.layout, name);
             made.push((program, pipeline.clone()));
             Ok(Some(pipeline))
         })

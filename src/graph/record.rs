@@ -49,6 +49,9 @@ impl CompiledGraph {
                 None => {}
             }
             self.emit_barriers(cmd, if first { &pass.first } else { &pass.steady });
+            if let Some(scope) = pass.scope {
+                self.profiler.begin_statistics(cmd, slot, scope);
+            }
             let extent = self.begin_rendering(cmd, &pass.decl);
             (pass.decl.record)(&PassContext {
                 ctx: &self.ctx,
@@ -61,6 +64,9 @@ impl CompiledGraph {
             if extent.width > 0 {
                 // SAFETY: matches begin_rendering above.
                 unsafe { self.ctx.device.cmd_end_rendering(cmd) };
+            }
+            if let Some(scope) = pass.scope {
+                self.profiler.end_statistics(cmd, slot, scope);
             }
             self.ctx.end_label(cmd);
         }

@@ -72,6 +72,9 @@ pub struct RendererOptions {
     /// Post-processing after the method (eye-dome lighting, background); none by default, so
     /// the evaluation scores the method's own targets.
     pub post: PostOptions,
+    /// Count each pass's shader invocations beside its time (pipeline statistics queries,
+    /// which may perturb the timings).
+    pub pipeline_statistics: bool,
 }
 
 impl Default for RendererOptions {
@@ -82,6 +85,7 @@ impl Default for RendererOptions {
             frames_in_flight: DEFAULT_FRAMES_IN_FLIGHT,
             overlay: false,
             post: PostOptions::NONE,
+            pipeline_statistics: false,
         }
     }
 }
@@ -335,7 +339,10 @@ impl Renderer {
         if !culled.is_empty() {
             schedule.push_str(&format!("culled (results unused): {}\n", culled.join(", ")));
         }
-        let graph = g.compile_frames(ctx, slots)?;
+        let mut graph = g.compile_frames(ctx, slots)?;
+        if options.pipeline_statistics {
+            graph.profiler().enable_statistics()?;
+        }
         Ok(Self {
             ctx: ctx.clone(),
             graph,

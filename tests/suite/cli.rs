@@ -1604,3 +1604,50 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
         .expect("normalize row");
     assert!(normalize.trim_end().ends_with('*'), "{lights}");
 }
+
+#[test]
+fn pipeline_statistics_count_one_vertex_per_point_and_one_compute_thread_per_pixel() {
+    let dir = tmp("pipeline-stats");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let bunny = data("stanford/bun_zipper.ply");
+    for (method, pass) in [("points", "points.project"), ("pyramid", "pyramid.shade")] {
+        let json = dir.join(format!("{method}.json"));
+        let o = surfel(&[
+            "render",
+            bunny.to_str().expect("utf8"),
+            "--method",
+            method,
+            "--size",
+            "64x48",
+            "--frames",
+            "2",
+            "--pipeline-stats",
+            "--validation",
+            "--out",
+            dir.join(format!("{method}.png")).to_str().expect("utf8"),
+            "--timings",
+            json.to_str().expect("utf8"),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let t: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+        let counts = t["invocations"]
+            .as_array()
+            .expect("invocations")
+            .iter()
+            .find(|i| i["name"] == pass)
+            .unwrap_or_else(|| panic!("{pass} in {t}"))
+            .clone();
+        if method == "points" {
+            assert_eq!(counts["vertex"], 35_947.0, "{counts}");
+            assert!(
+                counts["fragment"].as_f64().expect("fragments") > 0.0,
+                "{counts}"
+            );
+        } else {
+            // 8 x 8 groups over 64 x 48 pixels.
+            assert_eq!(counts["compute"], 64.0 * 48.0, "{counts}");
+            assert_eq!(counts["vertex"], 0.0, "{counts}");
+        }
+    }
+}
