@@ -20,6 +20,7 @@ use crate::methods::hpr::visible::{visible_points, Algorithm, Request};
 use crate::methods::{MethodConfig, METHODS};
 use crate::render::{Renderer, RendererOptions, View};
 use crate::scene::compose;
+use crate::scene::path::CameraPath;
 use crate::scene::preprocess;
 use crate::scene::{Cloud, Estimator};
 use crate::source::{HttpOptions, DEFAULT_CONNECTIONS};
@@ -58,6 +59,10 @@ pub struct RenderArgs {
     /// Time frames for at least this many seconds (past --frames, up to 1024 frames).
     #[arg(long, default_value_t = 0.0, value_name = "S")]
     pub min_time: f64,
+    /// Render and time every frame along a camera path (TOML keyframes, `scene::path`); the
+    /// PNG is its last frame.
+    #[arg(long, value_name = "TOML")]
+    pub path: Option<PathBuf>,
     /// Also count each pass's vertex, fragment and compute shader invocations (pipeline
     /// statistics queries around every pass, which may perturb the times beside them).
     #[arg(long)]
@@ -180,9 +185,12 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 }
 
 impl RenderArgs {
-    /// Whether frames are timed (`--timings`, `--timings-csv` or `--trace`).
+    /// Whether frames are timed (`--timings`, `--timings-csv`, `--trace` or `--path`).
     fn timed(&self) -> bool {
-        self.timings.is_some() || self.timings_csv.is_some() || self.trace.is_some()
+        self.timings.is_some()
+            || self.timings_csv.is_some()
+            || self.trace.is_some()
+            || self.path.is_some()
     }
 
     fn plan(&self) -> FramePlan {
@@ -234,6 +242,26 @@ struct Timings {
     study: Study,
     points_per_second: f64,
     startup: Startup,
+    /// With `--path`: the path time of each frame (the samples' order).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    path_times: Option<Vec<f64>>,
+}
+
+/// Renders `warmup` frames of the first view, forgets their timings, then each view once;
+/// returns the timings of those frames.
+fn time_views(
+    renderer: &mut Renderer,
+    warmup: u32,
+    views: &[View],
+) -> Result<crate::render::TimingSeries> {
+    for _ in 0..warmup {
+        renderer.render(&views[0], false)?;
+    }
+    renderer.clear_timings();
+    for v in views {
+        renderer.render(v, false)?;
+    }
+    Ok(renderer.timing_series())
 }
 
 /// Wall-clock seconds from the start of `surfel render` to its first finished frame.
@@ -299,7 +327,19 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
     check_surfels(config.method, &cloud, &file)?;
     // The camera frames the whole cloud, also when only its visible points are rendered.
     let (centre, radius) = cloud.bounding_sphere().unwrap_or((glam::Vec3::ZERO, 1.0));
-    let camera = settings.camera(centre, radius, cloud.up, cloud.origin);
+    let path = match &a.path {
+        Some(file) => {
+            let path = CameraPath::load(file)?;
+            let up = settings.up(cloud.up);
+            let cameras = path.cameras(&|pose| pose.camera(centre, radius, up, cloud.origin));
+            Some((path, cameras))
+        }
+        None => None,
+    };
+    let camera = match &path {
+        Some((_, cameras)) => cameras[0],
+        None => settings.camera(centre, radius, cloud.up, cloud.origin),
+    };
     let cloud = match a.visibility {
         Some(mode) => visible_only(
             &cloud,
@@ -377,12 +417,35 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
         startup.first_pixel_s, device_s, load_s, upload_s, first_frame_s
     );
     let timed = a.timed();
+    let mut last_view = view.clone();
     if timed {
-        let series = measure(&mut renderer, a.plan(), |r| {
-            r.render(&view, false).map(drop)
-        })?;
+        let (series, plan, path_times) = match &path {
+            Some((path, cameras)) => {
+                let views: Vec<View> = cameras
+                    .iter()
+                    .map(|&camera| View {
+                        camera,
+                        ..view.clone()
+                    })
+                    .collect();
+                let plan = FramePlan {
+                    frames: path.frames,
+                    min_time_s: 0.0,
+                    ..a.plan()
+                };
+                let series = time_views(&mut renderer, a.warmup, &views)?;
+                last_view = views[views.len() - 1].clone();
+                (series, plan, Some(path.times()))
+            }
+            None => {
+                let series = measure(&mut renderer, a.plan(), |r| {
+                    r.render(&view, false).map(drop)
+                })?;
+                (series, a.plan(), None)
+            }
+        };
         let meta = RunMeta::headless(&ctx, &config.label(), (width, height), info.points.into());
-        let study = Study::new(meta, a.plan(), &series);
+        let study = Study::new(meta, plan, &series);
         let median = study.frame.median_ms;
         let timings = Timings {
             points_per_second: if median > 0.0 {
@@ -392,12 +455,14 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
             },
             study,
             startup,
+            path_times,
         };
         a.write_timings(&serde_json::to_value(&timings)?, &timings.study, &series)?;
     }
-    // The frame to write: the first one, unless timed frames followed (then a fresh one).
+    // The frame to write: the first one, unless timed frames followed (then a fresh one of
+    // the last view: a path's last frame).
     let mut frame = if timed {
-        renderer.render(&view, true)?
+        renderer.render(&last_view, true)?
     } else {
         first
     }
@@ -467,6 +532,9 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         renderer_options.frames_in_flight,
     )?;
     let (centre, radius) = streamed.bounding_sphere();
+    if a.path.is_some() {
+        bail!("--path renders a loaded file; a streamed file (COPC, .vpc, URL) does not take it");
+    }
     let camera = settings.camera(centre, radius, streamed.root.up, streamed.origin());
     let mut renderer = Renderer::new(
         &ctx,

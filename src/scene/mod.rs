@@ -21,6 +21,7 @@ pub mod obj;
 pub mod octahedral;
 pub mod orient;
 pub mod pack;
+pub mod path;
 pub mod pcd;
 pub mod ply;
 pub mod preprocess;

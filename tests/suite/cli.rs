@@ -1651,3 +1651,81 @@ fn pipeline_statistics_count_one_vertex_per_point_and_one_compute_thread_per_pix
         }
     }
 }
+
+#[test]
+fn a_camera_path_starts_and_ends_at_the_orbit_poses_and_times_every_frame() {
+    let dir = tmp("camera-path");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let bunny = data("stanford/bun_zipper.ply");
+    let render = |out: &str, extra: &[&str]| {
+        let png = dir.join(out);
+        let mut args = vec![
+            "render",
+            bunny.to_str().expect("utf8"),
+            "--method",
+            "points",
+            "--size",
+            "64x64",
+            "--validation",
+            "--out",
+            png.to_str().expect("utf8"),
+        ];
+        args.extend(extra);
+        let o = surfel(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&png).expect("png").to_rgba8()
+    };
+    let (a, b) = (
+        "{ orbit = [0.0, 15.0] }",
+        "{ orbit = [90.0, 40.0], distance = 0.6 }",
+    );
+    let write_path = |name: &str, first: &str, last: &str| {
+        let p = dir.join(name);
+        std::fs::write(
+            &p,
+            format!(
+                "frames = 7\n[[keys]]\ntime = 0\ncamera = {first}\n\
+                 [[keys]]\ntime = 1\ncamera = {{ orbit = [40.0, 20.0], distance = 0.8 }}\n\
+                 [[keys]]\ntime = 3\ncamera = {last}\n"
+            ),
+        )
+        .expect("path");
+        p
+    };
+    let forward = write_path("forward.toml", a, b);
+    let backward = write_path("backward.toml", b, a);
+    let json = dir.join("forward.json");
+    let end = render(
+        "end.png",
+        &[
+            "--path",
+            forward.to_str().expect("utf8"),
+            "--timings",
+            json.to_str().expect("utf8"),
+        ],
+    );
+    let start = render("start.png", &["--path", backward.to_str().expect("utf8")]);
+    // The last frame of A -> B is the --orbit pose B; that of B -> A is A.
+    assert!(
+        end == render("b.png", &["--orbit", "90,40,0.6"]),
+        "last frame != orbit B"
+    );
+    assert!(
+        start == render("a.png", &["--orbit", "0,15"]),
+        "last frame != orbit A"
+    );
+    assert!(start != end);
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
+    assert_eq!(
+        t["frame"]["samples_ms"].as_array().expect("samples").len(),
+        7
+    );
+    let times: Vec<f64> = t["path_times"]
+        .as_array()
+        .expect("path times")
+        .iter()
+        .map(|v| v.as_f64().expect("time"))
+        .collect();
+    assert_eq!(times, [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0]);
+}
