@@ -80,7 +80,7 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
     assert!(covered > 0.15 && covered < 0.8, "coverage {covered}");
     let t: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
-    assert_eq!(t["points"], 437_645);
+    assert_eq!(t["meta"]["points"], 437_645);
     assert_eq!(t["passes"][0]["name"], "points.project");
     assert_eq!(t["passes"][0]["frames"], 3);
     assert!(t["passes"][0]["median_ms"].as_f64().expect("ms") > 0.0);
@@ -243,7 +243,7 @@ fn renders_copc_under_a_budget_and_e57_with_their_colors() {
         assert!(o.status.success(), "{rel}: {}", stderr(&o));
         let t: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid json");
-        assert_eq!(t["points"], points, "{rel}");
+        assert_eq!(t["meta"]["points"], points, "{rel}");
         let img = image::open(&png).expect("png").to_rgba8();
         let covered: Vec<_> = img.pixels().filter(|p| p[3] == 255).collect();
         assert!(
@@ -1597,12 +1597,24 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
     let same = compare("one.json", "one.json");
     assert_eq!(same.lines().count(), 1 + 4, "{same}");
     assert!(!same.contains('*'), "{same}");
-    let lights = compare("one.json", "many.json");
-    let normalize = lights
-        .lines()
-        .find(|l| l.contains("| splat.normalize |"))
-        .expect("normalize row");
-    assert!(normalize.trim_end().ends_with('*'), "{lights}");
+    // Timing runs share the CI's two cores with other tests: a load burst in one run can
+    // hide the difference, so the pair is timed again (at most three times in all).
+    let normalize_differs = |table: &str| {
+        table
+            .lines()
+            .find(|l| l.contains("| splat.normalize |"))
+            .is_some_and(|l| l.trim_end().ends_with('*'))
+    };
+    let mut lights = compare("one.json", "many.json");
+    for _ in 0..2 {
+        if normalize_differs(&lights) {
+            break;
+        }
+        timed_bunny(&dir, "one", "[[lights]]\nkind = \"camera\"\n");
+        timed_bunny(&dir, "many", &many);
+        lights = compare("one.json", "many.json");
+    }
+    assert!(normalize_differs(&lights), "{lights}");
 }
 
 #[test]

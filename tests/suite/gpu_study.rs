@@ -82,9 +82,9 @@ fn dry_run_writes_timings_anchor_note_and_bench_report() {
         for method in ["compute", "points"] {
             let file = out.join(format!("timings/{method}-{n}.json"));
             let t: serde_json::Value = serde_json::from_str(&read(&file)).expect("timings JSON");
-            assert_eq!(t["points"], n, "{}", file.display());
+            assert_eq!(t["meta"]["points"], n, "{}", file.display());
             assert_eq!(
-                (t["width"].as_u64(), t["height"].as_u64()),
+                (t["meta"]["width"].as_u64(), t["meta"]["height"].as_u64()),
                 (Some(128), Some(128))
             );
             let frame = t["frame"]["median_ms"].as_f64().expect("frame median");
