@@ -16,7 +16,9 @@
 # Output under $OUT (default ./gpu-study), laid out like docs/reports/<gpu>/:
 #   device.txt        nvidia-smi (when present) and surfel's Vulkan device report
 #   anchor.txt        the CUDA anchor's output, or why it did not run; anchor_N.json from it
-#   timings/M-N.json  `surfel render --timings` of method M on N points (images/M-N.png)
+#   timings/M-N.json  `surfel render --timings` of method M on N points (images/M-N.png):
+#                     run metadata, every frame's samples, medians with 95 % intervals;
+#                     M-N.csv the samples as a tidy table, M-N.trace.json a Perfetto trace
 #   bench/            sweep.toml, results.json, results.csv, report.md, charts/
 #   surfel.txt        everything surfel printed; steps.tsv: step, status, seconds
 #   study.md          a summary of the above
@@ -143,6 +145,7 @@ study_size() {
     file=${m//[:,=]/-}-$n
     step "render $m $n" "$out/surfel.txt" 1 "$bin" render "$cloud" --method "$m" \
       --size "$size" --frames "$frames" --timings "$out/timings/$file.json" \
+      --timings-csv "$out/timings/$file.csv" --trace "$out/timings/$file.trace.json" \
       --out "$out/images/$file.png" "${validation[@]}" || true
   done
   if ((anchor)); then

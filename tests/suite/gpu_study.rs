@@ -96,6 +96,10 @@ fn dry_run_writes_timings_anchor_note_and_bench_report() {
             let passes = t["passes"].as_array().expect("passes");
             assert!(!passes.is_empty(), "{}", file.display());
             assert!(out.join(format!("images/{method}-{n}.png")).is_file());
+            for extra in ["csv", "trace.json"] {
+                let path = out.join(format!("timings/{method}-{n}.{extra}"));
+                assert!(path.is_file(), "{}", path.display());
+            }
             assert!(study.contains(&format!("| {method} | {n} | ")), "{study}");
         }
     }
