@@ -247,23 +247,6 @@ struct Timings {
     path_times: Option<Vec<f64>>,
 }
 
-/// Renders `warmup` frames of the first view, forgets their timings, then each view once;
-/// returns the timings of those frames.
-fn time_views(
-    renderer: &mut Renderer,
-    warmup: u32,
-    views: &[View],
-) -> Result<crate::render::TimingSeries> {
-    for _ in 0..warmup {
-        renderer.render(&views[0], false)?;
-    }
-    renderer.clear_timings();
-    for v in views {
-        renderer.render(v, false)?;
-    }
-    Ok(renderer.timing_series())
-}
-
 /// Wall-clock seconds from the start of `surfel render` to its first finished frame.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 struct Startup {
@@ -433,12 +416,15 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
                     min_time_s: 0.0,
                     ..a.plan()
                 };
-                let series = time_views(&mut renderer, a.warmup, &views)?;
+                // Warm-up frames show the path's first view; each timed frame the next one.
+                let series = measure(&mut renderer, plan, |r, i| {
+                    r.render(&views[i.unwrap_or(0)], false).map(drop)
+                })?;
                 last_view = views[views.len() - 1].clone();
                 (series, plan, Some(path.times()))
             }
             None => {
-                let series = measure(&mut renderer, a.plan(), |r| {
+                let series = measure(&mut renderer, a.plan(), |r, _| {
                     r.render(&view, false).map(drop)
                 })?;
                 (series, a.plan(), None)
@@ -593,7 +579,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
     let refine_s = start.elapsed().as_secs_f64() - first_pixel_s;
     if a.timed() {
         let view_batches = streamed.batches().to_vec();
-        let series = measure(&mut renderer, a.plan(), |r| {
+        let series = measure(&mut renderer, a.plan(), |r, _| {
             r.render_batches(&view, Some(&view_batches), false)
                 .map(drop)
         })?;

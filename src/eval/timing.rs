@@ -46,17 +46,17 @@ impl FramePlan {
     }
 }
 
-/// Renders `plan.warmup` frames, forgets their timings, then measures frames by `frame` until
-/// both `plan.frames` and `plan.min_time_s` are reached; returns every measured frame's
-/// timings.
+/// Renders `plan.warmup` frames by `frame(renderer, None)`, forgets their timings, then
+/// measures frames by `frame(renderer, Some(i))`, i counting from 0, until both
+/// `plan.frames` and `plan.min_time_s` are reached; returns every measured frame's timings.
 pub fn measure(
     renderer: &mut Renderer,
     plan: FramePlan,
-    mut frame: impl FnMut(&mut Renderer) -> Result<()>,
+    mut frame: impl FnMut(&mut Renderer, Option<usize>) -> Result<()>,
 ) -> Result<TimingSeries> {
     plan.check()?;
     for _ in 0..plan.warmup {
-        frame(renderer)?;
+        frame(renderer, None)?;
     }
     renderer.clear_timings();
     let start = Instant::now();
@@ -64,7 +64,7 @@ pub fn measure(
     while measured < plan.frames as usize
         || (measured < WINDOW && start.elapsed().as_secs_f64() < plan.min_time_s)
     {
-        frame(renderer)?;
+        frame(renderer, Some(measured))?;
         measured += 1;
     }
     Ok(renderer.timing_series())
