@@ -1500,7 +1500,8 @@ fn sample_counts_beyond_the_memory_are_refused_before_anything_is_allocated() {
 }
 
 /// `render --timings/--timings-csv/--trace` of the bunny under `lights` (a scene file), with
-/// points-deferred (its normalize pass lights every pixel once per light); returns the JSON.
+/// points-deferred (its normalize pass lights every pixel once per light, 480² pixels so the
+/// lighting outweighs scheduling noise); returns the JSON.
 fn timed_bunny(dir: &Path, name: &str, lights: &str) -> serde_json::Value {
     let scene = dir.join(format!("{name}.toml"));
     std::fs::write(&scene, lights).expect("scene");
@@ -1512,13 +1513,13 @@ fn timed_bunny(dir: &Path, name: &str, lights: &str) -> serde_json::Value {
         "--method",
         "points-deferred",
         "--size",
-        "160x160",
+        "480x480",
         "--scene",
         scene.to_str().expect("utf8"),
         "--warmup",
         "2",
         "--frames",
-        "15",
+        "30",
         "--validation",
         "--out",
         path("png").to_str().expect("utf8"),
@@ -1545,7 +1546,7 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
     // Run metadata, the plan, and exactly frames x passes samples, whose median and interval
     // the file states.
     assert_eq!(one["plan"]["warmup"], 2);
-    assert_eq!(one["plan"]["frames"], 15);
+    assert_eq!(one["plan"]["frames"], 30);
     for field in [
         "version", "commit", "device", "driver", "vulkan", "cpu", "os",
     ] {
@@ -1563,7 +1564,7 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
             .iter()
             .map(|v| v.as_f64().expect("ms"))
             .collect();
-        assert_eq!(samples.len(), 15, "{}", p["name"]);
+        assert_eq!(samples.len(), 30, "{}", p["name"]);
         let e = surfel::eval::stats::median_ci(&samples);
         assert_eq!(p["median_ms"].as_f64(), Some(e.value));
         assert_eq!(p["ci_low_ms"].as_f64(), Some(e.low));
@@ -1571,7 +1572,7 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
         assert!(e.low <= e.value && e.value <= e.high);
     }
     let csv = std::fs::read_to_string(dir.join("one.csv")).expect("csv");
-    assert_eq!(csv.lines().count(), 1 + 15 * 3);
+    assert_eq!(csv.lines().count(), 1 + 30 * 3);
     assert_eq!(csv.lines().next(), Some("frame,pass,ms"));
     // The trace: trace-event JSON with one GPU slice per pass per frame.
     let trace: serde_json::Value =
@@ -1581,8 +1582,8 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
     let gpu = events
         .iter()
         .filter(|e| e["cat"] == "gpu" && e["ph"] == "X");
-    assert_eq!(gpu.count(), 15 * 3);
-    assert_eq!(events.iter().filter(|e| e["name"] == "record").count(), 15);
+    assert_eq!(gpu.count(), 30 * 3);
+    assert_eq!(events.iter().filter(|e| e["name"] == "record").count(), 30);
     // A file against itself differs nowhere; 16 lights against 1 slow the per-pixel lighting.
     let compare = |a: &str, b: &str| {
         let o = surfel(&[
