@@ -151,7 +151,7 @@ struct Timed {
     frames: Vec<Frame>,
     /// The first (scored) view's samples per level, for methods that count them
     /// (`Renderer::samples_per_level`).
-    samples_per_level: Option<Vec<u64>>,
+    projected_per_level: Option<Vec<u64>>,
 }
 
 /// Renders `views` once each with readback after `warmup` + `measured` timed frames of the
@@ -192,12 +192,12 @@ fn run_method(
     }
     let (scopes, frame) = r.timings();
     let series = r.timing_series();
-    let mut samples_per_level = None;
+    let mut projected_per_level = None;
     let mut frames = Vec::with_capacity(views.len());
     for (i, v) in views.iter().enumerate() {
         frames.push(r.render(v, true)?.context("no frame read back")?);
         if i == 0 {
-            samples_per_level = r.samples_per_level().map(<[u64]>::to_vec);
+            projected_per_level = r.samples_per_level().map(<[u64]>::to_vec);
         }
     }
     Ok(Timed {
@@ -207,14 +207,14 @@ fn run_method(
             .map(|(s, (_, samples_ms))| PassTiming {
                 name: s.name,
                 median_ms: s.median_ms,
-                spread_ms: s.spread_ms,
+                iqr_ms: s.iqr_ms,
                 samples_ms,
             })
             .collect(),
-        frame_ms: (frame.median_ms, frame.spread_ms),
+        frame_ms: (frame.median_ms, frame.iqr_ms),
         frame_samples: series.gpu.frame,
         frames,
-        samples_per_level,
+        projected_per_level,
     })
 }
 
@@ -415,9 +415,9 @@ pub fn run(
         }
         let frame_ms = timed.frame_ms.0;
         // Level of detail projects the samples it counted per level; the others every point.
-        let samples_per_level = timed.samples_per_level.unwrap_or_default();
+        let projected_per_level = timed.projected_per_level.unwrap_or_default();
         let samples = if config.method.needs_lod {
-            samples_per_level.iter().sum()
+            projected_per_level.iter().sum()
         } else {
             u64::from(scene.info.points)
         };
@@ -437,15 +437,16 @@ pub fn run(
             driver: results.driver.clone(),
             passes: timed.passes,
             frame_ms_median: frame_ms,
-            frame_ms_spread: timed.frame_ms.1,
+            frame_ms_iqr: timed.frame_ms.1,
             frame_samples_ms: timed.frame_samples.clone(),
+            path_times: Vec::new(),
             points_per_second: if frame_ms > 0.0 {
                 f64::from(scene.info.points) / (frame_ms / 1000.0)
             } else {
                 0.0
             },
-            samples: Some(samples),
-            samples_per_level,
+            projected_points: Some(samples),
+            projected_per_level,
             scores,
         });
     }

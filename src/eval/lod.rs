@@ -76,7 +76,7 @@ fn sorted(series: BTreeMap<String, Vec<(f64, f64)>>) -> Series {
 fn cell(r: &Record) -> String {
     format!(
         "{} / {:.1} / {}",
-        r.samples.map_or("–".into(), |s| s.to_string()),
+        r.projected_points.map_or("–".into(), |s| s.to_string()),
         r.frame_ms_median,
         r.scores.psnr.map_or("–".into(), |p| format!("{p:.2}"))
     )
@@ -179,7 +179,7 @@ fn distance_part(
     }
     let metrics: [Metric; 3] = [
         ("samples", "samples projected", |r| {
-            r.samples.map(|s| s as f64)
+            r.projected_points.map(|s| s as f64)
         }),
         ("ms", "frame time (ms)", |r| Some(r.frame_ms_median)),
         ("psnr", "PSNR (dB)", |r| r.scores.psnr),
@@ -456,11 +456,12 @@ mod tests {
             driver: "v".into(),
             passes: Vec::new(),
             frame_ms_median: ms,
-            frame_ms_spread: 0.0,
+            frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
+            path_times: Vec::new(),
             points_per_second: 0.0,
-            samples: Some(1000),
-            samples_per_level: Vec::new(),
+            projected_points: Some(1000),
+            projected_per_level: Vec::new(),
             scores: Scores {
                 psnr: Some(psnr),
                 ..Default::default()

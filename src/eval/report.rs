@@ -22,12 +22,12 @@ pub fn write_report(results: &Results, results_path: &Path, out_dir: &Path) -> R
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let charts = write_charts_by_model(results, &out_dir.join(CHARTS_DIR))?;
     let lod = super::lod::section(results, out_dir, &out_dir.join(CHARTS_DIR))?;
-    let mut text = render(
-        results,
-        &relative_link(results_path, out_dir),
-        &charts,
-        out_dir,
-    );
+    let csv = results_path.with_extension("csv");
+    let links = Links {
+        json: relative_link(results_path, out_dir),
+        csv: csv.is_file().then(|| relative_link(&csv, out_dir)),
+    };
+    let mut text = render(results, &links, &charts, out_dir);
     text.push_str(&lod);
     let path = out_dir.join("report.md");
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
@@ -62,6 +62,9 @@ fn cell(s: &str) -> String {
     s.replace('|', "\\|").replace('\n', " ")
 }
 
+/// One dimension of a configuration, as a table shows it.
+type Dimension = fn(&Record) -> String;
+
 /// Renders a metric value for a table cell.
 type Formatter = fn(Option<f64>) -> String;
 
@@ -79,18 +82,15 @@ fn fmt_psnr(v: Option<f64>) -> String {
     }
 }
 
-fn params_text(r: &Record) -> String {
-    let parts: Vec<String> = r.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
-    if parts.is_empty() {
-        "–".into()
-    } else {
-        parts.join(", ")
-    }
+/// The report's links to the results: the JSON, and the CSV beside it when there is one.
+struct Links {
+    json: String,
+    csv: Option<String>,
 }
 
 fn render(
     results: &Results,
-    results_link: &str,
+    links: &Links,
     charts: &[(Option<String>, PathBuf)],
     out_dir: &Path,
 ) -> String {
@@ -106,7 +106,14 @@ fn render(
     let _ = writeln!(md, "- Device: {}", or_unknown(&results.device));
     let _ = writeln!(md, "- Driver: {}", or_unknown(&results.driver));
     let _ = writeln!(md, "- Date: {}", or_unknown(&results.created));
-    let _ = writeln!(md, "- Results: [{results_link}]({results_link})");
+    let _ = writeln!(md, "- Results: [{0}]({0})", links.json);
+    if let Some(csv) = &links.csv {
+        let _ = writeln!(
+            md,
+            "- Every number of every record (per-pass times, IQR, throughput, IoU, boundary, \
+             depth, flicker, points projected): [{csv}]({csv})"
+        );
+    }
     let _ = writeln!(
         md,
         "- Records: {}; jobs skipped: {}\n",
@@ -178,6 +185,11 @@ fn skipped_section(md: &mut String, results: &Results) {
     let _ = writeln!(md);
 }
 
+/// The model's unstressed records as the compact table: one row per configuration (the
+/// method and, where the rows differ in them, resolution, points, pose and lights; what all
+/// rows share is said above the table), its median frame time with the bootstrap 95 %
+/// interval, PSNR, SSIM and holes. Every other number (per-pass times, IQR, throughput, IoU,
+/// boundary, depth, flicker, points projected) is in the results CSV.
 fn model_table(md: &mut String, results: &Results, model: &str) {
     let mut rows: Vec<&Record> = results
         .records
@@ -189,101 +201,55 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
         return;
     }
     rows.sort_by(|a, b| {
-        (a.pixels(), a.points, a.label(), &a.pose, a.lights).cmp(&(
+        (a.pixels(), a.points, &a.pose, a.lights, a.label()).cmp(&(
             b.pixels(),
             b.points,
-            b.label(),
             &b.pose,
             b.lights,
+            b.label(),
         ))
     });
-    let mut passes: Vec<String> = Vec::new();
-    for p in rows.iter().flat_map(|r| &r.passes) {
-        let column = pass_column(&p.name);
-        if !passes.contains(&column) {
-            passes.push(column);
-        }
-    }
-    // Samples projected (level of detail: read back per level), in results that record them.
-    let has_samples = rows.iter().any(|r| r.samples.is_some());
-    let mut header = vec![
-        "method".to_string(),
-        "params".into(),
-        "resolution".into(),
-        "points".into(),
+    let dimensions: [(&str, Dimension); 4] = [
+        ("resolution", Record::resolution),
+        ("points", |r| r.points.to_string()),
+        ("pose", |r| r.pose.clone()),
+        ("lights", |r| r.lights.to_string()),
     ];
-    if has_samples {
-        header.push("samples".into());
-    }
-    header.extend(["pose".into(), "lights".into(), "frame ms (IQR)".into()]);
-    header.extend(passes.iter().map(|p| format!("{} ms", cell(p))));
-    header.extend(
-        [
-            "Mpts/s",
-            "PSNR dB",
-            "SSIM",
-            "hole %",
-            "IoU",
-            "boundary px",
-            "depth err %",
-            "flicker",
-        ]
-        .map(String::from),
+    let (varying, shared): (Vec<_>, Vec<_>) = dimensions
+        .iter()
+        .partition(|(_, of)| rows.iter().any(|r| of(r) != of(rows[0])));
+    let shared: Vec<String> = shared
+        .iter()
+        .map(|(name, of)| format!("{name} {}", of(rows[0])))
+        .collect();
+    let _ = writeln!(md, "All rows: {}.\n", cell(&shared.join(", ")));
+    let _ = writeln!(
+        md,
+        "| configuration | frame ms [95 % CI] | PSNR dB | SSIM | hole % |\n|---|---|---|---|---|"
     );
-    let _ = writeln!(md, "| {} |", header.join(" | "));
-    let _ = writeln!(md, "|{}", "---|".repeat(header.len()));
     for r in rows {
-        let mut row = vec![
-            cell(&r.method),
-            cell(&params_text(r)),
-            r.resolution(),
-            r.points.to_string(),
-        ];
-        if has_samples {
-            row.push(r.samples.map_or_else(|| "–".into(), |n| n.to_string()));
-        }
-        row.extend([
-            cell(&r.pose),
-            r.lights.to_string(),
-            format!("{:.3} ({:.3})", r.frame_ms_median, r.frame_ms_spread),
-        ]);
-        row.extend(passes.iter().map(|column| {
-            let mut of = r.passes.iter().filter(|p| pass_column(&p.name) == *column);
-            let first = of.next().map(|p| p.median_ms);
-            fmt_opt(
-                first.map(|ms| ms + of.map(|p| p.median_ms).sum::<f64>()),
-                3,
-                1.0,
-            )
-        }));
+        let mut configuration = vec![r.label()];
+        configuration.extend(varying.iter().map(|(name, of)| format!("{name} {}", of(r))));
         let s = &r.scores;
-        row.extend([
-            fmt_opt(Some(r.points_per_second), 1, 1e-6),
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} |",
+            cell(&configuration.join(", ")),
+            frame_ms(r),
             fmt_psnr(s.psnr),
             fmt_opt(s.ssim, 4, 1.0),
             fmt_opt(s.hole_ratio, 2, 100.0),
-            fmt_opt(s.iou, 4, 1.0),
-            fmt_opt(s.boundary_px, 2, 1.0),
-            fmt_opt(s.depth_rel_mean, 2, 100.0),
-            fmt_opt(s.flicker, 2, 1.0),
-        ]);
-        let _ = writeln!(md, "| {} |", row.join(" | "));
+        );
     }
     let _ = writeln!(md);
 }
 
-/// The table column of pass `name`: the numbered rounds of an iteration (`X.round.N`,
-/// `X.advance.N`: HPR's adaptive propagation records up to hundreds) share one column,
-/// `X.rounds`, with their sum; any other pass has its own.
-fn pass_column(name: &str) -> String {
-    let mut parts = name.rsplitn(3, '.');
-    match (parts.next(), parts.next(), parts.next()) {
-        (Some(n), Some("round" | "advance"), Some(prefix))
-            if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) =>
-        {
-            format!("{prefix}.rounds")
-        }
-        _ => name.to_string(),
+/// `median [low, high]` from the record's raw frame times, or the median alone in results
+/// written before they were kept.
+fn frame_ms(r: &Record) -> String {
+    match r.frame_ci() {
+        Some(ci) => format!("{:.3} [{:.3}, {:.3}]", ci.value, ci.low, ci.high),
+        None => format!("{:.3}", r.frame_ms_median),
     }
 }
 
@@ -464,16 +430,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn numbered_rounds_share_one_column() {
-        assert_eq!(pass_column("hpr.round.0"), "hpr.rounds");
-        assert_eq!(pass_column("hpr.advance.31"), "hpr.rounds");
-        assert_eq!(pass_column("hpr.round.x"), "hpr.round.x");
-        assert_eq!(pass_column("pyramid.analysis.3"), "pyramid.analysis.3");
-        assert_eq!(pass_column("round.1"), "round.1");
-        assert_eq!(pass_column("frame"), "frame");
-    }
-
-    #[test]
     fn relative_links_and_cells() {
         let dir = std::env::temp_dir().join(format!("surfel_report_rel_{}", std::process::id()));
         let out = dir.join("out");
@@ -493,12 +449,12 @@ mod tests {
     }
 
     #[test]
-    fn the_model_table_shows_the_samples_only_where_recorded() {
-        let lod = Record {
+    fn the_model_table_names_what_varies_and_gives_the_interval() {
+        let base = Record {
             model: "m".into(),
             points: 1000,
-            method: "lod-compute".into(),
-            params: BTreeMap::new(),
+            method: "points".into(),
+            params: BTreeMap::from([("size".to_string(), "2".to_string())]),
             width: 8,
             height: 8,
             pose: "p".into(),
@@ -509,39 +465,60 @@ mod tests {
             device: String::new(),
             driver: String::new(),
             passes: Vec::new(),
-            frame_ms_median: 1.0,
-            frame_ms_spread: 0.0,
+            frame_ms_median: 2.0,
+            frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
+            path_times: Vec::new(),
             points_per_second: 1e6,
-            samples: Some(640),
-            samples_per_level: vec![600, 40],
-            scores: Default::default(),
-        };
-        let older = Record {
-            method: "points".into(),
-            samples: None,
-            samples_per_level: Vec::new(),
-            ..lod.clone()
-        };
-        let table = |records: Vec<Record>| {
-            let mut md = String::new();
-            let results = Results {
-                records,
+            projected_points: None,
+            projected_per_level: Vec::new(),
+            scores: crate::eval::metrics::Scores {
+                psnr: Some(31.234),
+                ssim: Some(0.91),
+                hole_ratio: Some(0.0125),
                 ..Default::default()
-            };
-            model_table(&mut md, &results, "m");
-            md
+            },
         };
-        let md = table(vec![lod, older.clone()]);
+        let samples = vec![1.0, 1.2, 0.9, 1.1, 1.0, 1.3, 0.95];
+        let sampled = Record {
+            method: "splat".into(),
+            params: BTreeMap::new(),
+            lights: 4,
+            frame_samples_ms: samples.clone(),
+            path_times: Vec::new(),
+            frame_ms_median: crate::eval::stats::median(&samples),
+            ..base.clone()
+        };
+        let mut md = String::new();
+        let results = Results {
+            records: vec![sampled, base],
+            ..Default::default()
+        };
+        model_table(&mut md, &results, "m");
         let lines: Vec<&str> = md.lines().collect();
-        assert!(
-            lines[0].starts_with("| method | params | resolution | points | samples | pose |"),
-            "{}",
-            lines[0]
+        assert_eq!(lines[0], "All rows: resolution 8x8, points 1000, pose p.");
+        assert_eq!(
+            lines[2],
+            "| configuration | frame ms [95 % CI] | PSNR dB | SSIM | hole % |"
         );
-        assert!(lines[2].starts_with("| lod-compute | – | 8x8 | 1000 | 640 | p |"));
-        assert!(lines[3].starts_with("| points | – | 8x8 | 1000 | – | p |"));
-        assert!(!table(vec![older]).contains("samples"));
+        assert_eq!(
+            lines[4],
+            "| points(size=2), lights 1 | 2.000 | 31.23 | 0.9100 | 1.25 |"
+        );
+        let ci = crate::eval::stats::median_ci(&samples);
+        assert_eq!(
+            lines[5],
+            format!(
+                "| splat, lights 4 | 1.000 [{:.3}, {:.3}] | 31.23 | 0.9100 | 1.25 |",
+                ci.low, ci.high
+            )
+        );
+        assert!(
+            ci.low <= 1.0 && ci.high >= 1.0 && ci.high > ci.low,
+            "{ci:?}"
+        );
+        assert_eq!(lines[6], "");
+        assert_eq!(lines.len(), 7);
     }
 
     #[test]
@@ -571,11 +548,12 @@ mod tests {
             driver: String::new(),
             passes: Vec::new(),
             frame_ms_median: ms,
-            frame_ms_spread: 0.0,
+            frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
+            path_times: Vec::new(),
             points_per_second: 0.0,
-            samples: None,
-            samples_per_level: Vec::new(),
+            projected_points: None,
+            projected_per_level: Vec::new(),
             scores: Default::default(),
         };
         let results = Results {

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::StressKind;
 use super::metrics::{Scores, BREAK_HOLE_RATIO};
+use super::stats::{median_ci, Estimate};
 
 /// Extracts one metric from a record (`None` when it was not computed).
 pub type MetricFn = fn(&Record) -> Option<f64>;
@@ -28,7 +29,8 @@ pub struct PassTiming {
     /// Median over the measured frames, milliseconds.
     pub median_ms: f64,
     /// Interquartile range over the measured frames, milliseconds.
-    pub spread_ms: f64,
+    #[serde(alias = "spread_ms")]
+    pub iqr_ms: f64,
     /// Every measured frame's milliseconds, in order (empty in results written before they
     /// were recorded).
     #[serde(default)]
@@ -64,22 +66,28 @@ pub struct Record {
     /// Median GPU time of the whole frame, milliseconds.
     pub frame_ms_median: f64,
     /// Interquartile range of the frame time, milliseconds.
-    pub frame_ms_spread: f64,
+    #[serde(alias = "frame_ms_spread")]
+    pub frame_ms_iqr: f64,
     /// Every measured frame's GPU milliseconds, in order (empty in results written before
     /// they were recorded).
     #[serde(default)]
     pub frame_samples_ms: Vec<f64>,
+    /// A camera-path pose's time of each measured frame (`frame_samples_ms[i]` was rendered at
+    /// `path_times[i]`); empty for fixed poses.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub path_times: Vec<f64>,
     /// `points / (frame_ms_median / 1000)`.
     pub points_per_second: f64,
-    /// Samples projected in the scored frame: for level-of-detail methods the sum of
-    /// `samples_per_level`, for every other method the point count (`None` in results written
-    /// before it was recorded).
-    #[serde(default)]
-    pub samples: Option<u64>,
-    /// Level-of-detail methods: the scored frame's samples per level of the object texture,
-    /// read back from the GPU (`Renderer::samples_per_level`); empty for other methods.
-    #[serde(default)]
-    pub samples_per_level: Vec<u64>,
+    /// Points projected in the scored frame: for level-of-detail methods the sum of
+    /// `projected_per_level`, for every other method the point count (`None` in results
+    /// written before it was recorded).
+    #[serde(default, alias = "samples")]
+    pub projected_points: Option<u64>,
+    /// Level-of-detail methods: the scored frame's points projected per level of the object
+    /// texture, read back from the GPU (`Renderer::samples_per_level`); empty for other
+    /// methods.
+    #[serde(default, alias = "samples_per_level")]
+    pub projected_per_level: Vec<u64>,
     pub scores: Scores,
 }
 
@@ -113,6 +121,12 @@ impl Record {
     /// `"WxH"`.
     pub fn resolution(&self) -> String {
         format!("{}x{}", self.width, self.height)
+    }
+
+    /// The median frame time with its bootstrap 95 % interval, from the raw samples (`None`
+    /// in results written before they were kept).
+    pub fn frame_ci(&self) -> Option<Estimate> {
+        (!self.frame_samples_ms.is_empty()).then(|| median_ci(&self.frame_samples_ms))
     }
 }
 
@@ -163,10 +177,12 @@ impl Results {
         std::fs::write(path, self.to_csv()).with_context(|| format!("writing {}", path.display()))
     }
 
-    /// Flat CSV (RFC 4180, `\n` line ends): the fixed columns, `samples` when any record has
-    /// it and `samples_lN` per level any record counted, then the scores, then one
+    /// Flat CSV (RFC 4180, `\n` line ends), every number a record holds: the fixed columns
+    /// (`frames` measured, the frame time's median, interval bounds and IQR),
+    /// `projected_points` when any record has it and `projected_points_lN` per level any
+    /// record counted, then the scores, then one
     /// `param.KEY` column per parameter key seen in any record (sorted), then
-    /// `pass.NAME.median_ms` and `pass.NAME.spread_ms` per pass name in order of first
+    /// `pass.NAME.median_ms` and `pass.NAME.iqr_ms` per pass name in order of first
     /// appearance. Missing values are empty cells.
     pub fn to_csv(&self) -> String {
         let param_keys: BTreeSet<&str> = self
@@ -174,11 +190,11 @@ impl Results {
             .iter()
             .flat_map(|r| r.params.keys().map(String::as_str))
             .collect();
-        let has_samples = self.records.iter().any(|r| r.samples.is_some());
+        let has_projected = self.records.iter().any(|r| r.projected_points.is_some());
         let levels = self
             .records
             .iter()
-            .map(|r| r.samples_per_level.len())
+            .map(|r| r.projected_per_level.len())
             .max()
             .unwrap_or(0);
         let mut pass_names: Vec<&str> = Vec::new();
@@ -199,17 +215,20 @@ impl Results {
             "stress_value",
             "device",
             "driver",
+            "frames",
             "frame_ms_median",
-            "frame_ms_spread",
+            "frame_ms_ci_low",
+            "frame_ms_ci_high",
+            "frame_ms_iqr",
             "points_per_second",
         ]
         .iter()
         .map(|s| s.to_string())
         .collect();
-        if has_samples {
-            header.push("samples".into());
+        if has_projected {
+            header.push("projected_points".into());
         }
-        header.extend((0..levels).map(|l| format!("samples_l{l}")));
+        header.extend((0..levels).map(|l| format!("projected_points_l{l}")));
         header.extend(
             Scores::default()
                 .fields()
@@ -219,12 +238,13 @@ impl Results {
         header.extend(param_keys.iter().map(|k| format!("param.{k}")));
         for name in &pass_names {
             header.push(format!("pass.{name}.median_ms"));
-            header.push(format!("pass.{name}.spread_ms"));
+            header.push(format!("pass.{name}.iqr_ms"));
         }
         let mut out = String::new();
         write_row(&mut out, &header);
         let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
         for r in &self.records {
+            let ci = r.frame_ci();
             let mut row = vec![
                 r.model.clone(),
                 r.points.to_string(),
@@ -237,15 +257,22 @@ impl Results {
                 opt(r.stress_value),
                 r.device.clone(),
                 r.driver.clone(),
+                r.frame_samples_ms.len().to_string(),
                 r.frame_ms_median.to_string(),
-                r.frame_ms_spread.to_string(),
+                opt(ci.map(|c| c.low)),
+                opt(ci.map(|c| c.high)),
+                r.frame_ms_iqr.to_string(),
                 r.points_per_second.to_string(),
             ];
-            if has_samples {
-                row.push(r.samples.map(|n| n.to_string()).unwrap_or_default());
+            if has_projected {
+                row.push(
+                    r.projected_points
+                        .map(|n| n.to_string())
+                        .unwrap_or_default(),
+                );
             }
             row.extend((0..levels).map(|l| {
-                r.samples_per_level
+                r.projected_per_level
                     .get(l)
                     .map(|n| n.to_string())
                     .unwrap_or_default()
@@ -259,7 +286,7 @@ impl Results {
             for name in &pass_names {
                 let pass = r.passes.iter().find(|p| p.name == *name);
                 row.push(opt(pass.map(|p| p.median_ms)));
-                row.push(opt(pass.map(|p| p.spread_ms)));
+                row.push(opt(pass.map(|p| p.iqr_ms)));
             }
             write_row(&mut out, &row);
         }
@@ -393,15 +420,16 @@ mod tests {
             passes: vec![PassTiming {
                 name: "splat".into(),
                 median_ms: ms * 0.75,
-                spread_ms: 0.1,
+                iqr_ms: 0.1,
                 samples_ms: Vec::new(),
             }],
             frame_ms_median: ms,
-            frame_ms_spread: 0.2,
+            frame_ms_iqr: 0.2,
             frame_samples_ms: Vec::new(),
+            path_times: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
-            samples: None,
-            samples_per_level: Vec::new(),
+            projected_points: None,
+            projected_per_level: Vec::new(),
             scores: Scores {
                 psnr: Some(psnr),
                 ..Scores::default()
@@ -436,7 +464,7 @@ mod tests {
         a.passes.push(PassTiming {
             name: "resolve".into(),
             median_ms: 0.5,
-            spread_ms: 0.0,
+            iqr_ms: 0.0,
             samples_ms: Vec::new(),
         });
         let mut b = record("pyramid", "2", 3.0, 35.0);
@@ -446,7 +474,7 @@ mod tests {
             PassTiming {
                 name: "build".into(),
                 median_ms: 1.0,
-                spread_ms: 0.0,
+                iqr_ms: 0.0,
                 samples_ms: Vec::new(),
             },
         );
@@ -467,11 +495,11 @@ mod tests {
                 "param.levels",
                 "param.size",
                 "pass.splat.median_ms",
-                "pass.splat.spread_ms",
+                "pass.splat.iqr_ms",
                 "pass.resolve.median_ms",
-                "pass.resolve.spread_ms",
+                "pass.resolve.iqr_ms",
                 "pass.build.median_ms",
-                "pass.build.spread_ms",
+                "pass.build.iqr_ms",
             ]
         );
         assert!(lines[1].contains("\"GPU \"\"X\"\", rev 2\""));
@@ -482,11 +510,11 @@ mod tests {
     }
 
     #[test]
-    fn csv_lists_samples_and_per_level_counts_only_where_recorded() {
-        let plain = |method: &str, samples: Option<u64>, per_level: Vec<u64>| Record {
+    fn csv_lists_projected_points_and_per_level_counts_only_where_recorded() {
+        let plain = |method: &str, projected_points: Option<u64>, per_level: Vec<u64>| Record {
             device: "gpu".into(),
-            samples,
-            samples_per_level: per_level,
+            projected_points,
+            projected_per_level: per_level,
             ..record(method, "1", 2.0, 30.0)
         };
         let results = Results {
@@ -500,14 +528,14 @@ mod tests {
         let rows: Vec<Vec<&str>> = csv.lines().map(|l| l.split(',').collect()).collect();
         let at = rows[0]
             .iter()
-            .position(|c| *c == "samples")
-            .expect("samples column");
+            .position(|c| *c == "projected_points")
+            .expect("projected_points column");
         let columns = [
-            "samples",
-            "samples_l0",
-            "samples_l1",
-            "samples_l2",
-            "samples_l3",
+            "projected_points",
+            "projected_points_l0",
+            "projected_points_l1",
+            "projected_points_l2",
+            "projected_points_l3",
         ];
         assert_eq!(rows[0][at..at + 5], columns);
         assert_eq!(rows[1][at..at + 5], ["700", "400", "200", "100", "0"]);
@@ -518,27 +546,68 @@ mod tests {
             records: vec![plain("points", None, Vec::new())],
             ..Results::default()
         };
-        assert!(!old.to_csv().contains("samples"));
+        assert!(!old.to_csv().contains("projected"));
     }
 
     #[test]
     fn records_written_before_samples_were_recorded_still_load() {
         let r = Record {
-            samples: Some(7),
-            samples_per_level: vec![4, 3],
+            projected_points: Some(7),
+            projected_per_level: vec![4, 3],
             ..record("lod-compute", "1", 2.0, 30.0)
         };
         let mut json = serde_json::to_value(&r).expect("json");
         let fields = json.as_object_mut().expect("object");
-        assert!(fields.remove("samples").is_some());
-        assert!(fields.remove("samples_per_level").is_some());
+        assert!(fields.remove("projected_points").is_some());
+        assert!(fields.remove("projected_per_level").is_some());
         let old: Record = serde_json::from_value(json).expect("an older record loads");
         let expected = Record {
-            samples: None,
-            samples_per_level: Vec::new(),
-            ..r
+            projected_points: None,
+            projected_per_level: Vec::new(),
+            ..r.clone()
         };
         assert_eq!(old, expected);
+    }
+
+    #[test]
+    fn records_with_the_earlier_column_names_load() {
+        let r = Record {
+            projected_points: Some(7),
+            projected_per_level: vec![4, 3],
+            ..record("lod-compute", "1", 2.0, 30.0)
+        };
+        let text = serde_json::to_string(&r)
+            .expect("json")
+            .replace("\"projected_points\"", "\"samples\"")
+            .replace("\"projected_per_level\"", "\"samples_per_level\"")
+            .replace("\"frame_ms_iqr\"", "\"frame_ms_spread\"")
+            .replace("\"iqr_ms\"", "\"spread_ms\"");
+        assert!(text.contains("\"samples\"") && text.contains("\"spread_ms\""));
+        let old: Record = serde_json::from_str(&text).expect("an earlier record loads");
+        assert_eq!(old, r);
+    }
+
+    #[test]
+    fn the_csv_gives_each_frame_time_interval_from_its_samples() {
+        let samples = vec![2.0, 2.2, 1.9, 2.1, 2.05];
+        let r = Record {
+            frame_samples_ms: samples.clone(),
+            device: "gpu".into(),
+            ..record("points", "1", 2.05, 30.0)
+        };
+        let csv = Results {
+            records: vec![r],
+            ..Results::default()
+        }
+        .to_csv();
+        let rows: Vec<Vec<&str>> = csv.lines().map(|l| l.split(',').collect()).collect();
+        let at = |name: &str| rows[0].iter().position(|c| *c == name).expect(name);
+        let ci = median_ci(&samples);
+        assert_eq!(rows[1][at("frames")], "5");
+        assert_eq!(rows[1][at("frame_ms_ci_low")], ci.low.to_string());
+        assert_eq!(rows[1][at("frame_ms_ci_high")], ci.high.to_string());
+        assert!(ci.low < 2.05 && ci.high > 2.0, "{ci:?}");
+        assert_eq!(rows[0].iter().filter(|c| c.contains("samples")).count(), 0);
     }
 
     #[test]

@@ -21,7 +21,7 @@ pub struct ScopeStats {
     pub name: String,
     pub median_ms: f64,
     /// Interquartile range (p75 - p25) in milliseconds.
-    pub spread_ms: f64,
+    pub iqr_ms: f64,
     pub samples: usize,
 }
 
@@ -435,11 +435,11 @@ impl Profiler {
 }
 
 fn stats(name: &str, s: &SampleWindow) -> ScopeStats {
-    let (median_ms, spread_ms) = s.median_and_iqr();
+    let (median_ms, iqr_ms) = s.median_and_iqr();
     ScopeStats {
         name: name.into(),
         median_ms,
-        spread_ms,
+        iqr_ms,
         samples: s.samples().len(),
     }
 }

@@ -74,8 +74,8 @@ fn quick_sweep_writes_results_charts_and_report() {
             "{r:?}"
         );
         // Methods without level of detail project every point.
-        assert_eq!(r.samples, Some(r.points), "{r:?}");
-        assert!(r.samples_per_level.is_empty(), "{r:?}");
+        assert_eq!(r.projected_points, Some(r.points), "{r:?}");
+        assert!(r.projected_per_level.is_empty(), "{r:?}");
         for (name, v) in r.scores.fields() {
             assert!(v.is_none_or(f64::is_finite), "{name} = {v:?} in {r:?}");
         }
@@ -140,16 +140,20 @@ fn lod_jobs_record_the_samples_read_back_per_level() {
     let lod = record("lod-compute");
     // Every level of the object texture counted; the framed bunny draws coarse levels, so
     // fewer samples than points.
-    assert_eq!(lod.samples_per_level.len(), 4, "{lod:?}");
-    let total: u64 = lod.samples_per_level.iter().sum();
-    assert_eq!(lod.samples, Some(total));
+    assert_eq!(lod.projected_per_level.len(), 4, "{lod:?}");
+    let total: u64 = lod.projected_per_level.iter().sum();
+    assert_eq!(lod.projected_points, Some(total));
     assert!(total > 0 && total < lod.points, "{lod:?}");
     let points = record("points");
-    assert_eq!(points.samples, Some(points.points));
-    assert!(points.samples_per_level.is_empty());
+    assert_eq!(points.projected_points, Some(points.points));
+    assert!(points.projected_per_level.is_empty());
     let csv = std::fs::read_to_string(&run.csv).expect("csv");
     let header = csv.lines().next().expect("header");
-    for column in ["samples", "samples_l0", "samples_l3"] {
+    for column in [
+        "projected_points",
+        "projected_points_l0",
+        "projected_points_l3",
+    ] {
         assert!(header.split(',').any(|c| c == column), "{header}");
     }
     std::fs::remove_dir_all(&out).ok();

@@ -36,21 +36,21 @@ fn record(m: usize, points: u64, (w, h): (u32, u32), stress: Option<(&str, f64, 
     let mut passes = vec![PassTiming {
         name: "project".into(),
         median_ms: frame * 0.5,
-        spread_ms: 0.01,
+        iqr_ms: 0.01,
         samples_ms: Vec::new(),
     }];
     if method != "points" {
         passes.push(PassTiming {
             name: "resolve".into(),
             median_ms: frame * 0.3,
-            spread_ms: 0.02,
+            iqr_ms: 0.02,
             samples_ms: Vec::new(),
         });
     }
     passes.push(PassTiming {
         name: "shade".into(),
         median_ms: frame * if method == "points" { 0.5 } else { 0.2 },
-        spread_ms: 0.01,
+        iqr_ms: 0.01,
         samples_ms: Vec::new(),
     });
     Record {
@@ -69,11 +69,12 @@ fn record(m: usize, points: u64, (w, h): (u32, u32), stress: Option<(&str, f64, 
         driver: "drv 1.2.3".into(),
         passes,
         frame_ms_median: frame,
-        frame_ms_spread: frame * 0.05,
+        frame_ms_iqr: frame * 0.05,
         frame_samples_ms: Vec::new(),
+        path_times: Vec::new(),
         points_per_second: points as f64 / (frame / 1000.0),
-        samples: None,
-        samples_per_level: Vec::new(),
+        projected_points: None,
+        projected_per_level: Vec::new(),
         scores: Scores {
             psnr: Some(psnr - stress.map_or(0.0, |s| s.2 * 100.0)),
             ssim: Some(ssim),
@@ -174,7 +175,7 @@ fn json_round_trip_and_csv() {
         "param.levels",
         "param.size",
         "pass.project.median_ms",
-        "pass.shade.spread_ms",
+        "pass.shade.iqr_ms",
         "pass.resolve.median_ms",
         "psnr",
         "hole_ratio",
@@ -249,6 +250,7 @@ fn report_lists_methods_pareto_set_and_stability() {
     let results = synthetic();
     let json = dir.join("results.json");
     results.write_json(&json).unwrap();
+    results.write_csv(&dir.join("results.csv")).unwrap();
     let out = dir.join("report");
     let path = write_report(&results, &json, &out).unwrap();
     assert_eq!(path, out.join("report.md"));
@@ -261,9 +263,27 @@ fn report_lists_methods_pareto_set_and_stability() {
         "| bunny | mesh | 128x128 | points=5000 | method 'mesh' needs triangle faces; this \
          resampled or stressed cloud has none |"
     ));
-    for (m, (method, ..)) in METHODS.iter().enumerate() {
-        assert!(md.contains(&format!("| {method} |")), "{}", label(m));
+    // The compact table: what all rows share above it, one row per configuration.
+    let table = md.split("## Model `bunny`").nth(1).expect("bunny section");
+    assert!(table
+        .trim_start()
+        .starts_with("All rows: pose default, lights 1.\n"));
+    assert!(table.contains("| configuration | frame ms [95 % CI] | PSNR dB | SSIM | hole % |"));
+    for m in 0..METHODS.len() {
+        assert!(
+            table.contains(&format!(
+                "| {}, resolution 64x64, points 100000 |",
+                label(m)
+            )),
+            "{}",
+            label(m)
+        );
     }
+    assert!(table.contains(
+        "| points(size=1), resolution 64x64, points 100000 | 0.250 | 25.00 | 0.8000 | 0.10 |"
+    ));
+    // The wide table is the CSV's, linked from the header.
+    assert!(md.contains("[../results.csv](../results.csv)"));
 
     let section = md
         .split("### Pareto set: GPU time vs PSNR dB (128x128, 100000 points)")

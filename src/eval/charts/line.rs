@@ -3,6 +3,7 @@
 
 use std::collections::BTreeMap;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -10,6 +11,7 @@ use super::axes::{compact, log_label, log_label_count, mean, padded_range, AxisF
 use super::legend::{
     draw_legend_box, legend_font, legend_width, size_for_legend, LegendRow, Swatch, LEGEND_ROW,
 };
+use super::select::frame_interval;
 use super::style::{Colors, SeriesStyle};
 use super::{titled, Chart, DrawResult};
 use crate::eval::results::Record;
@@ -23,6 +25,9 @@ pub(super) struct Series {
     /// marker and dash, and no line joins points of two models.
     model: Option<String>,
     pts: Vec<(f64, f64)>,
+    /// Each point's y interval (a time's bootstrap 95 % interval), drawn as a vertical bar;
+    /// empty, or `None` at a point, where there is none.
+    pub(super) intervals: Vec<Option<(f64, f64)>>,
 }
 
 impl Series {
@@ -31,8 +36,38 @@ impl Series {
             label: label.into(),
             model: None,
             pts,
+            intervals: Vec::new(),
         }
     }
+}
+
+/// Draws an error bar from `a` to `b` (plot coordinates) with a short cap across each end.
+pub(super) fn error_bar<DB: DrawingBackend>(
+    chart: &mut ChartContext<DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    a: (f64, f64),
+    b: (f64, f64),
+    color: RGBAColor,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    const CAP: i32 = 5;
+    let (pa, pb) = (chart.backend_coord(&a), chart.backend_coord(&b));
+    let vertical = (pa.0 - pb.0).abs() < (pa.1 - pb.1).abs();
+    let cap = |p: (i32, i32)| {
+        if vertical {
+            [(p.0 - CAP, p.1), (p.0 + CAP, p.1)]
+        } else {
+            [(p.0, p.1 - CAP), (p.0, p.1 + CAP)]
+        }
+    };
+    let area = chart.plotting_area().strip_coord_spec();
+    let style = color.stroke_width(2);
+    area.draw(&PathElement::new(vec![pa, pb], style))?;
+    for p in [pa, pb] {
+        area.draw(&PathElement::new(cap(p).to_vec(), style))?;
+    }
+    Ok(())
 }
 
 /// One line per series; optional horizontal threshold and marked breaking points.
@@ -267,8 +302,14 @@ impl Chart for LineChart {
         let legend_width = legend_width(&area, &rows, width * 2 / 5)?;
         let (plot, side) = area.split_horizontally(width - legend_width - 20);
         let (x0, x1) = padded_range(all().map(|p| tx(p.0)), 0.0);
+        let bounds = self
+            .series
+            .iter()
+            .flat_map(|s| s.intervals.iter().flatten())
+            .flat_map(|&(low, high)| [low, high]);
         let ys = all()
             .map(|p| p.1)
+            .chain(bounds)
             .chain(self.threshold.as_ref().map(|t| t.0));
         let (y0, y1) = padded_range(ys, self.y_floor.min_span);
         let mut chart = ChartBuilder::on(&plot)
@@ -290,6 +331,11 @@ impl Chart for LineChart {
             let style = self.style_of(s.model.as_deref());
             let pts: Vec<(f64, f64)> = s.pts.iter().map(|&(x, y)| (tx(x), y)).collect();
             style.line(&mut chart, &pts, color)?;
+            for (&(x, _), interval) in pts.iter().zip(&s.intervals) {
+                if let Some((low, high)) = interval {
+                    error_bar(&mut chart, (x, *low), (x, *high), color)?;
+                }
+            }
             style.markers(&mut chart, &pts, color)?;
         }
         if let Some((y, _)) = &self.threshold {
@@ -326,18 +372,22 @@ pub(super) fn time_series(records: &[&Record], x: impl Fn(&Record) -> u64) -> Ve
     groups
         .into_iter()
         .map(|((label, model), group)| {
-            let mut at: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+            let mut at: BTreeMap<u64, Vec<&Record>> = BTreeMap::new();
             for r in group {
-                at.entry(x(r)).or_default().push(r.frame_ms_median);
+                at.entry(x(r)).or_default().push(r);
             }
-            let pts = at
+            let (pts, intervals) = at
                 .into_iter()
-                .filter_map(|(x, ms)| Some((x as f64, mean(&ms)?)))
-                .collect();
+                .filter_map(|(x, records)| {
+                    let ms: Vec<f64> = records.iter().map(|r| r.frame_ms_median).collect();
+                    Some(((x as f64, mean(&ms)?), frame_interval(&records)))
+                })
+                .unzip();
             Series {
                 label,
                 model: Some(model),
                 pts,
+                intervals,
             }
         })
         .collect()

@@ -62,7 +62,7 @@ pub use style::Colors;
 use axes::compact;
 use line::{time_series, LineChart, Series};
 use pareto::ParetoChart;
-use select::{baseline, slice_with_most};
+use select::{baseline, slice_with_most, speed_intervals};
 use stacked::StackedPassChart;
 use stress::write_stress_charts;
 use style::register_font;
@@ -262,11 +262,13 @@ pub fn write_charts_by_model(
                 ("ssim", "SSIM", |r| r.scores.ssim, AxisFloor::SSIM),
             ];
             for (key, desc, metric, floor) in accuracy {
+                let points = speed_accuracy(&head, metric);
                 let chart = ParetoChart {
                     caption: format!("{model} {res}: {desc} vs GPU time, {device}"),
                     y_desc: desc.to_string(),
                     floor,
-                    points: speed_accuracy(&head, metric),
+                    intervals: speed_intervals(&head, &points),
+                    points,
                     references: reference_times(&head),
                     colors: colors.clone(),
                 };
@@ -383,11 +385,12 @@ mod tests {
             driver: "1.0".into(),
             passes: Vec::new(),
             frame_ms_median: ms,
-            frame_ms_spread: 0.1,
+            frame_ms_iqr: 0.1,
             frame_samples_ms: Vec::new(),
+            path_times: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
-            samples: None,
-            samples_per_level: Vec::new(),
+            projected_points: None,
+            projected_per_level: Vec::new(),
             scores: Scores {
                 psnr: Some(psnr),
                 ..Scores::default()
@@ -487,7 +490,7 @@ mod tests {
             out[i].passes.push(PassTiming {
                 name: name.clone(),
                 median_ms: 1.0,
-                spread_ms: 0.0,
+                iqr_ms: 0.0,
                 samples_ms: Vec::new(),
             });
         }
@@ -495,6 +498,49 @@ mod tests {
     }
 
     /// Draws `chart` into a bitmap of `size` pixels.
+    #[test]
+    fn charts_draw_each_time_interval_as_a_bar() {
+        let spread = |ms: f64| (0..9).map(|i| ms * (0.9 + 0.025 * f64::from(i))).collect();
+        let mut records = [
+            record("points", "1", 1.0, 25.0),
+            record("ewa", "", 3.0, 32.0),
+            // Written before raw samples were kept: no interval.
+            record("splat", "", 2.0, 30.0),
+        ];
+        for r in &mut records[..2] {
+            r.frame_samples_ms = spread(r.frame_ms_median);
+        }
+        let refs: Vec<&Record> = records.iter().collect();
+        let points = speed_accuracy(&refs, |r| r.scores.psnr);
+        let intervals = speed_intervals(&refs, &points);
+        let ci = records[1].frame_ci().expect("samples");
+        assert_eq!(intervals[1], Some((ci.low, ci.high)));
+        assert!(ci.low < 3.0 && ci.high > 3.0, "{ci:?}");
+        assert_eq!(intervals[2], None);
+        let series = time_series(&refs, |r| r.points);
+        assert_eq!(series[0].intervals, [intervals[0]]);
+        // Each bar is a line and two caps more than the chart without intervals.
+        let svg = |intervals: Vec<Option<(f64, f64)>>| {
+            let chart = ParetoChart {
+                caption: "bars".into(),
+                y_desc: "PSNR (dB)".into(),
+                floor: AxisFloor::PSNR,
+                points: points.clone(),
+                intervals,
+                references: Vec::new(),
+                colors: Colors::new(&Results::default()),
+            };
+            let mut text = String::new();
+            {
+                let root = SVGBackend::with_string(&mut text, chart.size()).into_drawing_area();
+                chart.draw(&root).unwrap();
+                root.present().unwrap();
+            }
+            text.matches("<polyline").count()
+        };
+        assert_eq!(svg(intervals) - svg(vec![None; 3]), 6);
+    }
+
     pub(super) fn draw_at(chart: &impl Chart, size: (u32, u32)) -> DrawResult {
         register_font().unwrap();
         let mut buffer = vec![0u8; size.0 as usize * size.1 as usize * 3];

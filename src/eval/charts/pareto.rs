@@ -7,7 +7,7 @@ use super::axes::{compact, log_label, log_label_count, AxisFloor, SpeedAxes};
 use super::legend::{
     draw_legend_box, legend_height, legend_width, size_for_legend, LegendRow, Swatch,
 };
-use super::line::draw_labels;
+use super::line::{draw_labels, error_bar};
 use super::style::Colors;
 use super::{titled, Chart, DrawResult};
 use crate::eval::results::pareto_front;
@@ -20,6 +20,9 @@ pub(super) struct ParetoChart {
     pub(super) floor: AxisFloor,
     /// `(label, ms, accuracy)`, without the reference.
     pub(super) points: Vec<(String, f64, f64)>,
+    /// Each point's frame-time interval (`select::frame_interval`), drawn as a horizontal
+    /// bar; `None` where the records kept no raw samples.
+    pub(super) intervals: Vec<Option<(f64, f64)>>,
     /// `(label, ms)` of the reference configurations, named in the legend, not plotted.
     pub(super) references: Vec<(String, f64)>,
     pub(super) colors: Colors,
@@ -52,7 +55,11 @@ impl Chart for ParetoChart {
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE)?;
-        let axes = SpeedAxes::fit(&self.points, self.floor);
+        let mut axes = SpeedAxes::fit(&self.points, self.floor);
+        for &(low, high) in self.intervals.iter().flatten() {
+            axes.x.0 = axes.x.0.min(axes.x_of(low));
+            axes.x.1 = axes.x.1.max(axes.x_of(high));
+        }
         let note = self.floor.note(self.points.iter().map(|p| p.2));
         let area = titled(root, &self.caption, note.as_deref())?;
         let rows = self.legend();
@@ -91,6 +98,17 @@ impl Chart for ParetoChart {
             step.push((x1, xy[last].1));
         }
         chart.draw_series(LineSeries::new(step, RED.stroke_width(2)))?;
+        for ((label, _, y), interval) in self.points.iter().zip(&self.intervals) {
+            if let Some((low, high)) = interval {
+                let color = self.colors.label(label);
+                error_bar(
+                    &mut chart,
+                    (axes.x_of(*low), *y),
+                    (axes.x_of(*high), *y),
+                    color,
+                )?;
+            }
+        }
         chart.draw_series(
             front
                 .iter()

@@ -104,3 +104,31 @@ pub(super) fn slice_with_most<K: Ord + Copy, O: Ord>(
         .max_by_key(|(_, set)| set.len())
         .map(|(k, _)| k)
 }
+
+/// The frame-time interval drawn for `group`, records averaged into one chart point: the mean
+/// of their bootstrap 95 % interval bounds (for one record, its interval), over the records
+/// with raw samples; `None` when none has them. For several records the span is wider than
+/// the interval of their mean, so a bar never understates the noise.
+pub(super) fn frame_interval(group: &[&Record]) -> Option<(f64, f64)> {
+    let cis: Vec<_> = group.iter().filter_map(|r| r.frame_ci()).collect();
+    let lows: Vec<f64> = cis.iter().map(|c| c.low).collect();
+    let highs: Vec<f64> = cis.iter().map(|c| c.high).collect();
+    Some((mean(&lows)?, mean(&highs)?))
+}
+
+/// [`frame_interval`] per label of [`speed_accuracy`]'s points, in their order.
+pub(super) fn speed_intervals(
+    records: &[&Record],
+    points: &[(String, f64, f64)],
+) -> Vec<Option<(f64, f64)>> {
+    let groups = by_label(records);
+    points
+        .iter()
+        .map(|(label, ..)| {
+            groups
+                .iter()
+                .find(|(l, _)| l == label)
+                .and_then(|(_, group)| frame_interval(group))
+        })
+        .collect()
+}
