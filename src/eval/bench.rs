@@ -68,6 +68,8 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
             eye: eye.map(f64::from),
             target: target.map(f64::from),
         },
+        // The path's first frame is its first key's pose.
+        PoseSpec::Path { path, .. } => path.keys[0].camera,
     };
     let camera = base.camera(info.centre, info.radius, info.up, info.origin);
     let Some((kind, value)) = job.stress else {
@@ -105,6 +107,19 @@ fn job_camera(job: &Job, info: &SceneInfo, spacing: f32) -> Camera {
         StressKind::Inside => at_distance(value * info.radius),
         StressKind::Subsample | StressKind::Noise | StressKind::Nonuniform => camera,
     }
+}
+
+/// The camera of every frame along a job's camera path (`None` for a fixed pose, and for a
+/// camera-side stress, which changes the first frame's pose and is timed there).
+fn job_path(job: &Job, info: &SceneInfo) -> Option<(Vec<Camera>, Vec<f64>)> {
+    let PoseSpec::Path { path, .. } = &job.pose.pose else {
+        return None;
+    };
+    if job.stress.is_some_and(|(kind, _)| !cloud_side(kind)) {
+        return None;
+    }
+    let cameras = path.cameras(&|pose| pose.camera(info.centre, info.radius, info.up, info.origin));
+    Some((cameras, path.times()))
 }
 
 /// Whether a stress changes the cloud (otherwise it changes the camera).
@@ -154,15 +169,18 @@ struct Timed {
     projected_per_level: Option<Vec<u64>>,
 }
 
-/// Renders `views` once each with readback after `warmup` + `measured` timed frames of the
-/// first view.
+/// Renders `views` once each with readback after the timed frames: `warmup` + `measured`
+/// frames of the first view, or with a camera path (`path`, one view per path frame) the
+/// warm-up at its first view and one timed frame per path frame.
 fn run_method(
     ctx: &Arc<Context>,
     scene: &Loaded,
     config: &MethodConfig,
     job: &Job,
     views: &[View],
+    path: &[View],
 ) -> Result<Timed> {
+    let timed_views = if path.is_empty() { &views[..1] } else { path };
     let mut r = Renderer::new(
         ctx,
         &scene.gpu,
@@ -183,12 +201,17 @@ fn run_method(
             && job.frames.warmup > 0
             && start.elapsed().as_secs_f64() < WARMUP_MIN_SECONDS)
     {
-        r.render(&views[0], false)?;
+        r.render(&timed_views[0], false)?;
         warmed += 1;
     }
     r.clear_timings();
-    for _ in 0..job.frames.measured.max(1) {
-        r.render(&views[0], false)?;
+    let measured = if path.is_empty() {
+        job.frames.measured.max(1) as usize
+    } else {
+        path.len()
+    };
+    for i in 0..measured {
+        r.render(&timed_views[i % timed_views.len()], false)?;
     }
     let (scopes, frame) = r.timings();
     let series = r.timing_series();
@@ -372,7 +395,20 @@ pub fn run(
                     .map_or(String::new(), |(k, v)| format!("{}={v}", k.as_str()))
             );
         }
-        let timed = run_method(ctx, scene, &config, job, &views)?;
+        let (path_views, path_times) = match job_path(job, &reference.info) {
+            Some((cameras, times)) => (
+                cameras
+                    .into_iter()
+                    .map(|camera| View {
+                        camera,
+                        ..views[0].clone()
+                    })
+                    .collect(),
+                times,
+            ),
+            None => (Vec::new(), Vec::new()),
+        };
+        let timed = run_method(ctx, scene, &config, job, &views, &path_views)?;
         for f in &timed.frames {
             let report = metrics::check_finite(f)?;
             if !report.is_clean() {
@@ -405,7 +441,7 @@ pub fn run(
                     ..job.clone()
                 };
                 let gt = MethodConfig::parse(REFERENCE_METHOD)?;
-                slot.insert(run_method(ctx, reference, &gt, &gt_job, &views)?.frames);
+                slot.insert(run_method(ctx, reference, &gt, &gt_job, &views, &[])?.frames);
             }
             let truth = &truths[&key];
             scores = metrics::score(&timed.frames[0], &truth[0])?;
@@ -439,7 +475,7 @@ pub fn run(
             frame_ms_median: frame_ms,
             frame_ms_iqr: timed.frame_ms.1,
             frame_samples_ms: timed.frame_samples.clone(),
-            path_times: Vec::new(),
+            path_times,
             points_per_second: if frame_ms > 0.0 {
                 f64::from(scene.info.points) / (frame_ms / 1000.0)
             } else {

@@ -24,6 +24,10 @@
 //! orbit = [45.0, 20.0]                    # azimuth, elevation (degrees); or "default",
 //! distance = 1.0                          # or eye = [x, y, z] with target = [x, y, z]
 //!
+//! [[poses]]
+//! name = "flight"
+//! path = "flight.toml"                    # a camera path (`scene::path`): timed along it
+//!
 //! [[stress]]
 //! kind = "grazing"                        # see StressKind for kinds and units
 //! values = [0, 45, 85]
@@ -38,6 +42,7 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use crate::scene::path::CameraPath;
 use crate::scene::sample::{show_bytes, SAMPLED_POINT_BYTES};
 
 /// Host memory a resampled point takes while its cloud is uploaded: the cloud
@@ -302,6 +307,9 @@ pub enum PoseSpec {
     },
     /// Eye and target in scene coordinates.
     LookAt { eye: [f32; 3], target: [f32; 3] },
+    /// A camera path (`scene::path`) read from `file`: the job times one frame per path frame
+    /// along it and scores its first frame, the first key's pose.
+    Path { file: PathBuf, path: CameraPath },
 }
 
 impl PoseSpec {
@@ -310,7 +318,7 @@ impl PoseSpec {
         match self {
             PoseSpec::Default => Some(1.0),
             PoseSpec::Orbit { distance, .. } => Some(f64::from(*distance)),
-            PoseSpec::LookAt { .. } => None,
+            PoseSpec::LookAt { .. } | PoseSpec::Path { .. } => None,
         }
     }
 }
@@ -480,6 +488,7 @@ struct RawPose {
     distance: Option<f32>,
     eye: Option<[f32; 3]>,
     target: Option<[f32; 3]>,
+    path: Option<PathBuf>,
 }
 
 #[derive(Deserialize)]
@@ -512,10 +521,27 @@ fn finite_all(key: &str, values: &[f32]) -> Result<(), ConfigError> {
     }
 }
 
-fn convert_pose(i: usize, raw: RawPose) -> Result<NamedPose, ConfigError> {
+fn convert_pose(i: usize, raw: RawPose, base: &Path) -> Result<NamedPose, ConfigError> {
     let key = |field: &str| format!("poses[{i}].{field}");
     if raw.name.trim().is_empty() {
         return Err(invalid(key("name"), "must not be empty"));
+    }
+    if let Some(file) = raw.path {
+        if raw.orbit.is_some() || raw.eye.is_some() || raw.target.is_some() {
+            return Err(invalid(
+                key("path"),
+                "cannot be combined with orbit or eye/target (the path's keys give the poses)",
+            ));
+        }
+        if raw.distance.is_some() {
+            return Err(invalid(key("distance"), "only applies to orbit poses"));
+        }
+        let file = base.join(file);
+        let path = CameraPath::load(&file).map_err(|e| invalid(key("path"), format!("{e:#}")))?;
+        return Ok(NamedPose {
+            name: raw.name,
+            pose: PoseSpec::Path { file, path },
+        });
     }
     let pose = match (raw.orbit, raw.eye, raw.target) {
         (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
@@ -687,7 +713,7 @@ impl BenchConfig {
             raw.poses
                 .into_iter()
                 .enumerate()
-                .map(|(i, p)| convert_pose(i, p))
+                .map(|(i, p)| convert_pose(i, p, origin.base_dir()))
                 .collect::<Result<Vec<_>, _>>()?
         };
         for (i, pose) in poses.iter().enumerate() {
@@ -1024,6 +1050,14 @@ values = [1.0, 0.1]
                 "poses[0].orbit:",
             ),
             (&format!("{base}[[poses]]\nname = \"p\"\ndistance = 0\n"), "poses[0].distance:"),
+            (
+                &format!("{base}[[poses]]\nname = \"p\"\npath = \"f.toml\"\norbit = [1, 2]\n"),
+                "poses[0].path: cannot be combined with orbit",
+            ),
+            (
+                &format!("{base}[[poses]]\nname = \"p\"\npath = \"no/such/path.toml\"\n"),
+                "poses[0].path: no/such/path.toml: cannot read camera path",
+            ),
             (&format!("{base}lightz = [1]\n"), "unknown field `lightz`"),
         ];
         for (text, expected) in cases {
@@ -1036,6 +1070,33 @@ values = [1.0, 0.1]
         assert!(err(&dup).contains("models[1].name: duplicate model name \"a\""));
         let e = err("resolutions = [\"8x8\"]\n[[models]]\npath = \"a.obj\"\npoints = [0]\n[[methods]]\nname = \"p\"\n");
         assert!(e.contains("models[0].points[0]"), "{e}");
+    }
+
+    #[test]
+    fn a_path_pose_reads_its_camera_path_beside_the_sweep() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/sweeps");
+        let config = BenchConfig::load(&dir.join("path.toml")).unwrap();
+        let flight = &config.poses[1];
+        let PoseSpec::Path { file, path } = &flight.pose else {
+            panic!("{flight:?}");
+        };
+        assert_eq!(file, &dir.join("../paths/orbit-zoom.toml"));
+        assert_eq!(path.frames, 60);
+        assert_eq!(path.keys.len(), 3);
+        assert_eq!(flight.pose.distance(), None);
+        let bad = dir.join("../../target/surfel-bad-path-sweep.toml");
+        std::fs::write(
+            &bad,
+            "resolutions = [\"8x8\"]\n[[models]]\npath = \"a.ply\"\n[[methods]]\nname = \"points\"\n\
+             [[poses]]\nname = \"p\"\npath = \"../benches/sweeps/path.toml\"\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", BenchConfig::load(&bad).unwrap_err());
+        std::fs::remove_file(&bad).ok();
+        assert!(
+            e.contains("poses[0].path:") && e.contains("invalid camera path"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -1069,6 +1130,7 @@ values = [1.0, 0.1]
             "kernel.toml",
             "hpr.toml",
             "lod.toml",
+            "path.toml",
         ] {
             BenchConfig::load(&dir.join(name))
                 .unwrap()

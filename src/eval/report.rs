@@ -145,6 +145,7 @@ fn render(
     for model in models(results) {
         let _ = writeln!(md, "## Model `{model}`\n");
         model_table(&mut md, results, &model);
+        path_table(&mut md, results, &model);
         pareto_section(&mut md, results, &model);
         embed(&mut md, Some(&model));
     }
@@ -239,6 +240,47 @@ fn model_table(md: &mut String, results: &Results, model: &str) {
             fmt_psnr(s.psnr),
             fmt_opt(s.ssim, 4, 1.0),
             fmt_opt(s.hole_ratio, 2, 100.0),
+        );
+    }
+    let _ = writeln!(md);
+}
+
+/// The model's records timed along a camera path: per path pose and configuration, the
+/// frames, the median frame time and the slowest frame with its path time (the chart of
+/// each path shows every frame).
+fn path_table(md: &mut String, results: &Results, model: &str) {
+    let rows: Vec<&Record> = results
+        .records
+        .iter()
+        .filter(|r| r.model == model && r.stress.is_none() && !r.path_times.is_empty())
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "### Along camera paths\n\n| pose | configuration | frames | frame ms [95 % CI] | \
+         slowest frame ms | at path time |\n|---|---|---|---|---|---|"
+    );
+    for r in rows {
+        let slowest = r
+            .frame_samples_ms
+            .iter()
+            .zip(&r.path_times)
+            .max_by(|a, b| a.0.total_cmp(b.0));
+        let (ms, at) = slowest.map_or(("–".into(), "–".into()), |(ms, t)| {
+            (format!("{ms:.3}"), format!("{t:.3}"))
+        });
+        let _ = writeln!(
+            md,
+            "| {} | {}, {}, points {}, lights {} | {} | {} | {ms} | {at} |",
+            cell(&r.pose),
+            cell(&r.label()),
+            r.resolution(),
+            r.points,
+            r.lights,
+            r.frame_samples_ms.len(),
+            frame_ms(r),
         );
     }
     let _ = writeln!(md);

@@ -21,12 +21,12 @@
 use std::path::Path;
 
 use anyhow::{bail, Context as _, Result};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::camera::{Camera, Pose};
 
 /// One keyframe.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Key {
     /// Seconds (or any unit) along the path; keys ascend.
@@ -35,7 +35,7 @@ pub struct Key {
 }
 
 /// A camera path: its keys and how many frames sample it.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraPath {
     /// Frames rendered along the path (at least 2).

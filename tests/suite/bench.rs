@@ -158,3 +158,75 @@ fn lod_jobs_record_the_samples_read_back_per_level() {
     }
     std::fs::remove_dir_all(&out).ok();
 }
+
+#[test]
+fn a_path_pose_is_timed_at_every_frame_and_scored_at_its_first_key() {
+    let ctx = common::context();
+    let out = std::env::temp_dir().join(format!("surfel-bench-path-{}", std::process::id()));
+    let sweep = r#"
+        resolutions = ["64x64"]
+        lights = [1]
+        [frames]
+        warmup = 1
+        measured = 4
+        [[models]]
+        name = "bunny"
+        path = "../../../shared/data/stanford/bun_zipper.ply"
+        [[methods]]
+        name = "points"
+        [[methods]]
+        name = "compute"
+        [[poses]]
+        name = "start"
+        orbit = [0.0, 15.0]
+        [[poses]]
+        name = "flight"
+        path = "../paths/orbit-zoom.toml"
+    "#;
+    let origin = SweepOrigin::File(quick_sweep_dir().join("path-test.toml"));
+    let config = BenchConfig::parse_from(sweep, origin).expect("sweep");
+    let run = bench::run(&ctx, &config, &out, false).expect("sweep");
+    common::assert_clean(&ctx);
+    let path =
+        surfel::scene::path::CameraPath::load(&quick_sweep_dir().join("../paths/orbit-zoom.toml"))
+            .expect("path");
+    for method in ["points", "compute"] {
+        let record = |pose: &str| {
+            run.results
+                .records
+                .iter()
+                .find(|r| r.method == method && r.pose == pose)
+                .unwrap_or_else(|| panic!("no {method} record at {pose}"))
+        };
+        let (start, flight) = (record("start"), record("flight"));
+        // One timed frame per path frame, each with its path time.
+        assert_eq!(flight.path_times, path.times(), "{method}");
+        assert_eq!(flight.frame_samples_ms.len(), path.frames as usize);
+        assert!(flight.frame_samples_ms.iter().all(|&ms| ms > 0.0));
+        assert_eq!(start.frame_samples_ms.len(), 4);
+        assert!(start.path_times.is_empty());
+        // The scored frame is the first key's pose: the fixed pose "start".
+        assert_eq!(flight.scores, start.scores, "{method}");
+    }
+    let charts: Vec<String> = run
+        .charts
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    assert!(
+        charts.iter().any(|c| c == "bunny_path_flight.png"),
+        "{charts:?}"
+    );
+    let report = surfel::eval::report::write_report(&run.results, &run.json, &out).expect("report");
+    let text = std::fs::read_to_string(report).expect("report.md");
+    let paths = text
+        .split("### Along camera paths")
+        .nth(1)
+        .expect("path table");
+    assert!(
+        paths.contains("| flight | points, 64x64, points 35947, lights 1 | 60 |"),
+        "{paths}"
+    );
+    assert!(text.contains("charts/bunny_path_flight.png"));
+    std::fs::remove_dir_all(&out).ok();
+}

@@ -53,20 +53,18 @@ where
 {
     const CAP: i32 = 5;
     let (pa, pb) = (chart.backend_coord(&a), chart.backend_coord(&b));
-    let vertical = (pa.0 - pb.0).abs() < (pa.1 - pb.1).abs();
-    let cap = |p: (i32, i32)| {
-        if vertical {
-            [(p.0 - CAP, p.1), (p.0 + CAP, p.1)]
-        } else {
-            [(p.0, p.1 - CAP), (p.0, p.1 + CAP)]
-        }
+    let cap: [(i32, i32); 2] = if (pa.0 - pb.0).abs() < (pa.1 - pb.1).abs() {
+        [(-CAP, 0), (CAP, 0)]
+    } else {
+        [(0, -CAP), (0, CAP)]
     };
-    let area = chart.plotting_area().strip_coord_spec();
     let style = color.stroke_width(2);
-    area.draw(&PathElement::new(vec![pa, pb], style))?;
-    for p in [pa, pb] {
-        area.draw(&PathElement::new(cap(p).to_vec(), style))?;
-    }
+    chart.draw_series(std::iter::once(PathElement::new(vec![a, b], style)))?;
+    chart.draw_series(
+        [a, b]
+            .into_iter()
+            .map(|end| EmptyElement::at(end) + PathElement::new(cap.to_vec(), style)),
+    )?;
     Ok(())
 }
 
@@ -312,6 +310,15 @@ impl Chart for LineChart {
             .chain(bounds)
             .chain(self.threshold.as_ref().map(|t| t.0));
         let (y0, y1) = padded_range(ys, self.y_floor.min_span);
+        let bars = self
+            .series
+            .iter()
+            .any(|s| s.intervals.iter().any(Option::is_some));
+        let y_desc = if bars {
+            format!("{} (bars: 95 % CI of the median)", self.y_desc)
+        } else {
+            self.y_desc.clone()
+        };
         let mut chart = ChartBuilder::on(&plot)
             .margin(20)
             .x_label_area_size(45)
@@ -323,7 +330,7 @@ impl Chart for LineChart {
             .configure_mesh()
             .x_labels(log_label_count(log_x, x0, x1))
             .x_desc(self.x_desc.as_str())
-            .y_desc(self.y_desc.as_str())
+            .y_desc(y_desc)
             .x_label_formatter(&x_fmt)
             .draw()?;
         for s in &self.series {

@@ -18,6 +18,9 @@
 //!   distinct resolutions, averaged per (label, pixels);
 //! - time vs lights, per model: the baseline records at the (points, resolution) with the most
 //!   distinct light counts, averaged per (label, lights) (002 ch. 6's light sweeps);
+//! - time along a camera path, per model and path pose (`MODEL_path_POSE`; further slices of
+//!   one pose add points, resolution and lights): each configuration's GPU time of every
+//!   frame against the path's time (records with [`Record::path_times`]);
 //! - metric vs stress, per model and stress kind: hole ratio (with the
 //!   [`BREAK_HOLE_RATIO`](super::metrics::BREAK_HOLE_RATIO) threshold and each method's
 //!   first breaking value marked, methods breaking at one point sharing a note) and PSNR.
@@ -62,7 +65,7 @@ pub use style::Colors;
 use axes::compact;
 use line::{time_series, LineChart, Series};
 use pareto::ParetoChart;
-use select::{baseline, slice_with_most, speed_intervals};
+use select::{baseline, path_slices, slice_with_most, speed_intervals};
 use stacked::StackedPassChart;
 use stress::write_stress_charts;
 use style::register_font;
@@ -287,6 +290,49 @@ pub fn write_charts_by_model(
         }
 
         let of_model: Vec<&Record> = baseline(results).filter(|r| r.model == model).collect();
+        let mut poses_seen: Vec<String> = Vec::new();
+        for slice in path_slices(&of_model) {
+            let first = slice[0];
+            // Each pose's largest slice is named after the pose alone.
+            let stem = if poses_seen.contains(&first.pose) {
+                format!(
+                    "{}_path_{}_{}pts_{}_{}lights",
+                    slug(&model),
+                    slug(&first.pose),
+                    first.points,
+                    first.resolution(),
+                    first.lights
+                )
+            } else {
+                poses_seen.push(first.pose.clone());
+                format!("{}_path_{}", slug(&model), slug(&first.pose))
+            };
+            let series = slice
+                .iter()
+                .map(|r| {
+                    let pts = r
+                        .path_times
+                        .iter()
+                        .copied()
+                        .zip(r.frame_samples_ms.iter().copied());
+                    Series::new(r.label(), pts.collect())
+                })
+                .collect();
+            let chart = LineChart::time(
+                format!(
+                    "{model} {} ({} points, {} light(s)): GPU time along path {:?}, {device}",
+                    first.resolution(),
+                    first.points,
+                    first.lights,
+                    first.pose
+                ),
+                "path time",
+                false,
+                series,
+                &colors,
+            );
+            written.extend(tag(write_both(&chart, dir, &stem)?));
+        }
         if let Some(points) = slice_with_most(&of_model, |r| r.points, |r| r.pixels()) {
             let slice: Vec<&Record> = of_model
                 .iter()

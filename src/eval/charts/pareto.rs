@@ -56,10 +56,19 @@ impl Chart for ParetoChart {
     {
         root.fill(&WHITE)?;
         let mut axes = SpeedAxes::fit(&self.points, self.floor);
+        // Bars past the points' range widen the axis, with a 3 % margin.
+        let (x0, x1) = axes.x;
+        let margin = 0.03 * (x1 - x0);
         for &(low, high) in self.intervals.iter().flatten() {
-            axes.x.0 = axes.x.0.min(axes.x_of(low));
-            axes.x.1 = axes.x.1.max(axes.x_of(high));
+            axes.x.0 = axes.x.0.min(axes.x_of(low) - margin);
+            axes.x.1 = axes.x.1.max(axes.x_of(high) + margin);
         }
+        let bars = self.intervals.iter().any(Option::is_some);
+        let x_desc = if bars {
+            format!("{} (bars: 95 % CI of the median)", axes.x_desc())
+        } else {
+            axes.x_desc().to_string()
+        };
         let note = self.floor.note(self.points.iter().map(|p| p.2));
         let area = titled(root, &self.caption, note.as_deref())?;
         let rows = self.legend();
@@ -82,7 +91,7 @@ impl Chart for ParetoChart {
             .configure_mesh()
             .x_labels(log_label_count(axes.log_time, x0, x1))
             .x_label_formatter(&x_fmt)
-            .x_desc(axes.x_desc())
+            .x_desc(x_desc)
             .y_desc(self.y_desc.as_str())
             .draw()?;
         let xy: Vec<(f64, f64)> = self.points.iter().map(|p| (axes.x_of(p.1), p.2)).collect();

@@ -132,3 +132,22 @@ pub(super) fn speed_intervals(
         })
         .collect()
 }
+
+/// The records among `records` timed along a camera path ([`Record::path_times`]), grouped
+/// by (pose, resolution, points, lights): for each pose its largest slice (most pixels, then
+/// points, then lights) first.
+pub(super) fn path_slices<'a>(records: &[&'a Record]) -> Vec<Vec<&'a Record>> {
+    type Key<'k> = (&'k str, std::cmp::Reverse<(u64, u64, u32)>, (u32, u32));
+    let mut slices: BTreeMap<Key, Vec<&Record>> = BTreeMap::new();
+    for r in records
+        .iter()
+        .filter(|r| !r.path_times.is_empty() && r.path_times.len() == r.frame_samples_ms.len())
+    {
+        let size = std::cmp::Reverse((r.pixels(), r.points, r.lights));
+        slices
+            .entry((r.pose.as_str(), size, (r.width, r.height)))
+            .or_default()
+            .push(r);
+    }
+    slices.into_values().collect()
+}
