@@ -39,17 +39,8 @@ pub struct RenderArgs {
     /// Output PNG.
     #[arg(long, short, default_value = "surfel.png")]
     pub out: PathBuf,
-    /// Write per-pass GPU timings as JSON: run metadata, every measured frame's milliseconds
-    /// per pass, and each pass's median with its bootstrap 95 % interval.
-    #[arg(long, value_name = "JSON")]
-    pub timings: Option<PathBuf>,
-    /// Write the timed frames as a tidy CSV: frame, pass, ms (one row per frame and pass).
-    #[arg(long, value_name = "CSV")]
-    pub timings_csv: Option<PathBuf>,
-    /// Write the timed frames as a trace (Chrome trace-event JSON) that Perfetto and
-    /// chrome://tracing open: GPU passes on one track, recording and submission on another.
-    #[arg(long, value_name = "JSON")]
-    pub trace: Option<PathBuf>,
+    #[command(flatten)]
+    pub outputs: TimingOutputArgs,
     /// Frames rendered before timing starts (pipelines, caches and thread pools settle).
     #[arg(long, default_value_t = 3)]
     pub warmup: u32,
@@ -89,6 +80,32 @@ pub struct RenderArgs {
     pub camera: CameraArgs,
     #[command(flatten)]
     pub stream: StreamArgs,
+}
+
+/// Where timed frames are written (`render`, and `view --path`).
+#[derive(Args, Debug, Default)]
+pub struct TimingOutputArgs {
+    /// Write per-pass GPU timings as JSON: run metadata, every measured frame's milliseconds
+    /// per pass, and each pass's median with its bootstrap 95 % interval.
+    #[arg(long, value_name = "JSON")]
+    pub timings: Option<PathBuf>,
+    /// Write the timed frames as a tidy CSV: frame, pass, ms (one row per frame and pass).
+    #[arg(long, value_name = "CSV")]
+    pub timings_csv: Option<PathBuf>,
+    /// Write the timed frames as a trace (Chrome trace-event JSON) that Perfetto and
+    /// chrome://tracing open: GPU passes on one track, recording and submission on another.
+    #[arg(long, value_name = "JSON")]
+    pub trace: Option<PathBuf>,
+}
+
+impl TimingOutputArgs {
+    pub fn outputs(&self) -> timing::Outputs {
+        timing::Outputs {
+            json: self.timings.clone(),
+            csv: self.timings_csv.clone(),
+            trace: self.trace.clone(),
+        }
+    }
 }
 
 /// Which hidden point removal filters a render (`--visibility`).
@@ -187,10 +204,7 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 impl RenderArgs {
     /// Whether frames are timed (`--timings`, `--timings-csv`, `--trace` or `--path`).
     fn timed(&self) -> bool {
-        self.timings.is_some()
-            || self.timings_csv.is_some()
-            || self.trace.is_some()
-            || self.path.is_some()
+        self.outputs.outputs().any() || self.path.is_some()
     }
 
     fn plan(&self) -> FramePlan {
@@ -199,39 +213,6 @@ impl RenderArgs {
             frames: self.frames,
             min_time_s: self.min_time,
         }
-    }
-
-    /// Writes `json` (`--timings`), the study's CSV (`--timings-csv`) and the trace
-    /// (`--trace`), and prints each pass's median with its interval.
-    fn write_timings(
-        &self,
-        json: &serde_json::Value,
-        study: &Study,
-        series: &crate::render::TimingSeries,
-    ) -> Result<()> {
-        if let Some(path) = &self.timings {
-            timing::write(path, &serde_json::to_string_pretty(json)?)?;
-        }
-        if let Some(path) = &self.timings_csv {
-            timing::write(path, &study.csv())?;
-        }
-        if let Some(path) = &self.trace {
-            let trace = timing::trace(&study.meta.method, series);
-            timing::write(path, &serde_json::to_string(&trace)?)?;
-        }
-        for p in study.passes.iter().chain([&study.frame]) {
-            eprintln!(
-                "{:<24} {:>9.3} ms (95 % CI {:.3}-{:.3}, IQR {:.3}, {} frames)",
-                p.name, p.median_ms, p.ci_low_ms, p.ci_high_ms, p.iqr_ms, p.frames
-            );
-        }
-        for i in &study.invocations {
-            eprintln!(
-                "{:<24} invocations: {} vertex, {} fragment, {} compute",
-                i.name, i.vertex, i.fragment, i.compute
-            );
-        }
-        Ok(())
     }
 }
 
@@ -443,7 +424,9 @@ pub(super) fn render(a: RenderArgs) -> Result<()> {
             startup,
             path_times,
         };
-        a.write_timings(&serde_json::to_value(&timings)?, &timings.study, &series)?;
+        a.outputs
+            .outputs()
+            .write(&serde_json::to_value(&timings)?, &timings.study, &series)?;
     }
     // The frame to write: the first one, unless timed frames followed (then a fresh one of
     // the last view: a path's last frame).
@@ -633,7 +616,7 @@ fn render_streamed(a: RenderArgs, file: &std::path::Path) -> Result<()> {
         {
             fields.extend(base);
         }
-        a.write_timings(&report, &study, &series)?;
+        a.outputs.outputs().write(&report, &study, &series)?;
         eprintln!(
             "frame {:.3} ms; decode {:.2} M points/s per core, read + decode + prepare {:.2} M points/s per core",
             frame.median_ms,

@@ -2,21 +2,22 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use clap::Args;
 use glam::Vec3;
 
-use super::render::StreamArgs;
+use super::render::{StreamArgs, TimingOutputArgs};
 use super::{check_surfels, estimates, view_settings, CameraArgs, InputArgs};
 use crate::color;
 use crate::frame::Size;
 use crate::gpu_scene::streamed::StreamOptions;
 use crate::methods::MethodConfig;
 use crate::render::settings::ViewSettings;
+use crate::scene::path::CameraPath;
 use crate::scene::{compose, Cloud};
 use crate::viewer::estimate::EstimateOptions;
 use crate::viewer::script::Script;
-use crate::viewer::ViewerOptions;
+use crate::viewer::{PathPlay, ViewerOptions};
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -33,8 +34,17 @@ pub struct ViewArgs {
     pub validation: bool,
     /// Run a tour: one command per line (`key NAME`, `frames N`, `screenshot PATH`,
     /// `orbit AZ,EL`, `quit`), then quit.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "path")]
     pub script: Option<PathBuf>,
+    /// Play a camera path (TOML keyframes, `scene::path`) at start, timing every frame (`A`
+    /// plays it again); with --timings, --timings-csv or --trace, write them and quit.
+    #[arg(long, value_name = "TOML")]
+    pub path: Option<PathBuf>,
+    /// Frames rendered at the path's first pose before its frames are timed.
+    #[arg(long, default_value_t = 3, requires = "path")]
+    pub warmup: u32,
+    #[command(flatten)]
+    pub outputs: TimingOutputArgs,
     /// Scene file where `K` saves and `L` loads the camera (.toml or .json).
     #[arg(long, default_value = "surfel-camera.toml")]
     pub camera_file: PathBuf,
@@ -65,6 +75,10 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         .map(crate::viewer::script::Script::load)
         .transpose()?;
     crate::viewer::script::check_camera_file(&a.camera_file)?;
+    let path = a.path.as_deref().map(CameraPath::load).transpose()?;
+    if path.is_none() && a.outputs.outputs().any() {
+        bail!("--timings, --timings-csv and --trace time a camera path in the viewer: give --path");
+    }
     if let Some(dir) = &a.screenshot_dir {
         std::fs::create_dir_all(dir).map_err(|e| {
             anyhow::anyhow!(
@@ -79,6 +93,7 @@ pub(super) fn view(a: ViewArgs) -> Result<()> {
         size,
         settings,
         script,
+        path,
     };
     if start.a.stream.streams(&start.a.file) {
         return view_streamed(start);
@@ -105,6 +120,7 @@ struct Start {
     size: Option<(u32, u32)>,
     settings: ViewSettings,
     script: Option<Script>,
+    path: Option<CameraPath>,
 }
 
 fn validation(a: &ViewArgs) -> bool {
@@ -129,6 +145,12 @@ fn viewer_options(
         .unwrap_or_else(|| color::default_field(cloud).to_owned());
     let up = s.settings.up(cloud.up);
     let camera = s.settings.camera(centre, radius, up, cloud.origin);
+    let path = s.path.map(|path| PathPlay {
+        cameras: path.cameras(&|pose| pose.camera(centre, radius, up, cloud.origin)),
+        times: path.times(),
+        warmup: s.a.warmup,
+        outputs: s.a.outputs.outputs(),
+    });
     Ok(ViewerOptions {
         title,
         file,
@@ -149,6 +171,7 @@ fn viewer_options(
         screenshot_dir: s.a.screenshot_dir,
         estimate,
         stream,
+        path,
     })
 }
 

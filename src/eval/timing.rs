@@ -4,7 +4,7 @@
 //! trace-event format that Perfetto and chrome://tracing open (GPU passes on one track, the
 //! host's recording and submission on another).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
@@ -239,6 +239,59 @@ impl Study {
             }
         }
         out
+    }
+}
+
+/// Where a timed run writes what it measured (`--timings`, `--timings-csv`, `--trace`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outputs {
+    /// The JSON: the study and what the run adds to it.
+    pub json: Option<PathBuf>,
+    /// The tidy CSV ([`Study::csv`]).
+    pub csv: Option<PathBuf>,
+    /// The trace ([`trace`]).
+    pub trace: Option<PathBuf>,
+}
+
+impl Outputs {
+    /// Whether any output was asked for.
+    pub fn any(&self) -> bool {
+        self.json.is_some() || self.csv.is_some() || self.trace.is_some()
+    }
+
+    /// Writes `json`, the study's CSV and the trace of `series` where asked, and prints each
+    /// pass's median with its interval.
+    pub fn write(
+        &self,
+        json: &serde_json::Value,
+        study: &Study,
+        series: &TimingSeries,
+    ) -> Result<()> {
+        if let Some(path) = &self.json {
+            write(path, &serde_json::to_string_pretty(json)?)?;
+        }
+        if let Some(path) = &self.csv {
+            write(path, &study.csv())?;
+        }
+        if let Some(path) = &self.trace {
+            write(
+                path,
+                &serde_json::to_string(&trace(&study.meta.method, series))?,
+            )?;
+        }
+        for p in study.passes.iter().chain([&study.frame]) {
+            eprintln!(
+                "{:<24} {:>9.3} ms (95 % CI {:.3}-{:.3}, IQR {:.3}, {} frames)",
+                p.name, p.median_ms, p.ci_low_ms, p.ci_high_ms, p.iqr_ms, p.frames
+            );
+        }
+        for i in &study.invocations {
+            eprintln!(
+                "{:<24} invocations: {} vertex, {} fragment, {} compute",
+                i.name, i.vertex, i.fragment, i.compute
+            );
+        }
+        Ok(())
     }
 }
 

@@ -36,6 +36,7 @@ pub const KEYS: &[(&str, &str)] = &[
     ("K", "save camera, bookmarks, filter"),
     ("L", "load them (--camera-file)"),
     ("P", "screenshot (PNG)"),
+    ("A", "play the camera path again (--path)"),
     ("H", "show / hide this help"),
     ("U", "list every pass / per-family totals"),
     ("Tab", "show / hide the HUD"),

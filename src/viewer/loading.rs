@@ -119,6 +119,7 @@ pub fn run_loading(
         stream: None,
         filter: Filter::default(),
         bookmarks: Vec::new(),
+        path: None,
     };
     let mut viewer = Viewer::new(placeholder, opts);
     viewer.scene.loading = Some(Loading {

@@ -17,6 +17,7 @@ mod input;
 mod interact;
 mod loading;
 mod orbit;
+mod playback;
 pub mod script;
 mod tool_state;
 pub mod tools;
@@ -53,6 +54,8 @@ use input::Pointer;
 use loading::SceneState;
 pub use loading::{run_loading, Early};
 use orbit::Orbit;
+pub use playback::PathPlay;
+use playback::Playback;
 use script::{Runner, Script, ViewerKey};
 use tool_state::ToolState;
 
@@ -91,6 +94,8 @@ pub struct ViewerOptions {
     pub filter: Filter,
     /// Camera bookmarks at start (the scene file's).
     pub bookmarks: Vec<Bookmark>,
+    /// A camera path to play and time at start (`A` plays it again).
+    pub path: Option<PathPlay>,
 }
 
 /// The window, its swapchain and the renderer drawing into it.
@@ -116,6 +121,8 @@ struct Viewer {
     pointer: Pointer,
     /// The scripted tour being run.
     script: Option<Runner>,
+    /// The camera path being played (or played last).
+    playback: Option<Playback>,
     /// A script's `size` step: the size asked for and the frames rendered since.
     resizing: Option<(PhysicalSize<u32>, u32)>,
     /// Write the next frame to these PNGs, in the order asked (`P`, a script's `screenshot`).
@@ -177,6 +184,7 @@ impl Viewer {
             .position(|m| m.name == opts.method.method.name)
             .unwrap_or(0);
         let script = opts.script.take().map(Runner::new);
+        let playback = opts.path.take().map(Playback::new);
         let bookmarks = std::mem::take(&mut opts.bookmarks);
         Viewer {
             orbit: Orbit::from_camera(&opts.camera, opts.up),
@@ -193,6 +201,7 @@ impl Viewer {
             gpu: None,
             pointer: Pointer::default(),
             script,
+            playback,
             resizing: None,
             screenshots: Vec::new(),
             quit: false,
@@ -296,6 +305,9 @@ impl Viewer {
             let renderer = self.build_renderer(&ctx, &gpu.swapchain)?;
             self.gpu = Some(Gpu { renderer, ..gpu });
         }
+        if let Some(playback) = self.playback.as_mut() {
+            playback.restart_if_timing();
+        }
         self.push_filter();
         self.hud.dirty = true;
         Ok(())
@@ -353,6 +365,11 @@ impl Viewer {
                     next_screenshot_path(self.opts.screenshot_dir.as_deref(), &self.screenshots);
                 self.screenshots.push(path);
             }
+            ViewerKey::Char('a') => {
+                if let Some(playback) = self.playback.as_mut() {
+                    playback.restart();
+                }
+            }
             ViewerKey::Char('k') => self.save_camera_file()?,
             ViewerKey::Char('l') => {
                 let loaded = self.load_camera_file();
@@ -393,9 +410,9 @@ impl Viewer {
             }
             self.hud.dirty = false;
         } else {
-            // A scripted tour waits for the estimate before its first step: its screenshots do
-            // not depend on how fast the worker is.
-            self.poll_estimation(self.script.is_some())?;
+            // A scripted tour or a timed path waits for the estimate before its first step: its
+            // screenshots and times do not depend on how fast the worker is.
+            self.poll_estimation(self.script.is_some() || self.playback.is_some())?;
             if !self.run_script()? {
                 self.quit = true;
                 return Ok(());
@@ -426,7 +443,11 @@ impl Viewer {
         };
         let shots = std::mem::take(&mut self.screenshots);
         let readback = !shots.is_empty() || !self.tools.requests.is_empty();
-        let camera = self.orbit.camera();
+        let camera = if loading {
+            self.orbit.camera()
+        } else {
+            self.next_camera()?
+        };
         // After `begin_frame`, which collects the timings of the frame that used this slot:
         // while the renderer has none yet, every frame looks for them.
         if !loading && (self.hud.dirty || self.hud.measuring) {
@@ -458,6 +479,9 @@ impl Viewer {
             gpu.renderer.finish()?;
             let frame = gpu.renderer.read_frame()?;
             self.read_back(&frame, &camera, shots)?;
+        }
+        if !loading {
+            self.path_frame_done()?;
         }
         if self.hud.rate.tick(Instant::now()) {
             self.hud.memory = self.ctx.as_deref().and_then(gpu_memory);

@@ -726,3 +726,89 @@ fn key_v_in_a_streamed_tour_is_reported_and_the_tour_goes_on() {
     );
     assert_eq!(png(&dir.join("after.png")).dimensions(), (160, 120));
 }
+
+#[test]
+fn a_camera_path_is_played_timed_at_every_frame_and_written() {
+    let dir = tmp_dir("path");
+    std::fs::write(
+        dir.join("flight.toml"),
+        "frames = 5\n[[keys]]\ntime = 0\ncamera = { orbit = [0.0, 10.0] }\n\
+         [[keys]]\ntime = 2\ncamera = { orbit = [60.0, 20.0], distance = 0.6 }\n",
+    )
+    .expect("path");
+    let bunny = data("stanford/bun_zipper.ply");
+    let o = view(
+        &dir,
+        "1024x768",
+        &bunny,
+        &[
+            "--size",
+            "160x120",
+            "--path",
+            "flight.toml",
+            "--warmup",
+            "2",
+            "--timings",
+            "t.json",
+            "--timings-csv",
+            "t.csv",
+            "--trace",
+            "trace.json",
+        ],
+    );
+    // With outputs asked for, the viewer quits after the flight.
+    assert!(o.status.success(), "viewer failed: {}", text(&o.stderr));
+    assert!(
+        text(&o.stdout).contains("path: 5 frames, GPU "),
+        "{}",
+        text(&o.stdout)
+    );
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).expect(name);
+    let t: serde_json::Value = serde_json::from_str(&read("t.json")).expect("json");
+    assert_eq!(t["meta"]["present_mode"], "fifo");
+    assert_eq!(
+        (t["meta"]["width"].as_u64(), t["meta"]["height"].as_u64()),
+        (Some(160), Some(120))
+    );
+    assert_eq!(t["plan"]["warmup"], 2);
+    assert_eq!(t["plan"]["frames"], 5);
+    assert_eq!(
+        t["path_times"],
+        serde_json::json!([0.0, 0.5, 1.0, 1.5, 2.0])
+    );
+    let passes = t["passes"].as_array().expect("passes");
+    let names: Vec<&str> = passes.iter().filter_map(|p| p["name"].as_str()).collect();
+    assert!(
+        names.contains(&"points.project") && names.contains(&"overlay.text"),
+        "{names:?}"
+    );
+    for p in passes.iter().chain([&t["frame"]]) {
+        let samples = p["samples_ms"].as_array().expect("samples");
+        assert_eq!(samples.len(), 5, "{p}");
+        assert!(
+            samples
+                .iter()
+                .all(|s| s.as_f64().is_some_and(|ms| ms > 0.0)),
+            "{p}"
+        );
+    }
+    // The tidy CSV: one row per frame and pass.
+    assert_eq!(read("t.csv").lines().count(), 1 + 5 * passes.len());
+    let trace: serde_json::Value = serde_json::from_str(&read("trace.json")).expect("trace");
+    assert!(trace["traceEvents"]
+        .as_array()
+        .is_some_and(|e| !e.is_empty()));
+}
+
+#[test]
+fn viewer_timings_without_a_path_are_refused() {
+    let dir = tmp_dir("timings-no-path");
+    let bunny = data("stanford/bun_zipper.ply");
+    let o = view(&dir, "640x480", &bunny, &["--timings", "t.json"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains("time a camera path in the viewer: give --path"),
+        "{}",
+        text(&o.stderr)
+    );
+}
