@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use clap::{Args, Subcommand};
 
 use super::context;
@@ -87,6 +87,9 @@ pub(super) fn report(a: ReportArgs) -> Result<()> {
             .map(Path::to_path_buf)
             .unwrap_or_default()
     });
+    // The wide table the report links: every number of every record, in the current columns.
+    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+    results.write_csv(&out.join("results.csv"))?;
     let path = crate::eval::report::write_report(&results, &a.results, &out)?;
     eprintln!("report -> {}", path.display());
     Ok(())

@@ -66,7 +66,7 @@ pub enum Command {
     HprStudy(HprStudyArgs),
     /// Run a benchmark sweep: GPU timings and accuracy against the ground truth, with charts.
     Bench(BenchArgs),
-    /// Write report.md (tables and charts) from a sweep's results.json.
+    /// Write report.md (tables and charts) and results.csv from a sweep's results.json.
     Report(ReportArgs),
 }
 

@@ -17,12 +17,14 @@ pub const CHARTS_DIR: &str = "charts";
 /// Writes `out_dir/report.md` and the charts it embeds (via
 /// [`crate::eval::charts::write_charts`], into `out_dir/charts/`, overwriting charts already
 /// written there) and returns the report's path. `results_path` is linked from the header,
-/// relative to `out_dir` where possible.
+/// relative to `out_dir` where possible, and so is the CSV beside it (else `out_dir`'s).
 pub fn write_report(results: &Results, results_path: &Path, out_dir: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let charts = write_charts_by_model(results, &out_dir.join(CHARTS_DIR))?;
     let lod = super::lod::section(results, out_dir, &out_dir.join(CHARTS_DIR))?;
-    let csv = results_path.with_extension("csv");
+    let csv = Some(results_path.with_extension("csv"))
+        .filter(|c| c.is_file())
+        .unwrap_or_else(|| out_dir.join("results.csv"));
     let links = Links {
         json: relative_link(results_path, out_dir),
         csv: csv.is_file().then(|| relative_link(&csv, out_dir)),
