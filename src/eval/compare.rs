@@ -1,7 +1,9 @@
 //! `surfel bench compare A B`: two timing results (`render --timings` files or `bench`
 //! results.json) side by side. For every configuration in both (or the one of each, when both
 //! hold one) and every pass, the ratio of B's median to A's with its bootstrap 95 % interval;
-//! an interval that excludes 1 is a difference beyond noise.
+//! an interval that excludes 1 is a difference beyond noise. Configurations timed along a
+//! camera path in both files are compared frame by frame (`stats::paired_ratio_ci`): frame i
+//! shows the same view in both, and the view moves the time more than noise does.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -9,7 +11,7 @@ use std::path::Path;
 use anyhow::{bail, Context as _, Result};
 
 use super::results::Results;
-use super::stats::{ratio_ci, Estimate};
+use super::stats::{paired_ratio_ci, ratio_ci, Estimate};
 use super::timing::Study;
 
 /// One configuration's raw samples: per pass, then `frame`.
@@ -17,6 +19,9 @@ use super::timing::Study;
 pub struct Measured {
     pub key: String,
     pub passes: Vec<(String, Vec<f64>)>,
+    /// The path time of each sample, for configurations timed along a camera path (empty
+    /// otherwise).
+    pub path_times: Vec<f64>,
 }
 
 /// The configurations of a timing results file.
@@ -54,10 +59,15 @@ pub fn load(path: &Path) -> Result<Vec<Measured>> {
                         r.lights
                     ),
                     passes,
+                    path_times: r.path_times.clone(),
                 }
             })
             .collect());
     }
+    let path_times = value
+        .get("path_times")
+        .and_then(|t| serde_json::from_value::<Vec<f64>>(t.clone()).ok())
+        .unwrap_or_default();
     let study: Study = serde_json::from_value(value).with_context(|| {
         format!(
             "{}: neither a `render --timings` file nor a bench results.json",
@@ -76,6 +86,7 @@ pub fn load(path: &Path) -> Result<Vec<Measured>> {
             study.meta.method, study.meta.width, study.meta.height, study.meta.points
         ),
         passes,
+        path_times,
     }])
 }
 
@@ -86,8 +97,11 @@ pub struct Row {
     pub pass: String,
     pub a_ms: f64,
     pub b_ms: f64,
-    /// B's median over A's, with its interval.
+    /// B's median over A's, with its interval; for paired samples the median of the
+    /// per-frame ratios.
     pub ratio: Estimate,
+    /// Compared frame by frame (both timed along the same camera path).
+    pub paired: bool,
 }
 
 impl Row {
@@ -111,11 +125,17 @@ pub fn compare(a: &[Measured], b: &[Measured]) -> Result<Vec<Row>> {
     }
     let mut rows = Vec::new();
     for (x, y) in pairs {
+        let paired = !x.path_times.is_empty() && x.path_times == y.path_times;
         for (pass, sa) in &x.passes {
             let Some((_, sb)) = y.passes.iter().find(|(p, _)| p == pass) else {
                 continue;
             };
-            let Some(ratio) = ratio_ci(sa, sb) else {
+            let ratio = if paired {
+                paired_ratio_ci(sa, sb)
+            } else {
+                ratio_ci(sa, sb)
+            };
+            let Some(ratio) = ratio else {
                 continue;
             };
             rows.push(Row {
@@ -124,6 +144,7 @@ pub fn compare(a: &[Measured], b: &[Measured]) -> Result<Vec<Row>> {
                 a_ms: super::stats::median(sa),
                 b_ms: super::stats::median(sb),
                 ratio,
+                paired,
             });
         }
     }
@@ -133,14 +154,16 @@ pub fn compare(a: &[Measured], b: &[Measured]) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
-/// The rows as a text table; `*` marks a difference beyond noise.
+/// The rows as a text table; `*` marks a difference beyond noise, `paired` a comparison frame
+/// by frame.
 pub fn table(rows: &[Row]) -> String {
-    let mut out =
-        String::from("configuration | pass | A ms | B ms | B/A [95 % CI] | beyond noise\n");
+    let mut out = String::from(
+        "configuration | pass | A ms | B ms | B/A [95 % CI] | beyond noise | samples\n",
+    );
     for r in rows {
         writeln!(
             out,
-            "{} | {} | {:.3} | {:.3} | {:.3} [{:.3}, {:.3}] | {}",
+            "{} | {} | {:.3} | {:.3} | {:.3} [{:.3}, {:.3}] | {} | {}",
             r.key,
             r.pass,
             r.a_ms,
@@ -148,7 +171,8 @@ pub fn table(rows: &[Row]) -> String {
             r.ratio.value,
             r.ratio.low,
             r.ratio.high,
-            if r.differs() { "*" } else { "" }
+            if r.differs() { "*" } else { "" },
+            if r.paired { "paired" } else { "independent" }
         )
         .expect("writing to a String");
     }
@@ -163,6 +187,7 @@ mod tests {
         Measured {
             key: key.into(),
             passes: vec![("frame".into(), frame)],
+            path_times: Vec::new(),
         }
     }
 
@@ -184,5 +209,20 @@ mod tests {
         assert!(same.iter().all(|r| !r.differs() && r.ratio.value == 1.0));
         assert!(table(&same).lines().count() == 3);
         assert!(compare(&a, &[measured("q", vec![1.0]), measured("r", vec![1.0])]).is_err());
+    }
+
+    #[test]
+    fn configurations_along_the_same_path_compare_frame_by_frame() {
+        let along = |frame: Vec<f64>| Measured {
+            path_times: (0..frame.len()).map(|i| i as f64).collect(),
+            ..measured("p", frame)
+        };
+        let a: Vec<f64> = (0..20).map(|i| 5.0 + f64::from(i) * 2.0).collect();
+        let b: Vec<f64> = a.iter().map(|x| x * 1.04).collect();
+        let rows = compare(&[along(a.clone())], &[along(b.clone())]).expect("rows");
+        assert!(rows[0].paired && rows[0].differs(), "{rows:?}");
+        assert!(table(&rows).contains("| * | paired"));
+        let rows = compare(&[measured("p", a)], &[measured("p", b)]).expect("rows");
+        assert!(!rows[0].paired && !rows[0].differs(), "{rows:?}");
     }
 }
