@@ -7,7 +7,8 @@
 # (b) `surfel bench --report` of one method per family on the dragon sampled to 5 M points at
 #     1024x1024, scored against the `mesh` ground truth with per-pass GPU times (the bench
 #     also runs every method on the dragon mesh's own vertices: its baseline, which holds the
-#     `mesh` record).
+#     `mesh` record), still at the default pose and along the camera path
+#     benches/paths/orbit-zoom.toml (every frame timed; its chart and table in the report).
 # Order: the 10 M runs, the bench, then the 100 M runs (minutes of sampling and loading), so a
 # slow machine loses the largest cloud first. Every step runs under the time budget; a step
 # that would start after it is skipped, one still running at its end is stopped, and both are
@@ -35,6 +36,7 @@
 #   GPU_STUDY_BENCH_POINTS  5000000 | 20000                         (b): cloud size
 #   GPU_STUDY_BENCH_SIZE    1024x1024 | 128x128                     (b): image size
 #   GPU_STUDY_BENCH_FRAMES  "10 50" | "1 3"                         (b): warm-up and timed frames
+#   GPU_STUDY_PATH_FRAMES   60 | 4                                  (b): frames along the path
 #   GPU_STUDY_BENCH_METHODS points compute compute-hq perspective-deferred affine-flat ewa
 #                           pyramid kernel5 hpr lod-compute lod-mesh mesh
 #   GPU_STUDY_BUDGET_S      450 | 300                               seconds for all steps
@@ -55,6 +57,7 @@ if [[ $dry == 1 ]]; then
   bench_points=${GPU_STUDY_BENCH_POINTS:-20000}
   bench_size=${GPU_STUDY_BENCH_SIZE:-128x128}
   bench_frames=${GPU_STUDY_BENCH_FRAMES:-1 3}
+  path_frames=${GPU_STUDY_PATH_FRAMES:-4}
   budget=${GPU_STUDY_BUDGET_S:-300}
   validation=(--validation)
   mode="; dry run, validation layers on"
@@ -67,6 +70,7 @@ else
   bench_points=${GPU_STUDY_BENCH_POINTS:-5000000}
   bench_size=${GPU_STUDY_BENCH_SIZE:-1024x1024}
   bench_frames=${GPU_STUDY_BENCH_FRAMES:-10 50}
+  path_frames=${GPU_STUDY_PATH_FRAMES:-60}
   budget=${GPU_STUDY_BUDGET_S:-450}
   validation=()
   mode=""
@@ -182,7 +186,12 @@ study_bench() {
     echo
     echo "[[poses]]"
     echo "name = \"default\""
+    echo
+    echo "[[poses]]"
+    echo "name = \"flight\""
+    echo "path = \"flight.toml\""
   } >"$sweep"
+  sed "s/^frames = .*/frames = $path_frames/" benches/paths/orbit-zoom.toml >"$out/bench/flight.toml"
   step "bench $bench_points" "$out/surfel.txt" 1 "$bin" bench "$sweep" --out "$out/bench" \
     --report "${validation[@]}" || true
 }

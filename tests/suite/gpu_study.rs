@@ -132,7 +132,24 @@ fn dry_run_writes_timings_anchor_note_and_bench_report() {
         let psnr = sampled.scores.psnr.expect("PSNR");
         assert!(psnr.is_finite() && psnr > 0.0, "{family}: PSNR {psnr}");
     }
-    assert!(read(&bench.join("report.md")).contains("## Model `dragon`"));
+    let report = read(&bench.join("report.md"));
+    assert!(report.contains("## Model `dragon`"));
+    // Every family also timed along the camera path, one sample per path frame.
+    assert!(report.contains("### Along camera paths"), "{report}");
+    let flights: Vec<_> = results
+        .records
+        .iter()
+        .filter(|r| r.pose == "flight")
+        .collect();
+    assert!(!flights.is_empty());
+    for r in flights {
+        assert_eq!(
+            (r.path_times.len(), r.frame_samples_ms.len()),
+            (4, 4),
+            "{}",
+            r.label()
+        );
+    }
     assert!(bench.join("sweep.toml").is_file() && bench.join("results.csv").is_file());
     let charts = std::fs::read_dir(bench.join("charts"))
         .expect("charts")
