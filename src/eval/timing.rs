@@ -303,11 +303,19 @@ pub fn write(path: &Path, text: &str) -> Result<()> {
 /// The Chrome trace-event JSON of `series` for `label`: per frame one GPU slice per pass (a
 /// pass starts where the previous one ended: the profiler's scopes follow each other), placed
 /// at the frame's start on the device clock, and the host's `record` and `submit` slices.
-/// The two clocks are not calibrated against each other; each track starts at 0.
+/// Where the device calibrates its clock against the host's (`gpu_to_host_ms`), both tracks
+/// share one time line, starting at the first event, and `otherData.clocks` says
+/// `calibrated`; elsewhere each track starts at 0 and it says `separate`.
 pub fn trace(label: &str, series: &TimingSeries) -> serde_json::Value {
     let us = |ms: f64| ms * 1e3;
-    let gpu0 = series.gpu.starts.first().copied().unwrap_or(0.0);
-    let cpu0 = series.cpu_starts.first().copied().unwrap_or(0.0);
+    let first = |v: &[f64]| v.first().copied().unwrap_or(0.0);
+    let (gpu0, cpu0) = match series.gpu_to_host_ms {
+        Some(offset) => {
+            let t0 = first(&series.cpu_starts).min(first(&series.gpu.starts) + offset);
+            (t0 - offset, t0)
+        }
+        None => (first(&series.gpu.starts), first(&series.cpu_starts)),
+    };
     let mut events = vec![
         serde_json::json!({"name": "process_name", "ph": "M", "pid": 1,
             "args": {"name": format!("surfel {label}")}}),
@@ -342,7 +350,13 @@ pub fn trace(label: &str, series: &TimingSeries) -> serde_json::Value {
             );
         }
     }
-    serde_json::json!({"traceEvents": events, "displayTimeUnit": "ms"})
+    let clocks = if series.gpu_to_host_ms.is_some() {
+        "calibrated"
+    } else {
+        "separate"
+    };
+    serde_json::json!({"traceEvents": events, "displayTimeUnit": "ms",
+        "otherData": {"clocks": clocks}})
 }
 
 #[cfg(test)]
@@ -364,6 +378,7 @@ mod tests {
             cpu_starts: vec![5.0, 15.0, 25.0],
             cpu_record: vec![0.1, 0.1, 0.1],
             cpu_submit: vec![0.2, 0.2, 0.2],
+            gpu_to_host_ms: None,
         }
     }
 
@@ -413,6 +428,19 @@ mod tests {
         assert_eq!(slices[2]["ts"], 10_000.0);
         assert_eq!(slices[3]["ts"], 12_000.0);
         assert_eq!(slices[3]["dur"], 500.0);
+        assert_eq!(t["otherData"]["clocks"], "separate");
+        // Calibrated: the GPU's 100 ms is the host's 6 ms, 1 ms after the first record.
+        let calibrated = trace(
+            "points",
+            &TimingSeries {
+                gpu_to_host_ms: Some(-94.0),
+                ..series()
+            },
+        );
+        let events = calibrated["traceEvents"].as_array().expect("events");
+        let first = |cat: &str| events.iter().find(|e| e["cat"] == cat).expect(cat)["ts"].clone();
+        assert_eq!((first("cpu"), first("gpu")), (0.0.into(), 1_000.0.into()));
+        assert_eq!(calibrated["otherData"]["clocks"], "calibrated");
         let plan = FramePlan {
             warmup: 0,
             frames: 0,

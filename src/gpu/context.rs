@@ -159,6 +159,18 @@ pub struct DebugCounters {
     pub first_errors: Mutex<Vec<String>>,
 }
 
+/// The host's monotonic clock (`CLOCK_MONOTONIC`, the calibration's host domain), in
+/// milliseconds.
+pub fn monotonic_ms() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec to write; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut t) };
+    t.tv_sec as f64 * 1e3 + t.tv_nsec as f64 / 1e6
+}
+
 /// The Vulkan context: everything a frame needs that lives as long as the program.
 pub struct Context {
     pub entry: ash::Entry,
@@ -173,6 +185,9 @@ pub struct Context {
     pub debug_utils: Option<ext::debug_utils::Device>,
     pub mesh_shader: Option<ext::mesh_shader::Device>,
     pub swapchain_ext: Option<khr::swapchain::Device>,
+    /// Reads the device's timestamp clock and the host's monotonic clock together, where the
+    /// device can (`VK_EXT_calibrated_timestamps` with both domains; see [`Context::calibrate`]).
+    pub calibrated_timestamps: Option<ext::calibrated_timestamps::Device>,
     /// Used by every pipeline creation; saved to `pipeline_cache_path` on drop.
     pub pipeline_cache: vk::PipelineCache,
     pipeline_cache_path: Option<PathBuf>,
@@ -295,6 +310,17 @@ impl Context {
         let has_mesh = has_extension(&device_exts, ext::mesh_shader::NAME);
         let has_swapchain = !options.surface_extensions.is_empty()
             && has_extension(&device_exts, khr::swapchain::NAME);
+        let has_calibration = has_extension(&device_exts, ext::calibrated_timestamps::NAME) && {
+            let domains = ext::calibrated_timestamps::Instance::new(&entry, &instance)
+                .get_physical_device_calibrateable_time_domains(physical_device)
+                .unwrap_or_default();
+            [
+                vk::TimeDomainEXT::DEVICE,
+                vk::TimeDomainEXT::CLOCK_MONOTONIC,
+            ]
+            .iter()
+            .all(|d| domains.contains(d))
+        };
 
         // Query what is supported, then enable what we use.
         let mut mesh_q = vk::PhysicalDeviceMeshShaderFeaturesEXT::default();
@@ -358,6 +384,9 @@ impl Context {
         if has_swapchain {
             dev_exts.push(khr::swapchain::NAME.as_ptr());
         }
+        if has_calibration {
+            dev_exts.push(ext::calibrated_timestamps::NAME.as_ptr());
+        }
         let priorities = [1.0f32];
         let queue_info = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
@@ -416,6 +445,8 @@ impl Context {
             mesh_shader: (has_mesh && mesh_q.mesh_shader != 0)
                 .then(|| ext::mesh_shader::Device::new(&instance, &device)),
             swapchain_ext: has_swapchain.then(|| khr::swapchain::Device::new(&instance, &device)),
+            calibrated_timestamps: has_calibration
+                .then(|| ext::calibrated_timestamps::Device::new(&instance, &device)),
             pipeline_cache,
             pipeline_cache_path,
             entry,
@@ -515,6 +546,22 @@ impl Context {
 
     /// Names `object` in captures and validation messages (RenderDoc, Nsight) when debug
     /// utils exist; a name with a NUL byte is cut there.
+    /// The device's timestamp clock and the host's monotonic clock ([`monotonic_ms`]) read at
+    /// one moment, both in milliseconds (the device's as the profiler converts its ticks);
+    /// `None` where the device cannot calibrate them.
+    pub fn calibrate(&self) -> Option<(f64, f64)> {
+        let loader = self.calibrated_timestamps.as_ref()?;
+        let info = [
+            vk::CalibratedTimestampInfoEXT::default().time_domain(vk::TimeDomainEXT::DEVICE),
+            vk::CalibratedTimestampInfoEXT::default()
+                .time_domain(vk::TimeDomainEXT::CLOCK_MONOTONIC),
+        ];
+        // SAFETY: both domains were reported calibrateable when the extension was enabled.
+        let (stamps, _) = unsafe { loader.get_calibrated_timestamps(&info) }.ok()?;
+        let period = f64::from(self.caps.timestamp_period);
+        Some((stamps[0] as f64 * period / 1.0e6, stamps[1] as f64 / 1.0e6))
+    }
+
     pub fn name_object<H: vk::Handle>(&self, object: H, name: &str) {
         let Some(du) = &self.debug_utils else {
             return;

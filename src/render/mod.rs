@@ -170,6 +170,8 @@ pub struct Renderer {
 /// since the renderer was built) and how long recording and submission took.
 struct CpuTimes {
     epoch: Instant,
+    /// `epoch` on the host's monotonic clock (`gpu::context::monotonic_ms`), for calibration.
+    epoch_monotonic_ms: f64,
     starts: SampleWindow,
     record: SampleWindow,
     submit: SampleWindow,
@@ -186,6 +188,10 @@ pub struct TimingSeries {
     pub cpu_record: Vec<f64>,
     /// Milliseconds the host spent submitting each frame.
     pub cpu_submit: Vec<f64>,
+    /// Milliseconds to add to a GPU time (`gpu.starts`) to place it on the host's clock of
+    /// `cpu_starts`, where the device calibrates its timestamps against the host's
+    /// (`Context::calibrate`); `None` elsewhere.
+    pub gpu_to_host_ms: Option<f64>,
 }
 
 impl Renderer {
@@ -365,6 +371,7 @@ impl Renderer {
             filter: None,
             cpu: CpuTimes {
                 epoch: Instant::now(),
+                epoch_monotonic_ms: crate::gpu::context::monotonic_ms(),
                 starts: SampleWindow::default(),
                 record: SampleWindow::default(),
                 submit: SampleWindow::default(),
@@ -620,6 +627,10 @@ impl Renderer {
             cpu_starts: self.cpu.starts.ordered(),
             cpu_record: self.cpu.record.ordered(),
             cpu_submit: self.cpu.submit.ordered(),
+            gpu_to_host_ms: self
+                .ctx
+                .calibrate()
+                .map(|(device, host)| host - self.cpu.epoch_monotonic_ms - device),
         }
     }
 

@@ -1584,6 +1584,32 @@ fn timings_keep_every_sample_with_intervals_a_csv_a_trace_and_compare_finds_the_
         .filter(|e| e["cat"] == "gpu" && e["ph"] == "X");
     assert_eq!(gpu.count(), 30 * 3);
     assert_eq!(events.iter().filter(|e| e["name"] == "record").count(), 30);
+    // lavapipe calibrates its timestamps against the host's clock: on the shared time line
+    // each frame's GPU work starts after its submission began and ends before the host
+    // records the next frame (a timed `render` frame waits for the one before).
+    assert_eq!(trace["otherData"]["clocks"], "calibrated");
+    let at = |cat: &str, name: Option<&str>, f: u64| {
+        events
+            .iter()
+            .filter(|e| e["cat"] == cat && e["ph"] == "X" && e["args"]["frame"] == f)
+            .filter(|e| name.is_none_or(|n| e["name"] == n))
+            .map(|e| {
+                let ts = e["ts"].as_f64().expect("ts");
+                (ts, ts + e["dur"].as_f64().expect("dur"))
+            })
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (s, t)| {
+                (a.min(s), b.max(t))
+            })
+    };
+    for f in 0..29 {
+        let (gpu_start, gpu_end) = at("gpu", None, f);
+        let (submit, _) = at("cpu", Some("submit"), f);
+        let (next_record, _) = at("cpu", Some("record"), f + 1);
+        assert!(
+            submit <= gpu_start && gpu_end <= next_record,
+            "frame {f}: submit {submit} µs, GPU {gpu_start}-{gpu_end} µs, next record {next_record} µs"
+        );
+    }
     // A file against itself differs nowhere; 16 lights against 1 slow the per-pixel lighting.
     let compare = |a: &str, b: &str| {
         let o = surfel(&[
