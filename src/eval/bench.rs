@@ -21,6 +21,7 @@ use super::config::{BenchConfig, Job, PoseSpec, StressKind};
 use super::metrics;
 use super::results::{PassTiming, Record, Results, Skipped, REFERENCE_METHOD};
 use super::stress;
+use super::timing::Invocations;
 use super::Frame;
 use crate::gpu::Context;
 use crate::gpu_scene::{upload, GpuScene, SceneInfo, UploadOptions};
@@ -163,6 +164,8 @@ struct Timed {
     frame_ms: (f64, f64),
     /// Every measured frame's GPU milliseconds.
     frame_samples: Vec<f64>,
+    /// Each pass's median shader invocations (with `pipeline_stats`).
+    invocations: Vec<Invocations>,
     frames: Vec<Frame>,
     /// The first (scored) view's samples per level, for methods that count them
     /// (`Renderer::samples_per_level`).
@@ -191,6 +194,7 @@ fn run_method(
         RendererOptions {
             readback: true,
             present: None,
+            pipeline_statistics: job.frames.pipeline_stats,
             ..RendererOptions::default()
         },
     )?;
@@ -215,6 +219,7 @@ fn run_method(
     }
     let (scopes, frame) = r.timings();
     let series = r.timing_series();
+    let invocations = Invocations::of(&series);
     let mut projected_per_level = None;
     let mut frames = Vec::with_capacity(views.len());
     for (i, v) in views.iter().enumerate() {
@@ -236,6 +241,7 @@ fn run_method(
             .collect(),
         frame_ms: (frame.median_ms, frame.iqr_ms),
         frame_samples: series.gpu.frame,
+        invocations,
         frames,
         projected_per_level,
     })
@@ -437,6 +443,7 @@ pub fn run(
                     frames: super::config::FrameCounts {
                         warmup: 0,
                         measured: 1,
+                        pipeline_stats: false,
                     },
                     ..job.clone()
                 };
@@ -476,6 +483,7 @@ pub fn run(
             frame_ms_iqr: timed.frame_ms.1,
             frame_samples_ms: timed.frame_samples.clone(),
             path_times,
+            invocations: timed.invocations.clone(),
             points_per_second: if frame_ms > 0.0 {
                 f64::from(scene.info.points) / (frame_ms / 1000.0)
             } else {

@@ -7,6 +7,7 @@
 //! [frames]
 //! warmup = 5                              # frames rendered before timing
 //! measured = 20                           # frames timed (>= 1)
+//! pipeline_stats = false                  # also count shader invocations per pass
 //!
 //! [[models]]
 //! path = "data/bunny.obj"                 # relative to the sweep file's directory
@@ -367,6 +368,10 @@ pub struct FrameCounts {
     pub warmup: u32,
     /// Frames timed (at least 1); medians and spreads are over these.
     pub measured: u32,
+    /// Also count each pass's shader invocations (pipeline statistics queries, which may
+    /// perturb the times beside them; the device needs `pipelineStatisticsQuery`).
+    #[serde(default)]
+    pub pipeline_stats: bool,
 }
 
 impl Default for FrameCounts {
@@ -374,6 +379,7 @@ impl Default for FrameCounts {
         FrameCounts {
             warmup: 5,
             measured: 20,
+            pipeline_stats: false,
         }
     }
 }
@@ -975,7 +981,8 @@ values = [1.0, 0.1]
             c.frames,
             FrameCounts {
                 warmup: 2,
-                measured: 5
+                measured: 5,
+                pipeline_stats: false,
             }
         );
         assert_eq!(c.poses[0].pose, PoseSpec::Default);

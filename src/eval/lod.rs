@@ -459,6 +459,7 @@ mod tests {
             frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
             path_times: Vec::new(),
+            invocations: Vec::new(),
             points_per_second: 0.0,
             projected_points: Some(1000),
             projected_per_level: Vec::new(),

@@ -513,6 +513,7 @@ mod tests {
             frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
             path_times: Vec::new(),
+            invocations: Vec::new(),
             points_per_second: 1e6,
             projected_points: None,
             projected_per_level: Vec::new(),
@@ -529,7 +530,6 @@ mod tests {
             params: BTreeMap::new(),
             lights: 4,
             frame_samples_ms: samples.clone(),
-            path_times: Vec::new(),
             frame_ms_median: crate::eval::stats::median(&samples),
             ..base.clone()
         };
@@ -595,6 +595,7 @@ mod tests {
             frame_ms_iqr: 0.0,
             frame_samples_ms: Vec::new(),
             path_times: Vec::new(),
+            invocations: Vec::new(),
             points_per_second: 0.0,
             projected_points: None,
             projected_per_level: Vec::new(),

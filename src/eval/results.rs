@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::config::StressKind;
 use super::metrics::{Scores, BREAK_HOLE_RATIO};
 use super::stats::{median_ci, Estimate};
+use super::timing::Invocations;
 
 /// Extracts one metric from a record (`None` when it was not computed).
 pub type MetricFn = fn(&Record) -> Option<f64>;
@@ -76,6 +77,9 @@ pub struct Record {
     /// `path_times[i]`); empty for fixed poses.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub path_times: Vec<f64>,
+    /// With the sweep's `pipeline_stats`: each pass's median shader invocations per frame.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub invocations: Vec<Invocations>,
     /// `points / (frame_ms_median / 1000)`.
     pub points_per_second: f64,
     /// Points projected in the scored frame: for level-of-detail methods the sum of
@@ -183,7 +187,8 @@ impl Results {
     /// record counted, then the scores, then one
     /// `param.KEY` column per parameter key seen in any record (sorted), then
     /// `pass.NAME.median_ms` and `pass.NAME.iqr_ms` per pass name in order of first
-    /// appearance. Missing values are empty cells.
+    /// appearance, with `pass.NAME.vertex_invocations`, `.fragment_invocations` and
+    /// `.compute_invocations` when any record counted them. Missing values are empty cells.
     pub fn to_csv(&self) -> String {
         let param_keys: BTreeSet<&str> = self
             .records
@@ -203,6 +208,7 @@ impl Results {
                 pass_names.push(&p.name);
             }
         }
+        let has_invocations = self.records.iter().any(|r| !r.invocations.is_empty());
         let mut header: Vec<String> = [
             "model",
             "points",
@@ -239,6 +245,11 @@ impl Results {
         for name in &pass_names {
             header.push(format!("pass.{name}.median_ms"));
             header.push(format!("pass.{name}.iqr_ms"));
+            if has_invocations {
+                for stage in ["vertex", "fragment", "compute"] {
+                    header.push(format!("pass.{name}.{stage}_invocations"));
+                }
+            }
         }
         let mut out = String::new();
         write_row(&mut out, &header);
@@ -287,6 +298,12 @@ impl Results {
                 let pass = r.passes.iter().find(|p| p.name == *name);
                 row.push(opt(pass.map(|p| p.median_ms)));
                 row.push(opt(pass.map(|p| p.iqr_ms)));
+                if has_invocations {
+                    let counted = r.invocations.iter().find(|i| i.name == *name);
+                    row.push(opt(counted.map(|i| i.vertex)));
+                    row.push(opt(counted.map(|i| i.fragment)));
+                    row.push(opt(counted.map(|i| i.compute)));
+                }
             }
             write_row(&mut out, &row);
         }
@@ -427,6 +444,7 @@ mod tests {
             frame_ms_iqr: 0.2,
             frame_samples_ms: Vec::new(),
             path_times: Vec::new(),
+            invocations: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
             projected_points: None,
             projected_per_level: Vec::new(),

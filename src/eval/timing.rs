@@ -201,6 +201,25 @@ pub struct Invocations {
     pub compute: f64,
 }
 
+impl Invocations {
+    /// Each pass's median invocations over the measured frames (empty without pipeline
+    /// statistics).
+    pub fn of(series: &TimingSeries) -> Vec<Self> {
+        series
+            .gpu
+            .scopes
+            .iter()
+            .zip(&series.gpu.invocations)
+            .map(|((name, _), [vertex, fragment, compute])| Invocations {
+                name: name.clone(),
+                vertex: super::stats::median(vertex),
+                fragment: super::stats::median(fragment),
+                compute: super::stats::median(compute),
+            })
+            .collect()
+    }
+}
+
 impl Study {
     pub fn new(meta: RunMeta, plan: FramePlan, series: &TimingSeries) -> Self {
         Self {
@@ -215,18 +234,7 @@ impl Study {
             frame: PassSummary::of("frame", &series.gpu.frame),
             cpu_record: PassSummary::of("record", &series.cpu_record),
             cpu_submit: PassSummary::of("submit", &series.cpu_submit),
-            invocations: series
-                .gpu
-                .scopes
-                .iter()
-                .zip(&series.gpu.invocations)
-                .map(|((name, _), [vertex, fragment, compute])| Invocations {
-                    name: name.clone(),
-                    vertex: super::stats::median(vertex),
-                    fragment: super::stats::median(fragment),
-                    compute: super::stats::median(compute),
-                })
-                .collect(),
+            invocations: Invocations::of(series),
         }
     }
 

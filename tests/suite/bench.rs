@@ -230,3 +230,70 @@ fn a_path_pose_is_timed_at_every_frame_and_scored_at_its_first_key() {
     assert!(text.contains("charts/bunny_path_flight.png"));
     std::fs::remove_dir_all(&out).ok();
 }
+
+#[test]
+fn a_sweep_with_pipeline_stats_counts_each_passes_invocations() {
+    let ctx = common::context();
+    let out = std::env::temp_dir().join(format!("surfel-bench-stats-{}", std::process::id()));
+    let sweep = r#"
+        resolutions = ["64x64"]
+        lights = [1]
+        [frames]
+        warmup = 0
+        measured = 2
+        pipeline_stats = true
+        [[models]]
+        name = "bunny"
+        path = "../../../shared/data/stanford/bun_zipper.ply"
+        [[methods]]
+        name = "points"
+    "#;
+    let origin = SweepOrigin::File(quick_sweep_dir().join("stats-test.toml"));
+    let config = BenchConfig::parse_from(sweep, origin).expect("sweep");
+    let run = bench::run(&ctx, &config, &out, false).expect("sweep");
+    common::assert_clean(&ctx);
+    let points = run
+        .results
+        .records
+        .iter()
+        .find(|r| r.method == "points")
+        .expect("points record");
+    // One vertex invocation per point, as `render --pipeline-stats` counts.
+    let project = points
+        .invocations
+        .iter()
+        .find(|i| i.name == "points.project")
+        .unwrap_or_else(|| panic!("{:?}", points.invocations));
+    assert_eq!(project.vertex, points.points as f64);
+    assert!(project.fragment > 0.0);
+    // The ground truth is rendered without the queries.
+    let mesh = run.results.records.iter().find(|r| r.method == "mesh");
+    assert!(mesh.is_none_or(|m| m.invocations.is_empty()));
+    let csv = std::fs::read_to_string(&run.csv).expect("csv");
+    // Fields split at commas outside quotes (the device name has one).
+    let fields = |line: &str| {
+        let mut out = vec![String::new()];
+        let mut quoted = false;
+        for c in line.chars() {
+            match c {
+                '"' => quoted = !quoted,
+                ',' if !quoted => out.push(String::new()),
+                c => out.last_mut().expect("field").push(c),
+            }
+        }
+        out
+    };
+    let header = fields(csv.lines().next().expect("header"));
+    let row = fields(
+        csv.lines()
+            .skip(1)
+            .find(|l| l.contains(",points,"))
+            .expect("points row"),
+    );
+    let at = header
+        .iter()
+        .position(|c| *c == "pass.points.project.vertex_invocations")
+        .expect("invocation column");
+    assert_eq!(row[at], points.points.to_string());
+    std::fs::remove_dir_all(&out).ok();
+}

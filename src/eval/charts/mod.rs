@@ -434,6 +434,7 @@ mod tests {
             frame_ms_iqr: 0.1,
             frame_samples_ms: Vec::new(),
             path_times: Vec::new(),
+            invocations: Vec::new(),
             points_per_second: 1000.0 / (ms / 1000.0),
             projected_points: None,
             projected_per_level: Vec::new(),
