@@ -183,7 +183,14 @@ fn run_method(
     views: &[View],
     path: &[View],
 ) -> Result<Timed> {
+    // A fixed pose repeats the first view; a path shows each of its views once.
     let timed_views = if path.is_empty() { &views[..1] } else { path };
+    let measured = if path.is_empty() {
+        job.frames.measured.max(1) as usize
+    } else {
+        path.len()
+    };
+    let view = |i: usize| &timed_views[i.min(timed_views.len() - 1)];
     let mut r = Renderer::new(
         ctx,
         &scene.gpu,
@@ -205,17 +212,12 @@ fn run_method(
             && job.frames.warmup > 0
             && start.elapsed().as_secs_f64() < WARMUP_MIN_SECONDS)
     {
-        r.render(&timed_views[0], false)?;
+        r.render(view(0), false)?;
         warmed += 1;
     }
     r.clear_timings();
-    let measured = if path.is_empty() {
-        job.frames.measured.max(1) as usize
-    } else {
-        path.len()
-    };
     for i in 0..measured {
-        r.render(&timed_views[i % timed_views.len()], false)?;
+        r.render(view(i), false)?;
     }
     let (scopes, frame) = r.timings();
     let series = r.timing_series();

@@ -89,13 +89,18 @@ fn renders_the_dragon_with_per_pass_gpu_timings() {
 
 /// Renders the bunny at 48x48 with `extra` arguments; returns the PNG and the output.
 fn render_bunny(name: &str, extra: &[&str]) -> (image::RgbaImage, Output) {
-    let png = tmp(name);
+    render_bunny_to(&tmp(name), "48x48", extra)
+}
+
+/// Renders the bunny at `size` with `extra` arguments to `png`, validation on; returns the
+/// PNG and the output.
+fn render_bunny_to(png: &Path, size: &str, extra: &[&str]) -> (image::RgbaImage, Output) {
     let bunny = data("stanford/bun_zipper.ply");
     let mut args = vec![
         "render",
         bunny.to_str().expect("utf8"),
         "--size",
-        "48x48",
+        size,
         "--validation",
         "--out",
         png.to_str().expect("utf8"),
@@ -103,7 +108,7 @@ fn render_bunny(name: &str, extra: &[&str]) -> (image::RgbaImage, Output) {
     args.extend(extra);
     let o = surfel(&args);
     assert!(o.status.success(), "{}", stderr(&o));
-    (image::open(&png).expect("png").to_rgba8(), o)
+    (image::open(png).expect("png").to_rgba8(), o)
 }
 
 #[test]
@@ -1695,24 +1700,9 @@ fn pipeline_statistics_count_one_vertex_per_point_and_one_compute_thread_per_pix
 fn a_camera_path_starts_and_ends_at_the_orbit_poses_and_times_every_frame() {
     let dir = tmp("camera-path");
     std::fs::create_dir_all(&dir).expect("dir");
-    let bunny = data("stanford/bun_zipper.ply");
     let render = |out: &str, extra: &[&str]| {
-        let png = dir.join(out);
-        let mut args = vec![
-            "render",
-            bunny.to_str().expect("utf8"),
-            "--method",
-            "points",
-            "--size",
-            "64x64",
-            "--validation",
-            "--out",
-            png.to_str().expect("utf8"),
-        ];
-        args.extend(extra);
-        let o = surfel(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        image::open(&png).expect("png").to_rgba8()
+        let args = [&["--method", "points"], extra].concat();
+        render_bunny_to(&dir.join(out), "64x64", &args).0
     };
     let (a, b) = (
         "{ orbit = [0.0, 15.0] }",
